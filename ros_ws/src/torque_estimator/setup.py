@@ -1,0 +1,32 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "torque_estimator"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    package_data={package_name: []},
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/config", glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="worm-torque maintainers",
+    maintainer_email="maintainers@worm-torque.invalid",
+    description="Sensorless load-torque estimation for worm gearboxes: calibration, k-NN estimator node, and a velocity controller node with torque feedforward.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "estimator_node = torque_estimator.estimator_node:main",
+            "controller_node = torque_estimator.controller_node:main",
+            "calibrate = torque_estimator.calibrate:main",
+            "run_graph = torque_estimator.run_graph:main",
+            "demo = torque_estimator.demo:main",
+        ],
+    },
+)

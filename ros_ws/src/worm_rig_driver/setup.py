@@ -1,0 +1,29 @@
+from glob import glob
+
+from setuptools import find_packages, setup
+
+package_name = "worm_rig_driver"
+
+setup(
+    name=package_name,
+    version="0.1.0",
+    packages=find_packages(exclude=["test"]),
+    package_data={package_name: []},
+    data_files=[
+        ("share/ament_index/resource_index/packages", ["resource/" + package_name]),
+        ("share/" + package_name, ["package.xml"]),
+        ("share/" + package_name + "/config", glob("config/*.yaml")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=True,
+    maintainer="worm-torque maintainers",
+    maintainer_email="maintainers@worm-torque.invalid",
+    description="The worm-gear rig: sim_node (simulated rig) publishing currents, velocities, encoder counts and synchronized samples, and the bag recorder.",
+    license="Apache-2.0",
+    entry_points={
+        "console_scripts": [
+            "sim_node = worm_rig_driver.sim_node:main",
+            "recorder = worm_rig_driver.recorder_node:main",
+        ],
+    },
+)

@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# make setup: everything from nothing, idempotent, quick when nothing changed.
+#   1. Debian packages the build needs (installed when root, else named).
+#   2. .venv with every Python dependency pinned in requirements.lock.
+#   3. The known fixes the ROS 2 PyPI wheels need (shared/docs/ros2-from-pypi.md).
+#   4. colcon build of ros_ws/ (only when a source file changed since the last build).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$PWD
+PYTHON=${PYTHON:-python3.11}
+command -v "$PYTHON" >/dev/null 2>&1 || PYTHON=python3
+VENV=$ROOT/.venv
+say() { printf 'setup: %s\n' "$*"; }
+
+# --- 1. Debian packages -------------------------------------------------------
+# Each entry: a check that passes when the thing is present, and the package that provides it.
+missing=()
+need() { eval "$1" >/dev/null 2>&1 || missing+=("$2"); }
+need "command -v cmake" cmake
+need "command -v g++" g++
+need "command -v make" make
+need "$PYTHON -c 'import sysconfig,os,sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()[\"include\"], \"Python.h\")))'" python3-dev
+need "$PYTHON -c 'import ensurepip, venv'" python3-venv
+if [ ${#missing[@]} -gt 0 ]; then
+  if [ "$(id -u)" = 0 ]; then
+    say "installing Debian packages: ${missing[*]}"
+    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
+  else
+    echo "setup: missing Debian packages: ${missing[*]}" >&2
+    echo "setup: run as root, or: sudo apt-get install ${missing[*]}" >&2
+    exit 1
+  fi
+fi
+"$PYTHON" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' || {
+  echo "setup: Python 3.11 is required (the ROS 2 Kilted wheels are cp311); found $($PYTHON --version)" >&2; exit 1; }
+
+# --- 2. virtual environment ---------------------------------------------------
+[ -x "$VENV/bin/python" ] || { say "creating .venv"; "$PYTHON" -m venv "$VENV"; }
+req_hash=$(sha256sum requirements.lock | cut -d' ' -f1)
+if [ "$(cat "$VENV/.requirements.sha256" 2>/dev/null)" != "$req_hash" ]; then
+  say "installing pinned Python dependencies (requirements.lock)"
+  "$VENV/bin/python" -m pip install -q --disable-pip-version-check --upgrade pip
+  "$VENV/bin/python" -m pip install -q --disable-pip-version-check -r requirements.lock
+  echo "$req_hash" > "$VENV/.requirements.sha256"
+fi
+
+# --- 3. fixes the ROS 2 wheels need --------------------------------------------
+"$VENV/bin/python" tools/fix_ros_wheels.py --venv "$VENV" >/dev/null
+
+# --- 4. colcon build ----------------------------------------------------------
+stamp=ros_ws/install/.build-stamp
+if [ ! -f "$stamp" ] || [ -n "$(find ros_ws/src -newer "$stamp" -print -quit)" ] \
+   || [ requirements.lock -nt "$stamp" ]; then
+  say "colcon build of ros_ws (log: ros_ws/log/latest_build)"
+  (
+    cd ros_ws
+    # shellcheck disable=SC1091
+    source "$VENV/bin/activate"
+    export AMENT_PREFIX_PATH=$VENV CMAKE_PREFIX_PATH=$VENV
+    unset COLCON_PREFIX_PATH
+    colcon --log-base log build --event-handlers console_cohesion- console_stderr- \
+      --cmake-args -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$VENV/bin/python" >/dev/null \
+      || { echo "setup: colcon build failed; see ros_ws/log/latest_build" >&2; exit 1; }
+  )
+  touch "$stamp"
+fi
+say "ready (source .venv/bin/activate && source ros_ws/install/setup.bash)"
