@@ -1,0 +1,103 @@
+"""Velocity PI controller for the drive motor, with load-torque feedforward.
+
+Designed in the torque domain and turned into an armature voltage through the
+motor's Eq. 29:  V = R*tau_cmd/K_t + K_e*omega_ref.  The commanded motor torque
+    tau_cmd = kp*e + integral(ki*e) + tau_ff
+where tau_ff is the estimated load torque tau_d reflected through the gearbox
+to the worm (Eq. 28 with a_w = 0, worm_model.dynamics.reflected_input_torque).
+Anti-windup by conditional integration: while the voltage is at its limit the
+integrator does not grow further into the limit.
+
+Vectorised: the state holds one controller per rig (shape (n,)), so batch
+calibration runs hundreds of rigs in one call. Plain numpy; no ROS.
+Signs: positive speed/torque/voltage turn the worm in the positive sense; tau_d
+is positive when it opposes positive rotation.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from worm_model.dynamics import reflected_input_torque
+from worm_model.friction import friction_coefficient
+from worm_model.parameters import Rig
+
+
+@dataclass(frozen=True)
+class PiGains:
+    """Gains of the speed loop: kp [N m s/rad], ki [N m/rad]."""
+
+    kp: float
+    ki: float
+
+    def __post_init__(self) -> None:
+        if not (self.kp >= 0 and self.ki >= 0):
+            raise ValueError(f"PI gains must be >= 0, got kp={self.kp}, ki={self.ki}")
+
+
+@dataclass
+class ControlOutput:
+    """One update's result; arrays of shape (n,)."""
+
+    voltage: np.ndarray  # [V] command for the drive motor, within the limit
+    torque_command: np.ndarray  # [N m] motor torque asked for (incl. feedforward)
+    feedforward_torque: np.ndarray  # [N m] reflected load torque added
+    saturated: np.ndarray  # bool: the voltage hit its limit
+
+
+def feedforward_torque(rig: Rig, tau_load, omega_worm) -> np.ndarray:
+    """Input torque at the worm [N m] that balances load tau_load [N m] at speed omega_worm [rad/s].
+
+    Eq. 28 quasi-statically with the friction coefficient of the rig's friction
+    model at that speed; NaN loads give no feedforward (0), never NaN.
+    """
+    tau_load = np.asarray(tau_load, dtype=float)
+    mu = friction_coefficient(rig.friction, rig.gearbox, omega_worm)
+    torque = reflected_input_torque(rig.gearbox, mu, np.nan_to_num(tau_load), omega_worm)
+    return np.where(np.isfinite(tau_load), torque, 0.0)
+
+
+class SpeedController:
+    """PI speed controller of n drive motors (see module docstring)."""
+
+    def __init__(self, rig: Rig, gains: PiGains, voltage_limit: float | None = None, n: int = 1) -> None:
+        self.rig = rig
+        self.gains = gains
+        self.voltage_limit = rig.supply_voltage if voltage_limit is None else float(voltage_limit)
+        if self.voltage_limit <= 0:
+            raise ValueError(f"voltage_limit must be > 0, got {self.voltage_limit}")
+        self.integral = np.zeros(n)
+
+    def reset(self) -> None:
+        """Forget the integrator (e.g. after a watchdog stop)."""
+        self.integral[:] = 0.0
+
+    def update(self, dt: float, omega_ref, omega_measured, tau_ff=0.0) -> ControlOutput:
+        """One control period of dt [s].
+
+        Args:
+            omega_ref: worm speed set-point [rad/s].
+            omega_measured: measured worm speed [rad/s]; a NaN holds the integrator
+                and drops the proportional term for that update.
+            tau_ff: feedforward torque at the worm [N m] (feedforward_torque()), 0 for none.
+        """
+        motor = self.rig.drive_motor
+        omega_ref = np.asarray(omega_ref, dtype=float)
+        error = np.nan_to_num(omega_ref - np.asarray(omega_measured, dtype=float))
+        tau_ff = np.nan_to_num(np.asarray(tau_ff, dtype=float))
+
+        def voltage_for(integral: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            torque = self.gains.kp * error + integral + tau_ff
+            return torque, motor.resistance * torque / motor.torque_constant + motor.back_emf_constant * omega_ref
+
+        candidate = self.integral + self.gains.ki * error * dt
+        _torque, v_candidate = voltage_for(candidate)
+        # Integrate unless that drives the output further into its limit.
+        winding_up = (np.abs(v_candidate) > self.voltage_limit) & (np.sign(error) == np.sign(v_candidate))
+        self.integral = np.where(winding_up, self.integral, candidate)
+        torque, voltage = voltage_for(self.integral)
+        saturated = np.abs(voltage) > self.voltage_limit
+        return ControlOutput(voltage=np.clip(voltage, -self.voltage_limit, self.voltage_limit),
+                             torque_command=torque, feedforward_torque=np.broadcast_to(tau_ff, torque.shape),
+                             saturated=saturated)
