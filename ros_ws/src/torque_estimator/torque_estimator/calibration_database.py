@@ -127,8 +127,13 @@ def _check_column(name: str, kind: str, value: ArrayLike, n_grid: tuple[int, int
 class CalibrationDatabase:
     """The measured steady-state map, one entry per grid point, stored as arrays.
 
-    All per-point arrays have the same length n; arrays are read-only.
-    Construction validates and raises :class:`CalibrationError` naming the field.
+    All per-point arrays have the same length n; arrays are read-only copies.
+    Construction validates: the mean columns must be finite (drop points that
+    did not settle first), ``*_std`` NaN or ≥ 0, ``samples`` integers ≥ 0,
+    ``setpoint_index`` inside the grid, ``created`` parseable ISO-8601.
+
+    Raises:
+        CalibrationError: the message names the field (and the point index).
 
     Attributes:
         omega_worm: mean worm speed over the averaging window [rad/s].

@@ -36,6 +36,12 @@ class PiGains:
             raise ValueError(f"PI gains must be >= 0, got kp={self.kp}, ki={self.ki}")
 
 
+#: Gains for the bundled NMRV030 rig (J ~ 1.4e-5 kg m^2 on the worm): together with the
+#: back-EMF damping K_t*K_e/R ~ 1.6e-3 N m s/rad they put the speed loop near 60 rad/s,
+#: overdamped, well below the 1 kHz sample rate.
+DEFAULT_GAINS = PiGains(kp=2e-3, ki=0.05)
+
+
 @dataclass
 class ControlOutput:
     """One update's result; arrays of shape (n,)."""

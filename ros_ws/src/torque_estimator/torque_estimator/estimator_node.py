@@ -1,0 +1,97 @@
+"""estimator_node: the load torque tau_d for every rig sample, without a torque sensor.
+
+Subscribes /rig/sample (worm_msgs/RigSample), publishes /torque_estimate
+(worm_msgs/TorqueEstimate), sensor-data QoS. The speed and current are
+low-passed (the calibration map is quasi-static, so is its input), then the
+configured estimator (k-NN over the calibration database, paper Eqs 33-34)
+maps (omega, i) to tau_d with an uncertainty and flags. A sample taken while
+the worm accelerates faster than transient_acceleration is flagged TRANSIENT.
+
+A missing or broken calibration file is reported (log + /diagnostics ERROR)
+and the node keeps running without publishing estimates, so the rest of the
+graph (the controller falls back to no feedforward) carries on.
+"""
+from __future__ import annotations
+
+import math
+
+from rclpy.node import Node
+from worm_msgs.msg import RigSample, TorqueEstimate
+
+from worm_model.filters import FilteredDerivative
+from worm_model.nodes.diagnostics import ERROR, OK, WARN, Diagnostics
+from worm_model.nodes.lifecycle import run_node
+from worm_model.nodes.parameters import declare
+from worm_model.nodes.qos import STREAM
+
+from .calibration_database import CalibrationError, load_database
+from .estimator import ESTIMATORS, EstimateFlags, TorqueEstimator, make_estimator
+
+
+class EstimatorNode(Node):
+    def __init__(self) -> None:
+        super().__init__("estimator_node")
+        self.calibration_file = declare(self, "calibration_file", "",
+                                        "Calibration database (JSON written by `calibrate`).")
+        self.method = declare(self, "method", "knn", "Estimator.", choices=tuple(ESTIMATORS))
+        k = declare(self, "k", 4, "Neighbours averaged by the k-NN estimator.", low=1, high=64)
+        weighting = declare(self, "weighting", "inverse_distance", "k-NN weighting of the neighbours.",
+                            choices=("inverse_distance", "uniform"))
+        tau = declare(self, "input_filter", 0.05, "Time constant [s] of the low-pass on speed and current.",
+                      low=0.0, high=5.0)
+        self.transient_acceleration = declare(
+            self, "transient_acceleration", 200.0,
+            "Worm acceleration [rad/s^2] above which an estimate is flagged TRANSIENT.", low=0.0, high=1e6)
+        period = 1.0 / declare(self, "sample_rate", 1000.0, "Rig sample rate [Hz].", low=1.0, high=100000.0)
+
+        self.speed = FilteredDerivative(tau, period)
+        self.current = FilteredDerivative(tau, period)
+        self.estimator: TorqueEstimator | None = None
+        self.problem = ""
+        try:
+            database = load_database(self.calibration_file)
+            self.estimator = make_estimator(self.method, database, k=k, weighting=weighting)
+            self.get_logger().info(f"{self.method} estimator on {len(database)} calibration points "
+                                   f"from {self.calibration_file}")
+        except CalibrationError as err:
+            self.problem = str(err)
+            self.get_logger().error(f"no estimates: {err}")
+
+        self.pub = self.create_publisher(TorqueEstimate, "/torque_estimate", STREAM)
+        self.create_subscription(RigSample, "/rig/sample", self.on_sample, STREAM)
+        self.received = 0
+        self.flag_counts = {flag.name: 0 for flag in EstimateFlags if flag}
+        Diagnostics(self, self.report)
+
+    def on_sample(self, sample: RigSample) -> None:
+        self.received += 1
+        if self.estimator is None:
+            return
+        omega, alpha = self.speed.update(sample.omega_worm)
+        current, _ = self.current.update(sample.current_drive)
+        result = self.estimator.estimate(omega, current)
+        flags = int(result.flags)
+        if not (math.isfinite(sample.omega_worm) and math.isfinite(sample.current_drive)):
+            flags |= EstimateFlags.INVALID_INPUT
+        if abs(alpha) > self.transient_acceleration:
+            flags |= EstimateFlags.TRANSIENT
+        for flag in EstimateFlags(flags):
+            self.flag_counts[flag.name] += 1
+        msg = TorqueEstimate(header=sample.header, seq=sample.seq, torque=float(result.torque),
+                             uncertainty=float(result.uncertainty), method=self.method,
+                             omega_worm=float(omega), current_drive=float(current), flags=flags)
+        self.pub.publish(msg)
+
+    def report(self) -> tuple[int, str, dict]:
+        if self.estimator is None:
+            return ERROR, f"no calibration: {self.problem}", {"samples": self.received}
+        level = WARN if self.flag_counts["INVALID_INPUT"] else OK
+        return level, "estimating", {"samples": self.received, **self.flag_counts}
+
+
+def main(args=None) -> int:
+    return run_node(EstimatorNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
