@@ -89,17 +89,17 @@ class ControllerNode(Node):
         est = self._usable_estimate(sample)
         tau_ff = 0.0 if est is None else float(feedforward_torque(self.rig, est.torque, self.speed_setpoint))
         out = self.controller.update(self.period, self.speed_setpoint, sample.omega_worm, tau_ff)
-        cmd = DriveCommand(voltage=float(out.voltage), sample_seq=sample.seq, sample_stamp=sample.header.stamp,
+        cmd = DriveCommand(voltage=float(out.voltage[0]), sample_seq=sample.seq, sample_stamp=sample.header.stamp,
                            feedforward_torque=tau_ff, speed_setpoint=self.speed_setpoint)
         if est is not None:
             cmd.feedforward_stamp = est.header.stamp
             self.feedforward_used += 1
-        self.saturated += int(bool(out.saturated))
+        self.saturated += int(out.saturated[0])
         cmd.header.stamp = self.get_clock().now().to_msg()
         cmd.header.frame_id = sample.header.frame_id
         self.pub.publish(cmd)
 
-    def report(self) -> tuple[int, str, dict]:
+    def report(self) -> tuple[bytes, str, dict]:
         fresh = self.feedforward_used
         level = WARN if self.feedforward and self.samples and not fresh else OK
         return level, ("feedforward wanted but no usable estimate" if level == WARN else "controlling"), {

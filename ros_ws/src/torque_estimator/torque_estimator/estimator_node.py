@@ -82,7 +82,7 @@ class EstimatorNode(Node):
                              omega_worm=float(omega), current_drive=float(current), flags=flags)
         self.pub.publish(msg)
 
-    def report(self) -> tuple[int, str, dict]:
+    def report(self) -> tuple[bytes, str, dict]:
         if self.estimator is None:
             return ERROR, f"no calibration: {self.problem}", {"samples": self.received}
         level = WARN if self.flag_counts["INVALID_INPUT"] else OK

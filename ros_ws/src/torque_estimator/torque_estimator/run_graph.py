@@ -24,18 +24,16 @@ def main(argv: list[str] | None = None) -> int:
                         help="write each node's output to <dir>/<node>.log instead of this terminal")
     args = parser.parse_args(argv)
     stop = []
-    signal.signal(signal.SIGTERM, lambda *_: stop.append(True))
+    for signum in (signal.SIGINT, signal.SIGTERM):  # a flag, so a second Ctrl-C cannot cut the clean stop short
+        signal.signal(signum, lambda *_: stop.append(True))
     try:
         graph = Graph(args.graph, parse_overrides(args.set), args.log_dir).start()
     except GraphError as err:
         print(f"run_graph: {err}", file=sys.stderr)
         return 2
     print(f"run_graph: started {', '.join(graph.processes)}", flush=True)
-    try:
-        while not stop and not graph.failed():
-            time.sleep(0.2)
-    except KeyboardInterrupt:
-        pass
+    while not stop and not graph.failed():
+        time.sleep(0.2)
     early = graph.failed()
     codes = graph.stop()
     for node, code in early.items():

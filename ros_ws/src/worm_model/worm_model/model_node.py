@@ -74,7 +74,7 @@ class ModelNode(Node):
         msg.flags = flags
         self.pub.publish(msg)
 
-    def report(self) -> tuple[int, str, dict]:
+    def report(self) -> tuple[bytes, str, dict]:
         level = WARN if self.invalid else OK
         return level, ("invalid inputs seen" if self.invalid else "running"), {
             "samples": self.received, "invalid_inputs": self.invalid, "mu_out_of_bound": self.mu_out_of_bound}

@@ -153,8 +153,12 @@ class RigPlant:
         moving = np.abs(omega) > STANDSTILL_SPEED
         alpha = self._acceleration(tau_in, gear_load, np.where(moving, omega, 1.0), mu)
         if not np.all(moving):
-            _direction, alpha_start = self._breakaway(s.current_drive, tau_load)
+            direction, alpha_start = self._breakaway(s.current_drive, tau_load)
             alpha = np.where(moving, alpha, alpha_start)
+            # Static friction holds a worm that cannot break away: a residual creep
+            # speed below STANDSTILL_SPEED (left by a deceleration that stopped
+            # just short of zero) is zeroed rather than kept forever.
+            omega = np.where(~moving & (direction == 0), 0.0, omega)
 
         new_omega = omega + alpha * dt
         # A moving worm that would reverse inside the step stops at zero instead:

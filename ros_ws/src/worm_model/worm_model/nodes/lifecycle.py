@@ -1,33 +1,50 @@
 """Run one node in its own process and shut it down cleanly.
 
 The order matters with rclpy: stop spinning, destroy the node, then shut the
-context down; an executor left spinning in a thread at exit ends in SIGABRT.
-SIGINT and SIGTERM both end the spin (rclpy's own signal handlers).
+context down; an executor left spinning in a thread at exit ends in SIGABRT,
+and rclpy's own SIGINT handler can raise KeyboardInterrupt in the middle of
+that cleanup. So SIGINT and SIGTERM only set a flag here, and the main thread
+spins until the flag is set.
 """
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 from typing import Callable
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+try:  # rclpy >= Jazzy: callbacks dispatched from C++, several times less CPU per message at 1 kHz
+    from rclpy.experimental import EventsExecutor as _Executor
+except ImportError:  # Humble
+    from rclpy.executors import SingleThreadedExecutor as _Executor
 
 
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
-    """rclpy.init, build the node, spin until shutdown, clean up; returns an exit code."""
-    rclpy.init(args=args)
+    """rclpy.init, build the node, spin until SIGINT/SIGTERM, clean up; returns an exit code."""
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    executor = _Executor()
     node = None
     code = 0
     try:
         node = make_node()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
+        executor.add_node(node)
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    except ExternalShutdownException:
         pass
     except (ValueError, OSError) as err:  # bad parameters or files: say so, exit non-zero
         print(f"[fatal] {err}", file=sys.stderr)
         code = 2
     finally:
+        executor.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()

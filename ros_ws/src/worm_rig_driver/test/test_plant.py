@@ -1,0 +1,257 @@
+"""RigPlant against the physics (physics.md sections 4-7): steady state, energy, stick, vectorisation.
+
+Every expectation is derived here from worm_model (Eqs 28-29, the friction model,
+the gear-side drag), never copied from a run of the plant.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+from worm_model.dynamics import reflected_input_torque
+from worm_model.efficiency import flank_factor
+from worm_model.friction import friction_coefficient, sliding_velocity
+from worm_model.gear_side import gear_side_load
+from worm_model.internal_forces import internal_forces
+from worm_model.parameters import load_rig
+from worm_rig_driver.plant import STANDSTILL_SPEED, RigPlant
+
+RIG = load_rig()
+GB = RIG.gearbox
+DRIVE = RIG.drive_motor
+LOAD = RIG.load_motor
+DT = 5e-4  # [s], well below the ~9 ms mechanical and 0.8 ms electrical time constants
+
+
+def _run(plant: RigPlant, steps: int, voltage, load, dt: float = DT) -> np.ndarray:
+    """Step the plant with held commands; return omega history, shape (steps, n)."""
+    history = np.empty((steps, plant.n))
+    for k in range(steps):
+        plant.step(dt, voltage, load)
+        history[k] = plant.state.omega_worm
+    return history
+
+
+# --- steady state: Eq. 28 (a_w = 0) + Eq. 29 (di/dt = 0) --------------------------------------------
+
+def _steady_speed(voltage: float, tau_load: float) -> float:
+    """Root of K_t (V - K_e w)/R = b w + c sign(w) + reflected(gear_side_load(tau, w), w)."""
+
+    def torque_surplus(w: float) -> float:
+        mu = friction_coefficient(RIG.friction, GB, w)
+        need = reflected_input_torque(GB, mu, gear_side_load(RIG, tau_load, w), w)
+        current = (voltage - DRIVE.back_emf_constant * w) / DRIVE.resistance
+        return float(DRIVE.torque_constant * current - DRIVE.viscous_drag * w
+                     - DRIVE.coulomb_drag * np.sign(w) - need)
+
+    no_load_speed = abs(voltage) / DRIVE.back_emf_constant
+    lo, hi = (1e-3, no_load_speed * 1.5) if voltage > 0 else (-no_load_speed * 1.5, -1e-3)
+    return brentq(torque_surplus, lo, hi, xtol=1e-12, rtol=1e-13)
+
+
+# (V, tau_load): resistive and assistive loads, both directions of rotation.
+STEADY_CASES = [(12.0, 0.2), (12.0, -0.2), (-12.0, -0.2), (-12.0, 0.2), (20.0, 0.1), (-18.0, 0.05)]
+
+
+def test_steady_state_matches_quasi_static_model() -> None:
+    volts = np.array([c[0] for c in STEADY_CASES])
+    loads = np.array([c[1] for c in STEADY_CASES])
+    plant = RigPlant(RIG, len(STEADY_CASES))
+    _run(plant, 1000, volts, loads)  # 0.5 s >> every time constant
+    w, i = plant.state.omega_worm, plant.state.current_drive
+
+    # The cases really are both modes in both directions (D = sigma * gear-side load).
+    D = np.sign(w) * gear_side_load(RIG, loads, w)
+    assert set(np.sign(w)) == {1.0, -1.0} and (D > 0).sum() == 3 and (D < 0).sum() == 3
+
+    expected_w = np.array([_steady_speed(v, t) for v, t in STEADY_CASES])
+    np.testing.assert_allclose(w, expected_w, rtol=1e-7)
+    # Eq. 29 with di/dt = 0 and Eq. 28 with a_w = 0, as residuals [V] and [N m].
+    np.testing.assert_allclose(volts, DRIVE.resistance * i + DRIVE.back_emf_constant * w, atol=1e-9)
+    mu = friction_coefficient(RIG.friction, GB, w)
+    rhs = (DRIVE.viscous_drag * w + DRIVE.coulomb_drag * np.sign(w)
+           + reflected_input_torque(GB, mu, gear_side_load(RIG, loads, w), w))
+    np.testing.assert_allclose(DRIVE.torque_constant * i, rhs, atol=1e-10)
+    # The load motors settled to what was asked.
+    np.testing.assert_allclose(RIG.load_motor_count * LOAD.torque_constant * plant.state.current_load, loads,
+                               rtol=1e-12)
+
+
+# --- energy balance ---------------------------------------------------------------------------------
+
+def test_energy_balance_over_a_run_with_transients_mode_changes_and_reversal() -> None:
+    """Electrical input = copper + motor drag + mesh friction (mu N V_s) + gear-shaft power + stored energy.
+
+    The mesh loss uses mu from the friction model and N from Eqs 19-21, so a plant
+    whose acceleration ignored the friction law would fail the balance (the mesh
+    term is ~4 % of the input; the discretisation error at dt = 1e-4 s is ~0.03 %).
+    """
+    dt, steps = 1e-4, 2500
+    plant = RigPlant(RIG, 2)
+    n = plant.n
+    rec = {name: np.empty((steps, n)) for name in
+           ("v", "i0", "i1", "w0", "w1", "tau_in", "gear_load", "alpha")}
+    for k in range(steps):
+        t = k * dt
+        volts = np.array([12.0, -15.0]) if t < 0.17 else np.array([-8.0, 10.0])  # then both reverse
+        loads = np.array([0.1, 0.05]) if t < 0.08 else np.array([-0.15, -0.1])  # resistive <-> assistive
+        rec["i0"][k], rec["w0"][k] = plant.state.current_drive, plant.state.omega_worm
+        out = plant.step(dt, volts, loads)
+        rec["i1"][k], rec["w1"][k] = plant.state.current_drive, plant.state.omega_worm
+        rec["v"][k], rec["tau_in"][k] = out.voltage_drive, out.tau_in
+        rec["gear_load"][k], rec["alpha"][k] = out.gear_load, out.alpha_worm
+    assert np.all(np.sign(rec["w1"][1000]) == [1, -1]) and np.all(np.sign(rec["w1"][-1]) == [-1, 1])
+
+    i_mid = 0.5 * (rec["i0"] + rec["i1"])
+    w_mid = 0.5 * (rec["w0"] + rec["w1"])
+    w0 = rec["w0"]
+    electrical_in = (rec["v"] * i_mid).sum(0) * dt
+    copper = (DRIVE.resistance * 0.5 * (rec["i0"] ** 2 + rec["i1"] ** 2)).sum(0) * dt
+    magnetic = 0.5 * DRIVE.inductance * plant.state.current_drive ** 2
+    motor_drag = ((DRIVE.viscous_drag * w0 + DRIVE.coulomb_drag * np.sign(w0)) * w_mid).sum(0) * dt
+    forces = internal_forces(GB, rec["tau_in"], rec["gear_load"], w0, rec["alpha"],
+                             worm_inertia=RIG.total_worm_inertia, gear_inertia=RIG.total_gear_inertia)
+    mu = friction_coefficient(RIG.friction, GB, w0)
+    v_sliding = sliding_velocity(GB, w_mid)
+    mesh = (mu * forces.normal_force * v_sliding).sum(0) * dt
+    gear_shaft = (rec["gear_load"] * GB.ratio * w_mid).sum(0) * dt  # load motors incl. their drag
+    w_end = plant.state.omega_worm
+    kinetic = 0.5 * (RIG.total_worm_inertia + RIG.total_gear_inertia * GB.ratio ** 2) * w_end ** 2
+
+    assert np.all(mesh > 0.02 * electrical_in)  # the friction term matters at this tolerance
+    residual = electrical_in - (copper + magnetic + motor_drag + mesh + gear_shaft + kinetic)
+    assert np.all(np.abs(residual) < 2e-3 * electrical_in), residual / electrical_in
+
+
+# --- stick at standstill ----------------------------------------------------------------------------
+
+def _breakaway_margin(voltage: float, tau_load: float, sigma: float) -> float:
+    """Quasi-static torque surplus [N m] for starting in direction sigma from rest (> 0: it starts).
+
+    Frame of motion sigma: T = sigma K_t V/R - c (drive drag opposes the motion),
+    D = sigma tau_load + count c_load (load-motor drag too); the load needs
+    (r_w/r_g) K_s(mu_static) D with s = sign(D) (Eq. 28, a_w = 0).
+    """
+    mu_s = float(friction_coefficient(RIG.friction, GB, 0.0))
+    T = sigma * DRIVE.torque_constant * voltage / DRIVE.resistance - DRIVE.coulomb_drag
+    D = sigma * tau_load + RIG.load_motor_count * LOAD.coulomb_drag
+    s = 1.0 if D >= 0 else -1.0
+    return T - GB.radius_ratio * float(flank_factor(GB, mu_s, s)) * D
+
+
+STUCK_CASES = [(0.0, 0.25), (0.0, -0.25), (0.5, 0.25), (-0.5, -0.25)]
+
+
+def test_rig_is_self_locking_at_rest() -> None:
+    assert float(friction_coefficient(RIG.friction, GB, 0.0)) > GB.self_locking_mu
+
+
+@pytest.mark.parametrize("voltage, tau_load", STUCK_CASES)
+def test_small_voltage_against_large_load_stays_exactly_at_rest(voltage: float, tau_load: float) -> None:
+    for sigma in (1.0, -1.0):  # neither direction can start (the physics says so, with margin)
+        assert _breakaway_margin(voltage, tau_load, sigma) < -2e-3
+    plant = RigPlant(RIG, 1)
+    preload = _run(plant, 100, 0.0, tau_load)  # the load builds up first (2 ms current loop)
+    held = _run(plant, 400, voltage, tau_load)
+    assert np.all(preload == 0.0) and np.all(held == 0.0)  # exactly zero every step: no chatter
+    assert plant.state.theta_worm[0] == 0.0
+
+
+def test_breakaway_direction_follows_the_physics() -> None:
+    """Large voltages break away in their own direction, against or with the load; a small
+    voltage moves a self-locked worm only when the load aids that direction."""
+    cases = [(12.0, 0.25), (-12.0, 0.25), (12.0, -0.25), (-12.0, -0.25), (0.5, -0.25), (-0.5, 0.25)]
+    expected = []
+    for v, tau in cases:
+        margins = {sigma: _breakaway_margin(v, tau, sigma) for sigma in (1.0, -1.0)}
+        starts = [sigma for sigma, m in margins.items() if m > 2e-3]
+        assert len(starts) == 1 and all(abs(m) > 2e-3 for m in margins.values())
+        expected.append(starts[0])
+    plant = RigPlant(RIG, len(cases))
+    volts = np.array([c[0] for c in cases])
+    loads = np.array([c[1] for c in cases])
+    assert np.all(_run(plant, 100, 0.0, loads) == 0.0)
+    history = _run(plant, 200, volts, loads)
+    np.testing.assert_array_equal(np.sign(history[-1]), expected)
+    # monotone start: no step goes the wrong way
+    assert np.all(np.sign(history) * np.array(expected) >= 0)
+
+
+def test_deceleration_into_stick_ends_exactly_at_zero() -> None:
+    """Many worms coasting into a self-locking load from different speeds all stop at exactly 0.
+
+    Regression: a deceleration that stopped just short of zero (|w| < STANDSTILL_SPEED)
+    used to keep that creep speed forever while the worm was held.
+    """
+    n = 2000
+    plant = RigPlant(RIG, n)
+    plant.state.omega_worm[:] = np.linspace(1.0, 50.0, n)
+    plant.state.current_load[:] = 0.25 / (RIG.load_motor_count * LOAD.torque_constant)
+    history = _run(plant, 400, 0.0, 0.25)
+    assert np.all(plant.state.omega_worm == 0.0)
+    assert np.all(history >= 0.0)  # never reversed
+    theta = plant.state.theta_worm.copy()
+    _run(plant, 50, 0.0, 0.25)
+    np.testing.assert_array_equal(plant.state.theta_worm, theta)
+
+
+def test_creep_below_standstill_speed_is_held_when_the_worm_cannot_break_away() -> None:
+    plant = RigPlant(RIG, 2)
+    plant.state.omega_worm[:] = [0.5 * STANDSTILL_SPEED, -0.5 * STANDSTILL_SPEED]
+    _run(plant, 5, 0.0, 0.0)
+    np.testing.assert_array_equal(plant.state.omega_worm, 0.0)
+
+
+@pytest.mark.parametrize("tau_load", [0.1, 0.0, -0.1])
+def test_speed_reversal_passes_zero_with_a_single_sign_change(tau_load: float) -> None:
+    plant = RigPlant(RIG, 1)
+    forward = _run(plant, 300, 12.0, tau_load)
+    reverse = _run(plant, 600, -12.0, tau_load)
+    w = np.concatenate([forward, reverse])[:, 0]
+    assert w[299] > 50.0 and w[-1] < -50.0
+    signs = np.sign(w[w != 0.0])
+    assert np.count_nonzero(np.diff(signs)) == 1
+    assert np.count_nonzero(w[300:] == 0.0) <= 3  # passes zero, does not linger
+
+
+def test_reversal_command_too_weak_to_break_away_stops_exactly_at_zero() -> None:
+    volts_back = -0.1
+    assert _breakaway_margin(volts_back, 0.0, -1.0) < 0 and _breakaway_margin(volts_back, 0.0, 1.0) < 0
+    plant = RigPlant(RIG, 1)
+    _run(plant, 300, 12.0, 0.0)
+    w = _run(plant, 600, volts_back, 0.0)[:, 0]
+    assert np.all(w >= 0.0)  # no sign change at all: no chatter around zero
+    assert np.all(w[-200:] == 0.0)
+
+
+# --- limits and vectorisation -------------------------------------------------------------------------
+
+def test_voltage_and_load_commands_are_clamped_to_the_hardware() -> None:
+    plant = RigPlant(RIG, 3)
+    out = plant.step(DT, np.array([30.0, -30.0, 5.0]), np.array([10.0, -10.0, 0.0]))
+    np.testing.assert_array_equal(out.voltage_drive, [RIG.supply_voltage, -RIG.supply_voltage, 5.0])
+    np.testing.assert_array_equal(out.drive_saturated, [True, True, False])
+    for _ in range(200):
+        out = plant.step(DT, 0.0, np.array([10.0, -10.0, 0.0]))
+    np.testing.assert_allclose(out.tau_load, [RIG.max_load_torque, -RIG.max_load_torque, 0.0], rtol=1e-9)
+
+
+def test_n_rigs_side_by_side_equal_separate_single_rig_runs() -> None:
+    rng = np.random.default_rng(3)
+    n, steps = 5, 400
+    volts = rng.uniform(-20, 20, (steps, n))
+    volts[:, 0] = 0.3  # one stays stuck, one reverses
+    volts[steps // 2:, 1] *= -1
+    loads = rng.uniform(-0.25, 0.25, (steps, n))
+    loads[:, 0] = 0.25
+    together = RigPlant(RIG, n)
+    alone = [RigPlant(RIG, 1) for _ in range(n)]
+    for k in range(steps):
+        out = together.step(DT, volts[k], loads[k])
+        for j, plant in enumerate(alone):
+            single = plant.step(DT, volts[k, j:j + 1], loads[k, j:j + 1])
+            assert single.alpha_worm[0] == out.alpha_worm[j]
+    for name in ("current_drive", "omega_worm", "theta_worm", "current_load"):
+        np.testing.assert_array_equal(getattr(together.state, name),
+                                      [getattr(p.state, name)[0] for p in alone])

@@ -1,0 +1,175 @@
+"""System test: the recorder node, as its own process, records a 1 kHz stream over DDS.
+
+This process publishes RigSample messages with consecutive ``seq``; the
+recorder process records them; after SIGINT/SIGTERM the bag must hold every
+one of them, in order, and the recorder must have exited with code 0 (not
+SIGABRT). Each run uses its own ROS_DOMAIN_ID, with discovery kept on this host.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from worm_msgs.msg import RigSample
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGE_SRC = REPO / 'ros_ws' / 'src' / 'worm_rig_driver'
+sys.path.insert(0, str(PACKAGE_SRC))  # until colcon installs worm_rig_driver
+
+from worm_rig_driver.bag_recording import read_bag_counts, read_messages  # noqa: E402
+
+TOPIC = '/rig/sample'
+RATE_HZ = 1000.0
+DOMAIN_ID = random.randint(100, 200)
+DISCOVERY_TIMEOUT_S = 30.0
+ACK_TIMEOUT_S = 20.0
+EXIT_TIMEOUT_S = 20.0
+
+
+@pytest.fixture
+def ros_env(monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
+    """Environment of this run for both processes (this one and the recorder)."""
+    monkeypatch.setenv('ROS_DOMAIN_ID', str(DOMAIN_ID))
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(PACKAGE_SRC), env.get('PYTHONPATH')]))
+    return env
+
+
+@pytest.fixture
+def publisher_node(ros_env: dict[str, str]) -> Iterator[Node]:
+    """A node of this process, in its own context, torn down cleanly."""
+    context = Context()
+    rclpy.init(context=context)
+    node = Node('rig_sample_source', context=context)
+    try:
+        yield node
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+class RecorderProcess:
+    """``python -m worm_rig_driver.recorder_node`` with its output in files."""
+
+    def __init__(self, tmp_path: Path, env: dict[str, str], *ros_params: str) -> None:
+        self.bag = tmp_path / 'bag'
+        self.log = tmp_path / 'recorder.log'
+        params = [arg for p in (f'output:={self.bag}', 'discovery_period:=0.2', *ros_params)
+                  for arg in ('-p', p)]
+        with self.log.open('wb') as log:
+            self.process = subprocess.Popen(
+                [sys.executable, '-m', 'worm_rig_driver.recorder_node', '--ros-args', *params],
+                env=env, stdout=log, stderr=subprocess.STDOUT,
+            )
+
+    def output(self) -> str:
+        """What the recorder printed so far."""
+        return self.log.read_text(errors='replace')
+
+    def stop(self, signum: signal.Signals) -> int:
+        """Send ``signum`` and return the exit code."""
+        self.process.send_signal(signum)
+        try:
+            return self.process.wait(timeout=EXIT_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+            pytest.fail(f'recorder ignored {signum.name}:\n{self.output()}')
+
+    def kill(self) -> None:
+        """Make sure the process is gone (test teardown)."""
+        if self.process.poll() is None:
+            self.process.kill()
+            self.process.wait()
+
+
+@pytest.fixture
+def start_recorder(tmp_path: Path, ros_env: dict[str, str]) -> Iterator[type[RecorderProcess]]:
+    """Factory starting one recorder process; kills it if the test did not stop it."""
+    started: list[RecorderProcess] = []
+
+    def start(*ros_params: str) -> RecorderProcess:
+        recorder = RecorderProcess(tmp_path, ros_env, *ros_params)
+        started.append(recorder)
+        return recorder
+
+    yield start  # type: ignore[misc]
+    for recorder in started:
+        recorder.kill()
+
+
+def publish_stream(node: Node, recorder: RecorderProcess, n: int) -> None:
+    """Publish RigSamples seq 0..n-1 at RATE_HZ once the recorder has subscribed.
+
+    The publisher keeps all n samples (KEEP_LAST depth n, RELIABLE), so a
+    slow acknowledgement never overwrites one, and waits until all are acked.
+    """
+    qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=n,
+                     reliability=ReliabilityPolicy.RELIABLE,
+                     durability=DurabilityPolicy.VOLATILE)
+    publisher = node.create_publisher(RigSample, TOPIC, qos)
+    deadline = time.monotonic() + DISCOVERY_TIMEOUT_S
+    while publisher.get_subscription_count() == 0:
+        if recorder.process.poll() is not None:
+            pytest.fail(f'recorder exited with {recorder.process.returncode}:\n{recorder.output()}')
+        if time.monotonic() > deadline:
+            pytest.fail(f'recorder did not subscribe to {TOPIC}:\n{recorder.output()}')
+        time.sleep(0.05)
+
+    period = 1.0 / RATE_HZ
+    start = time.perf_counter()
+    for seq in range(n):
+        msg = RigSample(seq=seq, omega_worm=0.01 * seq, status=RigSample.STATUS_SIMULATED)
+        msg.header.stamp = node.get_clock().now().to_msg()
+        publisher.publish(msg)
+        if (delay := start + (seq + 1) * period - time.perf_counter()) > 0:
+            time.sleep(delay)
+    assert publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S)), 'recorder did not ack'
+
+
+def assert_bag_holds_stream(recorder: RecorderProcess, n: int) -> None:
+    """The bag holds seq 0..n-1 on TOPIC exactly once each, in receive order."""
+    counts = read_bag_counts(recorder.bag)
+    assert counts.get(TOPIC) == n, (counts, recorder.output())
+    received = list(read_messages(recorder.bag, TOPIC))
+    assert [m.seq for _, m in received] == list(range(n)), 'gap, duplicate or reordering'
+    stamps = [t for t, _ in received]
+    assert stamps == sorted(stamps)
+    assert f'{TOPIC}: {n}' in recorder.output()
+
+
+def test_records_1khz_stream_without_loss(
+    publisher_node: Node, start_recorder: type[RecorderProcess]
+) -> None:
+    n = 2000
+    recorder = start_recorder(f'topics:=[{TOPIC}]')
+    publish_stream(publisher_node, recorder, n)
+
+    assert recorder.stop(signal.SIGINT) == 0, recorder.output()
+    assert_bag_holds_stream(recorder, n)
+    assert set(read_bag_counts(recorder.bag)) == {TOPIC}
+
+
+def test_records_discovered_topics_and_stops_on_sigterm(
+    publisher_node: Node, start_recorder: type[RecorderProcess]
+) -> None:
+    n = 300
+    recorder = start_recorder('storage:=sqlite3')  # no topics: record all
+    publish_stream(publisher_node, recorder, n)
+
+    assert recorder.stop(signal.SIGTERM) == 0, recorder.output()
+    assert_bag_holds_stream(recorder, n)
