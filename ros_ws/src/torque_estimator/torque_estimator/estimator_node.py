@@ -2,7 +2,8 @@
 
 Subscribes /rig/sample (worm_msgs/RigSample), publishes /torque_estimate
 (worm_msgs/TorqueEstimate), sensor-data QoS. The speed and current are
-low-passed (the calibration map is quasi-static, so is its input), then the
+low-passed (the calibration map is quasi-static, so is its input), the current
+that accelerates the inertia is removed (quasi_static.py), then the
 configured estimator (k-NN over the calibration database, paper Eqs 33-34)
 maps (omega, i) to tau_d with an uncertainty and flags. A sample taken while
 the worm accelerates faster than transient_acceleration is flagged TRANSIENT.
@@ -24,13 +25,20 @@ from worm_model.nodes.lifecycle import run_node
 from worm_model.nodes.parameters import declare
 from worm_model.nodes.qos import STREAM
 
+from worm_model.parameters import load_rig
+
 from .calibration_database import CalibrationError, load_database
 from .estimator import ESTIMATORS, EstimateFlags, TorqueEstimator, make_estimator
+from .quasi_static import inertia_free_current
 
 
 class EstimatorNode(Node):
     def __init__(self) -> None:
         super().__init__("estimator_node")
+        rig_file = declare(self, "rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
+        self.inertia_compensation = declare(
+            self, "inertia_compensation", True,
+            "Remove the current that accelerates the rig's inertia (Eq. 28) before the quasi-static lookup.")
         self.calibration_file = declare(self, "calibration_file", "",
                                         "Calibration database (JSON written by `calibrate`).")
         self.method = declare(self, "method", "knn", "Estimator.", choices=tuple(ESTIMATORS))
@@ -44,6 +52,7 @@ class EstimatorNode(Node):
             "Worm acceleration [rad/s^2] above which an estimate is flagged TRANSIENT.", low=0.0, high=1e6)
         period = 1.0 / declare(self, "sample_rate", 1000.0, "Rig sample rate [Hz].", low=1.0, high=100000.0)
 
+        self.rig = load_rig(rig_file or None)
         self.speed = FilteredDerivative(tau, period)
         self.current = FilteredDerivative(tau, period)
         self.estimator: TorqueEstimator | None = None
@@ -69,6 +78,8 @@ class EstimatorNode(Node):
             return
         omega, alpha = self.speed.update(sample.omega_worm)
         current, _ = self.current.update(sample.current_drive)
+        if self.inertia_compensation:
+            current = float(inertia_free_current(self.rig, current, omega, alpha))
         result = self.estimator.estimate(omega, current)
         flags = int(result.flags)
         if not (math.isfinite(sample.omega_worm) and math.isfinite(sample.current_drive)):

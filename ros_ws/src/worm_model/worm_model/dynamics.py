@@ -51,6 +51,18 @@ def _normal_force_sign_ok(gearbox: Gearbox, mu: FloatArray, flank: float, gear_s
     return gear_side * den >= 0.0
 
 
+def effective_worm_inertia(gearbox: Gearbox, mu: ArrayLike, flank: ArrayLike, worm_inertia: ArrayLike,
+                           gear_inertia: ArrayLike) -> FloatArray:
+    """Inertia the worm's torque accelerates, the bracket of Eq. 28 [kg m^2].
+
+    J_w + J_g * i * (r_w / r_g) * K_s(mu), with worm_inertia / gear_inertia the total
+    inertias on each shaft [kg m^2] and flank s = +1 driving / -1 coast.
+    """
+    K = flank_factor(gearbox, mu, flank)
+    return np.asarray(worm_inertia, dtype=float) + np.asarray(gear_inertia, dtype=float) * gearbox.ratio \
+        * gearbox.radius_ratio * K
+
+
 def _frame_acceleration(
     gearbox: Gearbox, mu: ArrayLike, T: ArrayLike, D: ArrayLike, jw: ArrayLike, jg: ArrayLike
 ) -> tuple[FloatArray, IntArray]:
@@ -66,7 +78,7 @@ def _frame_acceleration(
     result = []
     for s in (1.0, -1.0):
         K = flank_factor(gearbox, m, s)
-        a = (t - k * K * d) / (j_w + j_g * i * k * K)
+        a = (t - k * K * d) / effective_worm_inertia(gearbox, m, s, j_w, j_g)
         result.append((a, _normal_force_sign_ok(gearbox, m, s, j_g * i * a + d)))
     (a_p, ok_p), (a_m, ok_m) = result
     fallback = np.where(d >= 0.0, 1, -1)

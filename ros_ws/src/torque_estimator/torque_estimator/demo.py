@@ -1,0 +1,184 @@
+"""demo: the paper's experiment end to end on the built-in simulated rig.
+
+  1. calibrate: 17 speeds x 16 load torques, both directions, quasi-static;
+  2. evaluate the k-NN estimator on 17 held-out operating points;
+  3. run the live graph over DDS (sim_node, model_node, estimator_node,
+     controller_node as separate processes) through load steps into all three
+     modes, feedforward off and then on, recording every topic to MCAP;
+  4. print the figures and write PNG plots.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import random
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from worm_model.parameters import load_rig
+
+from .calibration import CalibrationGrid, calibrate_simulated
+from .calibration_database import save_database
+from .estimator import make_estimator
+from .evaluation import evaluate_held_out
+from .graph import Graph
+from .plots import estimate_vs_truth, held_out_deviation, tracking
+from .progress import ProgressBar
+from .run_analysis import analyse_run
+from .scenario import DEMO_SCENARIO, segment_at
+
+
+def default_graph_file() -> Path:
+    """The installed sim_graph.yaml (share/torque_estimator/config), else the source tree's."""
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        candidate = Path(prefix, "share", "torque_estimator", "config", "sim_graph.yaml")
+        if prefix and candidate.is_file():
+            return candidate
+    return Path(__file__).resolve().parent.parent / "config" / "sim_graph.yaml"
+
+
+def live_run(graph_file: Path, calibration: Path, feedforward: bool, bag: Path, log_dir: Path) -> float:
+    """Run the scenario on the live graph, recording every topic to `bag`; returns the start stamp [s]."""
+    import rclpy
+    from rclpy.experimental import EventsExecutor
+    from rclpy.signals import SignalHandlerOptions
+    from std_msgs.msg import Float64
+    from worm_msgs.msg import LoadCommand
+
+    from worm_model.nodes.qos import COMMAND
+    from worm_rig_driver.bag_recording import BagWriter
+    from worm_rig_driver.recorder_node import TopicRecorder
+
+    overrides = {"estimator_node": [f"calibration_file:={calibration}"],
+                 "controller_node": [f"feedforward:={str(feedforward).lower()}", "speed_setpoint:=0.0"]}
+    with Graph(graph_file, overrides, log_dir=log_dir) as graph:
+        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+        node = rclpy.create_node("demo_scenario")
+        executor = EventsExecutor()
+        executor.add_node(node)
+        recorder = TopicRecorder(node, BagWriter(bag, "mcap"))
+        try:
+            recorder.subscribe_all()
+            recorder.start_discovery(0.5)
+            speed_pub = node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND)
+            load_pub = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
+            deadline = time.monotonic() + 60.0
+            while min(recorder.counts.get(t, 0) for t in ("/torque_estimate", "/rig/drive_command")) < 200:
+                if graph.failed() or time.monotonic() > deadline:
+                    raise RuntimeError(f"graph did not start (exited: {graph.failed()}); see {log_dir}")
+                executor.spin_once(timeout_sec=0.05)
+            start_stamp = node.get_clock().now().nanoseconds * 1e-9
+            start = time.monotonic()
+            current = None
+            while (k := segment_at(DEMO_SCENARIO, time.monotonic() - start)) is not None:
+                if k != current:
+                    current = k
+                    speed_pub.publish(Float64(data=DEMO_SCENARIO[k].speed))
+                    load_pub.publish(LoadCommand(torque=DEMO_SCENARIO[k].load))
+                executor.spin_once(timeout_sec=0.005)
+            if graph.failed():
+                raise RuntimeError(f"a node died during the run: {graph.failed()}; see {log_dir}")
+        finally:
+            recorder.close()
+            executor.shutdown()
+            node.destroy_node()
+            rclpy.try_shutdown()
+    return start_stamp
+
+
+def load_run(bag: Path, start_stamp: float) -> dict:
+    """The streams the analysis needs, from a recorded bag; times from the scenario's start [s]."""
+    from worm_rig_driver.bag_recording import read_messages
+
+    def stamp(header) -> float:
+        return header.stamp.sec + header.stamp.nanosec * 1e-9 - start_stamp
+
+    samples = [(stamp(m.header), m.omega_worm) for _, m in read_messages(bag, "/rig/sample")]
+    commands = [(m.sample_stamp.sec + m.sample_stamp.nanosec * 1e-9 - start_stamp, m.speed_setpoint)
+                for _, m in read_messages(bag, "/rig/drive_command")]
+    estimates = [(stamp(m.header), m.torque) for _, m in read_messages(bag, "/torque_estimate")]
+    truth = [(stamp(m.header), m.tau_load, m.mode) for _, m in read_messages(bag, "/sim/truth")]
+    s, c, e, tr = (np.array(x, dtype=float) for x in (samples, commands, estimates, truth))
+    keep = s[:, 0] >= 0
+    t_cmd_order = np.argsort(c[:, 0])
+    idx = np.clip(np.searchsorted(c[t_cmd_order, 0], s[keep, 0], side="right") - 1, 0, len(c) - 1)
+    in_run = lambda a: a[(a[:, 0] >= 0) & (a[:, 0] <= sum(x.duration for x in DEMO_SCENARIO))]  # noqa: E731
+    e, tr = in_run(e), in_run(tr)
+    return {"t_speed": s[keep, 0], "omega": s[keep, 1], "setpoint": c[t_cmd_order, 1][idx],
+            "t_est": e[:, 0], "estimate": e[:, 1], "t_truth": tr[:, 0], "truth": tr[:, 1], "modes": tr[:, 2]}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="demo", description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("--out", type=Path, default=Path("out/demo"), help="folder for every output (replaced)")
+    parser.add_argument("--graph", type=Path, default=None, help="graph parameter file (default: installed sim_graph.yaml)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of calibration noise and held-out draws")
+    args = parser.parse_args(argv)
+    out = args.out.resolve()
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir(parents=True)
+    os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(100, 230)))
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    rig = load_rig()
+    t0 = time.monotonic()
+
+    print("[1/4] calibrating on the simulated rig (17 speeds x 16 torques x 2 directions)", flush=True)
+    grid = CalibrationGrid.paper(rig)
+    n_points = len(grid.speeds) * len(grid.torques)
+    with ProgressBar(n_points, "points settled") as bar:
+        db = calibrate_simulated(rig, grid, seed=args.seed, progress=lambda f: bar.update_to(round(f * n_points)))
+    calibration = out / "calibration.json"
+    save_database(db, calibration)
+    print(f"      {len(db)} points, torque range {db.torque_range:.3f} N m -> {calibration}")
+
+    print("[2/4] k-NN estimate on 17 held-out operating points", flush=True)
+    estimator = make_estimator("knn", db)
+    ev = evaluate_held_out(rig, estimator, grid, db.torque_range, n=17, seed=args.seed + 1)
+    print("      #   speed[rad/s]  current[A]  true[N m]  est.[N m]  error[%]")
+    for i in range(len(ev.tau_true)):
+        print(f"      {i + 1:2d} {ev.omega_worm[i]:12.1f} {ev.current_drive[i]:11.3f} {ev.tau_true[i]:10.3f} "
+              f"{ev.tau_estimated[i]:10.3f} {ev.error_pct[i]:9.2f}")
+    held_out_deviation(out / "held_out_deviation.png", ev.tau_true, ev.tau_estimated, db.torque_range)
+
+    runs, metrics = {}, {}
+    graph_file = args.graph or default_graph_file()
+    for step, feedforward in ((3, False), (3, True)):
+        name = f"feedforward {'on' if feedforward else 'off'}"
+        print(f"[{step}/4] live graph over DDS, {name}: {len(DEMO_SCENARIO)} segments, "
+              f"{sum(s.duration for s in DEMO_SCENARIO):.0f} s", flush=True)
+        tag = "ff_on" if feedforward else "ff_off"
+        start = live_run(graph_file, calibration, feedforward, out / f"bag_{tag}", out / f"logs_{tag}")
+        runs[name] = load_run(out / f"bag_{tag}", start)
+        r = runs[name]
+        metrics[name] = analyse_run(DEMO_SCENARIO, r["t_speed"], r["omega"], r["setpoint"], r["t_est"],
+                                    r["estimate"], r["t_truth"], r["truth"], r["modes"], db.torque_range)
+
+    print("[4/4] plots", flush=True)
+    plots = [out / "held_out_deviation.png", estimate_vs_truth(out / "estimate_vs_truth.png", runs),
+             tracking(out / "tracking.png", runs)]
+
+    off, on = metrics["feedforward off"], metrics["feedforward on"]
+    mode_names = {1: "resistive", 2: "pseudo-resistive", 3: "assistive"}
+    print()
+    print("Summary")
+    print(f"  held-out estimation error (17 points): mean {ev.mae_pct:.2f} %, max {ev.max_pct:.2f} % "
+          f"of the calibrated range ({db.torque_range:.3f} N m)")
+    print(f"  live estimation error (steady parts):  mean {on.estimate_mae_pct:.2f} %, "
+          f"worst segment {on.estimate_max_pct:.2f} %")
+    print(f"  modes visited: {', '.join(mode_names.get(m, str(m)) for m in on.modes_seen if m)}")
+    print("  speed tracking              RMS error   peak dip after load step   IAE")
+    for name, m in metrics.items():
+        print(f"    {name:16s} {m.speed_rms_error:12.2f} rad/s {m.peak_dip:12.2f} rad/s {m.iae:14.3f} rad")
+    print(f"  outputs in {out}: calibration.json, bag_ff_off/, bag_ff_on/ (MCAP), "
+          + ", ".join(p.name for p in plots))
+    print(f"  done in {time.monotonic() - t0:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,59 @@
+"""Figures of merit of a live run, from its recorded streams (plain numpy, no ROS).
+
+Times are seconds from the scenario's start. Each segment is split into a
+transient part (the first `settle` seconds after a set-point or load change)
+and a steady part (the rest), so tracking and estimation are judged where the
+paper judged them (quasi-static) and load-step rejection where it happens.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scenario import segment_starts
+
+
+@dataclass
+class RunMetrics:
+    speed_rms_error: float  # [rad/s] RMS of omega - set-point over the whole run after the first segment
+    peak_dip: float  # [rad/s] largest |omega - set-point| in the transient after a load step
+    iae: float  # [rad] integral of |omega - set-point| over the run after the first segment
+    estimate_mae_pct: float  # mean |estimate - truth| in steady parts, % of the calibrated range
+    estimate_max_pct: float  # largest steady-part segment-mean error, % of the calibrated range
+    modes_seen: tuple[int, ...]  # worm_model.modes.Mode values the truth visited
+
+
+def _steady_mask(t: np.ndarray, scenario, settle: float) -> np.ndarray:
+    starts = segment_starts(scenario)
+    ends = starts + np.array([s.duration for s in scenario])
+    return np.any([(t >= s + settle) & (t < e) for s, e in zip(starts, ends)], axis=0)
+
+
+def analyse_run(scenario, t_speed, omega, setpoint, t_est, estimate, t_truth, truth, modes,
+                torque_range: float, settle: float = 0.8) -> RunMetrics:
+    """Tracking and estimation figures of one run (see module docstring)."""
+    after_first = t_speed >= scenario[0].duration
+    error = omega - setpoint
+    dt = np.diff(t_speed, prepend=t_speed[0])
+    starts = segment_starts(scenario)
+    dips = []
+    for k in range(1, len(scenario)):
+        if scenario[k].speed == scenario[k - 1].speed:  # a pure load step
+            window = (t_speed >= starts[k]) & (t_speed < starts[k] + settle)
+            dips.append(np.max(np.abs(error[window])) if window.any() else np.nan)
+
+    truth_at_est = np.interp(t_est, t_truth, truth)
+    steady = _steady_mask(t_est, scenario, settle) & np.isfinite(estimate)
+    abs_err = np.abs(estimate - truth_at_est)
+    seg_index = np.searchsorted(starts, t_est, side="right") - 1
+    seg_means = [np.mean(abs_err[steady & (seg_index == k)]) for k in range(len(scenario))
+                 if np.any(steady & (seg_index == k))]
+    return RunMetrics(
+        speed_rms_error=float(np.sqrt(np.mean(error[after_first] ** 2))),
+        peak_dip=float(np.nanmax(dips)) if dips else float("nan"),
+        iae=float(np.sum(np.abs(error[after_first]) * dt[after_first])),
+        estimate_mae_pct=float(100 * np.mean(abs_err[steady]) / torque_range),
+        estimate_max_pct=float(100 * np.max(seg_means) / torque_range),
+        modes_seen=tuple(sorted(set(int(m) for m in modes))),
+    )
