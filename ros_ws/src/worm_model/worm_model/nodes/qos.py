@@ -4,8 +4,12 @@ from __future__ import annotations
 from rclpy.qos import QoSProfile, qos_profile_sensor_data
 from rclpy.qos import HistoryPolicy, ReliabilityPolicy, DurabilityPolicy
 
-#: Streams (samples, estimates, forces, commands at the sample rate): best effort, keep last.
-STREAM = qos_profile_sensor_data
+#: Streams (samples, estimates, forces, commands at the sample rate): the sensor-data
+#: profile (best effort, volatile) with a deeper queue: a 1 kHz rig delivers samples in
+#: bursts (the sim: 5 per 5 ms tick), and depth 5 drops them whenever a reader is late.
+STREAM = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                    reliability=qos_profile_sensor_data.reliability,
+                    durability=qos_profile_sensor_data.durability)
 
 #: Occasional commands and set-points: reliable, latched for late joiners.
 COMMAND = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,

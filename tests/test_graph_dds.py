@@ -1,0 +1,367 @@
+"""System tests of the whole node graph over real DDS, every node its own process.
+
+The graph of ros_ws/src/torque_estimator/config/sim_graph.yaml (sim_node,
+model_node, estimator_node, controller_node) is started once for this module
+with torque_estimator.graph.Graph, on a calibration database written by
+`python -m torque_estimator.calibrate`, with the speed set-point at 150 rad/s.
+A probe node in this process (EventsExecutor, spun in the main thread only
+while a test measures) subscribes, publishes load commands and bad samples.
+
+Each run has its own ROS_DOMAIN_ID (100..230) and discovery stays on this host
+(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST), so parallel runs never cross-talk.
+At teardown every node must exit with code 0 on SIGINT (not SIGABRT/-6, not
+SIGKILL/-9).
+"""
+from __future__ import annotations
+
+import math
+import os
+import random
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.context import Context
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
+from sensor_msgs.msg import JointState
+from worm_msgs.msg import (DriveCommand, EncoderCounts, GearboxForces, LoadCommand, MotorCurrents, RigSample,
+                           SimTruth, TorqueEstimate)
+
+from torque_estimator.calibration_database import load_database
+from torque_estimator.graph import Graph, parse_overrides
+from worm_model.nodes.qos import COMMAND
+
+REPO = Path(__file__).resolve().parents[1]
+GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
+SPEED_SETPOINT = 150.0  # [rad/s]
+
+#: Streams at the rig's sample rate and the decimated channels (sim_graph.yaml: channel_decimation 10).
+FAST_TOPICS = {"/rig/sample": RigSample, "/gearbox/forces": GearboxForces,
+               "/torque_estimate": TorqueEstimate, "/rig/drive_command": DriveCommand}
+SLOW_TOPICS = {"/rig/currents": MotorCurrents, "/rig/joint_states": JointState,
+               "/rig/encoders": EncoderCounts, "/sim/truth": SimTruth}
+SAMPLE_RATE = 1000.0  # [Hz]
+CHANNEL_RATE = 100.0  # [Hz]
+
+#: Rates must lie within [RATE_LOW, RATE_HIGH] x nominal. Not tighter below: when
+#: its process is starved (2 cores shared by four 1 kHz nodes, the probe and
+#: whatever else runs) sim_node does not burst more than MAX_CATCH_UP samples
+#: per tick, it dilates the rig's time instead, so fewer samples per wall second
+#: are produced by design. Above nominal nothing may come (no duplicates).
+RATE_LOW, RATE_HIGH = 0.85, 1.05
+RATE_WINDOW = 3.0  # [s]
+
+START_TIMEOUT = 45.0  # [s] for the graph's first sample to reach the probe
+MATCH_TIMEOUT = 15.0  # [s] for a new subscription's first message
+
+#: The probe reads with a deep queue: a momentarily late probe must not lose
+#: messages (best effort, so it still matches the graph's sensor-data publishers).
+PROBE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=500, reliability=ReliabilityPolicy.BEST_EFFORT)
+
+
+# --- the probe -----------------------------------------------------------------------------------
+
+@dataclass
+class Recording:
+    """Messages of several topics with their receive times (time.monotonic())."""
+
+    messages: dict[str, list] = field(default_factory=dict)
+    times: dict[str, list[float]] = field(default_factory=dict)
+
+    def clear(self) -> None:
+        for topic in self.messages:
+            self.messages[topic].clear()
+            self.times[topic].clear()
+
+    def count_between(self, topic: str, t0: float, t1: float) -> int:
+        return sum(1 for t in self.times[topic] if t0 <= t < t1)
+
+
+class Probe:
+    """This process's node: spins in the main thread only inside spin_for / spin_until."""
+
+    def __init__(self, context: Context) -> None:
+        self.context = context
+        self.node = Node("graph_test_probe", context=context)
+        self.executor = EventsExecutor(context=context)
+        self.executor.add_node(self.node)
+
+    def spin_until(self, done: Callable[[], bool], timeout: float, step: float = 0.05) -> bool:
+        """Spin until done() (checked every `step` s) or timeout; returns done()."""
+        deadline = time.monotonic() + timeout
+        while not done():
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            never = Future(executor=self.executor)
+            self.executor.spin_until_future_complete(never, timeout_sec=min(step, left))
+        return True
+
+    def spin_for(self, seconds: float) -> None:
+        self.spin_until(lambda: False, seconds, step=seconds)
+
+    def record(self, topics: dict[str, type], raw: bool = False) -> tuple[Recording, list]:
+        """Subscribe to topics; returns the recording and the subscriptions (destroy them after).
+
+        raw: keep the serialized bytes (no deserialization: several times cheaper at 1 kHz)."""
+        rec = Recording()
+        subs = []
+        for topic, msg_type in topics.items():
+            rec.messages[topic] = []
+            rec.times[topic] = []
+
+            def on_message(msg, _m=rec.messages[topic], _t=rec.times[topic]) -> None:
+                _t.append(time.monotonic())
+                _m.append(msg)
+            subs.append(self.node.create_subscription(msg_type, topic, on_message, PROBE_QOS, raw=raw))
+        return rec, subs
+
+    def wait_all_flowing(self, rec: Recording, timeout: float = MATCH_TIMEOUT) -> bool:
+        return self.spin_until(lambda: all(rec.messages.values()), timeout)
+
+    def unsubscribe(self, subs: list) -> None:
+        for sub in subs:
+            self.node.destroy_subscription(sub)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+
+
+def node_logs(log_dir: Path) -> str:
+    parts = []
+    for log in sorted(log_dir.glob("*.log")):
+        text = log.read_text(errors="replace")
+        parts.append(f"----- {log.name} -----\n{text[-4000:]}")
+    return "\n".join(parts) or f"(no logs in {log_dir})"
+
+
+# --- fixtures ------------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def ros_env(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, str]]:
+    """This run's DDS domain, in os.environ for this process and the nodes it starts."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("ROS_DOMAIN_ID", str(random.randint(100, 230)))
+        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        yield dict(os.environ)
+
+
+@pytest.fixture(scope="module")
+def probe(ros_env: dict[str, str]) -> Iterator[Probe]:
+    context = Context()
+    rclpy.init(context=context)
+    p = Probe(context)
+    try:
+        yield p
+    finally:
+        p.close()
+        rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture(scope="module")
+def calibration_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("calibration") / "calibration.json"
+    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibrate", "--out", str(out), "--quiet"],
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and out.exists(), f"calibrate failed:\n{done.stdout}\n{done.stderr}"
+    return out
+
+
+@dataclass
+class RunningGraph:
+    graph: Graph
+    log_dir: Path
+    calibration_file: Path
+
+    def logs(self) -> str:
+        return node_logs(self.log_dir)
+
+    def assert_alive(self) -> None:
+        failed = self.graph.failed()
+        assert not failed, f"nodes exited: {failed}\n{self.logs()}"
+
+
+@pytest.fixture(scope="module")
+def graph(ros_env: dict[str, str], probe: Probe, calibration_file: Path,
+          tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningGraph]:
+    log_dir = tmp_path_factory.mktemp("graph_logs")
+    overrides = parse_overrides([f"estimator_node.calibration_file={calibration_file}",
+                                 f"controller_node.speed_setpoint={SPEED_SETPOINT}"])
+    g = Graph(GRAPH_FILE, overrides, log_dir)
+    running = RunningGraph(g, log_dir, calibration_file)
+    try:
+        g.start()
+        rec, subs = probe.record({"/rig/sample": RigSample})
+        flowing = probe.spin_until(lambda: bool(rec.messages["/rig/sample"]) or bool(g.failed()), START_TIMEOUT)
+        probe.unsubscribe(subs)
+        if not flowing or g.failed():
+            pytest.fail(f"/rig/sample did not flow within {START_TIMEOUT:g} s "
+                        f"(exited nodes: {g.failed()}):\n{running.logs()}")
+        yield running
+    finally:
+        codes = g.stop()
+    bad = {node: code for node, code in codes.items() if code != 0}
+    assert not bad, f"nodes did not exit cleanly on SIGINT: {bad} (-6 = SIGABRT, -9 = killed)\n{running.logs()}"
+
+
+# --- tests ---------------------------------------------------------------------------------------
+
+def test_every_topic_flows_at_its_configured_rate(graph: RunningGraph, probe: Probe) -> None:
+    topics = {**FAST_TOPICS, **SLOW_TOPICS}
+    rec, subs = probe.record(topics, raw=True)  # counting only: 4400 msg/s must not starve the graph
+    try:
+        assert probe.wait_all_flowing(rec), (
+            f"silent topics: {[t for t, m in rec.messages.items() if not m]}\n{graph.logs()}")
+        probe.spin_for(1.0)  # drain whatever queued while matching; the last nodes finish starting
+        t0 = time.monotonic()
+        probe.spin_for(RATE_WINDOW)
+        t1 = time.monotonic()
+        probe.spin_for(0.1)  # messages already received but not yet dispatched at t1 do not count
+    finally:
+        probe.unsubscribe(subs)
+    rates = {topic: rec.count_between(topic, t0, t1) / (t1 - t0) for topic in topics}
+    report = ", ".join(f"{t} {r:.0f} Hz" for t, r in rates.items())
+    print(report)
+    for topic, rate in rates.items():
+        nominal = SAMPLE_RATE if topic in FAST_TOPICS else CHANNEL_RATE
+        assert RATE_LOW * nominal <= rate <= RATE_HIGH * nominal, (
+            f"{topic}: {rate:.1f} Hz, expected {nominal:g} Hz "
+            f"(-{100 * (1 - RATE_LOW):.0f} %/+{100 * (RATE_HIGH - 1):.0f} %); all: {report}")
+    graph.assert_alive()
+
+
+def _steady_estimate(probe: Probe, pub, load: float, settle: float = 1.5, window: float = 1.0
+                     ) -> tuple[float, float, float, int]:
+    """Apply `load`, settle, average over `window`: (estimate, true tau_load, mean |omega-set-point|, n)."""
+    msg = LoadCommand(torque=load)
+    msg.header.stamp = probe.node.get_clock().now().to_msg()
+    pub.publish(msg)
+    rec, subs = probe.record({"/torque_estimate": TorqueEstimate, "/sim/truth": SimTruth})
+    try:
+        assert probe.wait_all_flowing(rec), "no /torque_estimate or /sim/truth"
+        probe.spin_for(settle)
+        rec.clear()
+        probe.spin_for(window)
+    finally:
+        probe.unsubscribe(subs)
+    estimates = [m.torque for m in rec.messages["/torque_estimate"] if math.isfinite(m.torque)]
+    truth = rec.messages["/sim/truth"]
+    assert estimates and truth, f"nothing received in {window} s"
+    mean = sum(estimates) / len(estimates)
+    true_load = sum(t.tau_load for t in truth) / len(truth)
+    speed_error = sum(abs(t.omega_worm - SPEED_SETPOINT) for t in truth) / len(truth)
+    return mean, true_load, speed_error, len(estimates)
+
+
+def test_estimate_follows_true_load_in_steady_state(graph: RunningGraph, probe: Probe) -> None:
+    torque_range = load_database(graph.calibration_file).torque_range
+    tolerance = 0.05 * torque_range
+    pub = probe.node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
+    try:
+        # Resistive (opposes the positive rotation), then assistive.
+        for load in (+0.15, -0.15):
+            estimate, true_load, speed_error, n = _steady_estimate(probe, pub, load)
+            where = (f"load command {load:+.3f} N m: estimate {estimate:+.4f} N m over {n} samples, "
+                     f"true tau_load {true_load:+.4f} N m, mean |omega - {SPEED_SETPOINT:g}| "
+                     f"{speed_error:.2f} rad/s")
+            print(where)
+            assert abs(true_load - load) < tolerance, f"the sim did not apply the load: {where}"
+            assert abs(estimate - true_load) <= tolerance, (
+                f"{where}; tolerance 5 % of the calibrated range {torque_range:.3f} N m = {tolerance:.4f} N m")
+            assert speed_error < 3.0, f"the controller does not hold the set-point: {where}"
+    finally:
+        # Back to no load for the tests after this one.
+        pub.publish(LoadCommand(torque=0.0))
+        probe.spin_for(0.2)
+        probe.node.destroy_publisher(pub)
+    graph.assert_alive()
+
+
+def test_nan_samples_are_flagged_and_the_graph_keeps_running(graph: RunningGraph, probe: Probe) -> None:
+    """NaN speed/current samples injected on /rig/sample: estimator_node publishes an estimate for
+    each, flagged INVALID_INPUT (it does not drop them); model_node publishes forces flagged
+    INVALID_INPUT with NaN forces. Both keep their filter state, keep running and keep publishing
+    finite results for the rig's samples after the bad ones."""
+    first_bad = 10**12  # far beyond the sim's seqs: these samples are recognisable downstream
+    bad_seqs = set(range(first_bad, first_bad + 6))
+    pub = probe.node.create_publisher(RigSample, "/rig/sample", PROBE_QOS)
+    rec, subs = probe.record({"/torque_estimate": TorqueEstimate, "/gearbox/forces": GearboxForces})
+    try:
+        assert probe.wait_all_flowing(rec), f"no estimates or forces\n{graph.logs()}"
+        assert probe.spin_until(lambda: pub.get_subscription_count() >= 3, MATCH_TIMEOUT), (
+            f"model/estimator/controller did not match the probe's /rig/sample publisher "
+            f"({pub.get_subscription_count()} subscriptions)")
+        probe.spin_for(0.3)
+        for i, seq in enumerate(sorted(bad_seqs)):
+            sample = RigSample(seq=seq, current_drive=math.nan if i % 2 == 0 else 1.0, omega_worm=math.nan,
+                               tau_load=0.1, status=RigSample.STATUS_SIMULATED)
+            sample.header.stamp = probe.node.get_clock().now().to_msg()
+            pub.publish(sample)
+            probe.spin_for(0.02)
+        last_bad = time.monotonic()
+        probe.spin_for(1.2)
+    finally:
+        probe.unsubscribe(subs)
+        probe.node.destroy_publisher(pub)
+    graph.assert_alive()
+
+    estimates = [m for m in rec.messages["/torque_estimate"] if m.seq in bad_seqs]
+    forces = [m for m in rec.messages["/gearbox/forces"] if m.seq in bad_seqs]
+    # Best effort: one sample may be dropped on a loaded machine, but not all of them.
+    assert estimates, f"no estimate for any of the {len(bad_seqs)} NaN samples\n{graph.logs()}"
+    assert forces, f"no forces for any of the {len(bad_seqs)} NaN samples\n{graph.logs()}"
+    for m in estimates:
+        assert m.flags & TorqueEstimate.FLAG_INVALID_INPUT, f"estimate for NaN sample {m.seq}: flags {m.flags}"
+    for m in forces:
+        assert m.flags & GearboxForces.FLAG_INVALID_INPUT, f"forces for NaN sample {m.seq}: flags {m.flags}"
+        assert math.isnan(m.normal_force), f"forces for NaN sample {m.seq}: N = {m.normal_force}"
+
+    # Still publishing for the rig's samples after the bad ones, and finite again.
+    for topic, msgs in rec.messages.items():
+        times = rec.times[topic]
+        later = [m for m, t in zip(msgs, times) if t > last_bad + 0.2 and m.seq not in bad_seqs]
+        assert len(later) > 0.5 * SAMPLE_RATE, f"{topic}: only {len(later)} messages in the 1 s after NaN input"
+        if topic == "/torque_estimate":
+            assert all(math.isfinite(m.torque) and not m.flags & TorqueEstimate.FLAG_INVALID_INPUT
+                       for m in later), "estimates after the NaN samples are NaN or flagged invalid"
+        else:
+            assert all(math.isfinite(m.normal_force) and not m.flags & GearboxForces.FLAG_INVALID_INPUT
+                       for m in later), "forces after the NaN samples are NaN or flagged invalid"
+
+
+def test_missing_calibration_reports_error_and_keeps_running(
+        ros_env: dict[str, str], probe: Probe, tmp_path: Path) -> None:
+    missing = tmp_path / f"no_such_calibration_{random.randrange(10**9)}.json"
+    params = tmp_path / "estimator_only.yaml"
+    params.write_text("estimator_node:\n  ros__parameters:\n    method: knn\n", encoding="utf-8")
+    log_dir = tmp_path / "logs"
+    errors: list[DiagnosticStatus] = []
+
+    def on_diagnostics(msg: DiagnosticArray) -> None:
+        errors.extend(s for s in msg.status if s.level == DiagnosticStatus.ERROR and missing.name in s.message)
+
+    sub = probe.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 50)
+    g = Graph(params, parse_overrides([f"estimator_node.calibration_file={missing}"]), log_dir)
+    try:
+        g.start()
+        started = time.monotonic()
+        probe.spin_until(lambda: bool(errors) or bool(g.failed()), 20.0)
+        probe.spin_for(max(0.0, 2.0 - (time.monotonic() - started)))
+        assert not g.failed(), f"estimator_node exited: {g.failed()}\n{node_logs(log_dir)}"
+        assert errors, f"no ERROR on /diagnostics naming {missing.name}\n{node_logs(log_dir)}"
+        assert errors[0].name == "estimator_node"
+    finally:
+        codes = g.stop()
+        probe.node.destroy_subscription(sub)
+    assert codes == {"estimator_node": 0}, f"exit codes {codes}\n{node_logs(log_dir)}"
+    assert missing.name in node_logs(log_dir), "the node's log does not name the missing file"
