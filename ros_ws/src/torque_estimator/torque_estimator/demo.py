@@ -25,11 +25,11 @@ from .calibration import CalibrationGrid, calibrate_simulated
 from .calibration_database import save_database
 from .estimator import make_estimator
 from .evaluation import evaluate_held_out
-from .graph import Graph
 from .plots import estimate_vs_truth, held_out_deviation, tracking
 from .progress import ProgressBar
 from .run_analysis import analyse_run
-from .scenario import DEMO_SCENARIO, segment_at
+from .scenario import DEMO_SCENARIO
+from .scenario_node import live_run
 
 
 def default_graph_file() -> Path:
@@ -39,55 +39,6 @@ def default_graph_file() -> Path:
         if prefix and candidate.is_file():
             return candidate
     return Path(__file__).resolve().parent.parent / "config" / "sim_graph.yaml"
-
-
-def live_run(graph_file: Path, calibration: Path, feedforward: bool, bag: Path, log_dir: Path) -> float:
-    """Run the scenario on the live graph, recording every topic to `bag`; returns the start stamp [s]."""
-    import rclpy
-    from rclpy.experimental import EventsExecutor
-    from rclpy.signals import SignalHandlerOptions
-    from std_msgs.msg import Float64
-    from worm_msgs.msg import LoadCommand
-
-    from worm_model.nodes.qos import COMMAND
-    from worm_rig_driver.bag_recording import BagWriter
-    from worm_rig_driver.recorder_node import TopicRecorder
-
-    overrides = {"estimator_node": [f"calibration_file:={calibration}"],
-                 "controller_node": [f"feedforward:={str(feedforward).lower()}", "speed_setpoint:=0.0"]}
-    with Graph(graph_file, overrides, log_dir=log_dir) as graph:
-        rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-        node = rclpy.create_node("demo_scenario")
-        executor = EventsExecutor()
-        executor.add_node(node)
-        recorder = TopicRecorder(node, BagWriter(bag, "mcap"))
-        try:
-            recorder.subscribe_all()
-            recorder.start_discovery(0.5)
-            speed_pub = node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND)
-            load_pub = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
-            deadline = time.monotonic() + 60.0
-            while min(recorder.counts.get(t, 0) for t in ("/torque_estimate", "/rig/drive_command")) < 200:
-                if graph.failed() or time.monotonic() > deadline:
-                    raise RuntimeError(f"graph did not start (exited: {graph.failed()}); see {log_dir}")
-                executor.spin_once(timeout_sec=0.05)
-            start_stamp = node.get_clock().now().nanoseconds * 1e-9
-            start = time.monotonic()
-            current = None
-            while (k := segment_at(DEMO_SCENARIO, time.monotonic() - start)) is not None:
-                if k != current:
-                    current = k
-                    speed_pub.publish(Float64(data=DEMO_SCENARIO[k].speed))
-                    load_pub.publish(LoadCommand(torque=DEMO_SCENARIO[k].load))
-                executor.spin_once(timeout_sec=0.005)
-            if graph.failed():
-                raise RuntimeError(f"a node died during the run: {graph.failed()}; see {log_dir}")
-        finally:
-            recorder.close()
-            executor.shutdown()
-            node.destroy_node()
-            rclpy.try_shutdown()
-    return start_stamp
 
 
 def load_run(bag: Path, start_stamp: float) -> dict:
