@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from worm_model.parameters import load_rig
+from worm_rig_driver.bag_recording import ament_prefixes
 
 from .calibration import CalibrationGrid, calibrate_simulated
 from .calibration_database import save_database
@@ -34,9 +35,9 @@ from .scenario_node import live_run
 
 def default_graph_file() -> Path:
     """The installed sim_graph.yaml (share/torque_estimator/config), else the source tree's."""
-    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
-        candidate = Path(prefix, "share", "torque_estimator", "config", "sim_graph.yaml")
-        if prefix and candidate.is_file():
+    for prefix in ament_prefixes():
+        candidate = prefix / "share" / "torque_estimator" / "config" / "sim_graph.yaml"
+        if candidate.is_file():
             return candidate
     return Path(__file__).resolve().parent.parent / "config" / "sim_graph.yaml"
 

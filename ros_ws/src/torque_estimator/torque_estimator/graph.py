@@ -18,6 +18,8 @@ from pathlib import Path
 
 import yaml
 
+from worm_rig_driver.bag_recording import ament_prefixes
+
 
 class GraphError(RuntimeError):
     """A graph file or executable problem, naming the file or node."""
@@ -40,7 +42,7 @@ def graph_nodes(params_file: Path) -> list[str]:
 def find_executable(name: str, prefixes: list[str] | None = None) -> Path:
     """<prefix>/lib/<pkg>/<name> for the first AMENT_PREFIX_PATH prefix that has it."""
     if prefixes is None:
-        prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+        prefixes = [str(p) for p in ament_prefixes()]
     for prefix in prefixes:
         for candidate in sorted(Path(prefix, "lib").glob(f"*/{name}")):
             if os.access(candidate, os.X_OK):

@@ -98,8 +98,7 @@ def measure_operating_points(
         buffers["omega_worm"][row] = measured.omega_worm
         buffers["current_drive"][row] = measured.current_drive
         buffers["tau_load"][row] = measured.tau_load
-        buffers["tau_true"][row] = sim.plant.state.current_load * sim.rig.load_motor_count \
-            * sim.rig.load_motor.torque_constant
+        buffers["tau_true"][row] = sim.applied_load_torque
         out = controller.update(dt, speed_sp, measured.omega_worm)
         sim.command(voltage_drive=out.voltage)
 

@@ -35,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
     while not stop and not graph.failed():
         time.sleep(0.2)
     early = graph.failed()
-    codes = graph.stop()
+    graph.stop()
     for node, code in early.items():
         print(f"run_graph: {node} exited on its own with code {code}", file=sys.stderr)
     return 1 if early else 0

@@ -82,6 +82,13 @@ class SimulatedRig:
         self.time += self.sample_period
         return self.sensors.measure(self.plant.state, self._last)
 
+    @property
+    def applied_load_torque(self) -> np.ndarray:
+        """Load torque [N m] the load motors applied in the last step (cheap part of the truth)."""
+        if self._last is None:
+            raise RuntimeError("applied_load_torque needs at least one sample()")
+        return self._last.tau_load
+
     def truth(self) -> Truth:
         """Ground truth at the last sample (call after sample())."""
         if self._last is None:
