@@ -48,10 +48,17 @@ fi
 "$VENV/bin/python" tools/fix_ros_wheels.py --venv "$VENV" >/dev/null
 
 # --- 4. colcon build ----------------------------------------------------------
+# One build at a time (several shells may run make at once), and the stamp
+# records when the build *started*, so a source edited during a build still
+# triggers the next one.
+mkdir -p ros_ws/install
+exec 9>ros_ws/.build.lock
+flock 9
 stamp=ros_ws/install/.build-stamp
 if [ ! -f "$stamp" ] || [ -n "$(find ros_ws/src -newer "$stamp" -print -quit)" ] \
    || [ requirements.lock -nt "$stamp" ]; then
   say "colcon build of ros_ws (log: ros_ws/log/latest_build)"
+  touch "$stamp.new"
   (
     cd ros_ws
     # shellcheck disable=SC1091
@@ -62,6 +69,7 @@ if [ ! -f "$stamp" ] || [ -n "$(find ros_ws/src -newer "$stamp" -print -quit)" ]
       --cmake-args -DBUILD_TESTING=OFF -DPython3_EXECUTABLE="$VENV/bin/python" >/dev/null \
       || { echo "setup: colcon build failed; see ros_ws/log/latest_build" >&2; exit 1; }
   )
-  touch "$stamp"
+  mv "$stamp.new" "$stamp"
 fi
+exec 9>&-
 say "ready (source .venv/bin/activate && source ros_ws/install/setup.bash)"
