@@ -1,5 +1,5 @@
 # Front doors. Each target sets everything up from nothing first (make setup).
-.PHONY: setup demo test bench clean
+.PHONY: setup demo evaluate test bench clean
 RUN := tools/run.sh
 
 setup:
@@ -7,6 +7,9 @@ setup:
 
 demo: setup
 	@$(RUN) python -m torque_estimator.demo --out out/demo
+
+evaluate: setup
+	@$(RUN) python -m torque_estimator.evaluate --out out/evaluate
 
 test: setup
 	@$(RUN) python -m pytest

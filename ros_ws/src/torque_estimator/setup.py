@@ -25,6 +25,7 @@ setup(
             "estimator_node = torque_estimator.estimator_node:main",
             "controller_node = torque_estimator.controller_node:main",
             "calibrate = torque_estimator.calibrate:main",
+            "evaluate = torque_estimator.evaluate:main",
             "run_graph = torque_estimator.run_graph:main",
             "demo = torque_estimator.demo:main",
         ],

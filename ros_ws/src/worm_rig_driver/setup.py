@@ -24,6 +24,9 @@ setup(
         "console_scripts": [
             "sim_node = worm_rig_driver.sim_node:main",
             "recorder = worm_rig_driver.recorder_node:main",
+            "bag = worm_rig_driver.bag_cli:main",
+            "worm_effects = worm_rig_driver.effects:main",
+            "driver_node = worm_rig_driver.driver_node:main",
         ],
     },
 )

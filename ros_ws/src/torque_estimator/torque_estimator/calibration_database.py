@@ -259,10 +259,26 @@ def save_database(db: CalibrationDatabase, path: str | os.PathLike[str]) -> None
         text = json.dumps(_to_document(db), indent=1, ensure_ascii=False, allow_nan=False)
     except (TypeError, ValueError) as err:
         raise CalibrationError(f"calibration file {target}: cannot encode: {err}") from None
+    write_text_atomically(target, text + "\n")
+
+
+def write_text_atomically(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` (UTF-8) to ``path`` so that a reader, or a crash, sees the old file or the new one.
+
+    The text goes to a temporary file in the same directory, is synced, then
+    moved over ``path`` with :func:`os.replace`.
+
+    Raises:
+        OSError: the directory is not writable.
+    """
+    target = Path(path)
     fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
     try:
+        umask = os.umask(0o022)  # mkstemp makes the file 0600; give it the mode open() would
+        os.umask(umask)
+        os.chmod(fd, 0o666 & ~umask)
         with os.fdopen(fd, "w", encoding="utf-8") as stream:
-            stream.write(text + "\n")
+            stream.write(text)
             stream.flush()
             os.fsync(stream.fileno())
         os.replace(tmp, target)
@@ -343,4 +359,5 @@ __all__ = [
     "CalibrationDatabase",
     "save_database",
     "load_database",
+    "write_text_atomically",
 ]

@@ -20,26 +20,17 @@ from pathlib import Path
 import numpy as np
 
 from worm_model.parameters import load_rig
-from worm_rig_driver.bag_recording import ament_prefixes
 
 from .calibration import CalibrationGrid, calibrate_simulated
 from .calibration_database import save_database
 from .estimator import make_estimator
-from .evaluation import evaluate_held_out
+from .graph import default_graph_file
+from .evaluation import evaluate_held_out, format_table
 from .plots import estimate_vs_truth, held_out_deviation, tracking
 from .progress import ProgressBar
 from .run_analysis import analyse_run
 from .scenario import DEMO_SCENARIO
 from .scenario_node import live_run
-
-
-def default_graph_file() -> Path:
-    """The installed sim_graph.yaml (share/torque_estimator/config), else the source tree's."""
-    for prefix in ament_prefixes():
-        candidate = prefix / "share" / "torque_estimator" / "config" / "sim_graph.yaml"
-        if candidate.is_file():
-            return candidate
-    return Path(__file__).resolve().parent.parent / "config" / "sim_graph.yaml"
 
 
 def load_run(bag: Path, start_stamp: float) -> dict:
@@ -91,10 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     print("[2/4] k-NN estimate on 17 held-out operating points", flush=True)
     estimator = make_estimator("knn", db)
     ev = evaluate_held_out(rig, estimator, grid, db.torque_range, n=17, seed=args.seed + 1)
-    print("      #   speed[rad/s]  current[A]  true[N m]  est.[N m]  error[%]")
-    for i in range(len(ev.tau_true)):
-        print(f"      {i + 1:2d} {ev.omega_worm[i]:12.1f} {ev.current_drive[i]:11.3f} {ev.tau_true[i]:10.3f} "
-              f"{ev.tau_estimated[i]:10.3f} {ev.error_pct[i]:9.2f}")
+    print("\n".join(format_table(ev, indent="      ")))
     held_out_deviation(out / "held_out_deviation.png", ev.tau_true, ev.tau_estimated, db.torque_range)
 
     runs, metrics = {}, {}

@@ -1,12 +1,13 @@
 """estimator_node: the load torque tau_d for every rig sample, without a torque sensor.
 
 Subscribes /rig/sample (worm_msgs/RigSample), publishes /torque_estimate
-(worm_msgs/TorqueEstimate), sensor-data QoS. The speed and current are
-low-passed (the calibration map is quasi-static, so is its input), the current
-that accelerates the inertia is removed (quasi_static.py), then the
-configured estimator (k-NN over the calibration database, paper Eqs 33-34)
-maps (omega, i) to tau_d with an uncertainty and flags. A sample taken while
-the worm accelerates faster than transient_acceleration is flagged TRANSIENT.
+(worm_msgs/TorqueEstimate) for every sample, sensor-data QoS. The per-sample
+work is live_estimator.LiveEstimator: the speed and current are low-passed
+(the calibration map is quasi-static, so is its input), the current that
+accelerates the inertia is removed (quasi_static.py), then the configured
+estimator (k-NN over the calibration database, paper Eqs 33-34) maps
+(omega, i) to tau_d with an uncertainty and flags. A sample taken while the
+worm accelerates faster than transient_acceleration is flagged TRANSIENT.
 
 A missing or broken calibration file is reported (log + /diagnostics ERROR)
 and the node keeps running without publishing estimates, so the rest of the
@@ -19,17 +20,15 @@ import math
 from rclpy.node import Node
 from worm_msgs.msg import RigSample, TorqueEstimate
 
-from worm_model.filters import FilteredDerivative
 from worm_model.nodes.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.nodes.lifecycle import run_node
 from worm_model.nodes.parameters import declare
 from worm_model.nodes.qos import STREAM
-
 from worm_model.parameters import load_rig
 
 from .calibration_database import CalibrationError, load_database
-from .estimator import ESTIMATORS, EstimateFlags, TorqueEstimator, make_estimator
-from .quasi_static import inertia_free_current
+from .estimator import ESTIMATORS, EstimateFlags, make_estimator
+from .live_estimator import LiveEstimator
 
 
 class EstimatorNode(Node):
@@ -53,13 +52,14 @@ class EstimatorNode(Node):
         period = 1.0 / declare(self, "sample_rate", 1000.0, "Rig sample rate [Hz].", low=1.0, high=100000.0)
 
         self.rig = load_rig(rig_file or None)
-        self.speed = FilteredDerivative(tau, period)
-        self.current = FilteredDerivative(tau, period)
-        self.estimator: TorqueEstimator | None = None
+        self.estimator: LiveEstimator | None = None
         self.problem = ""
         try:
             database = load_database(self.calibration_file)
-            self.estimator = make_estimator(self.method, database, k=k, weighting=weighting)
+            self.estimator = LiveEstimator(self.rig, make_estimator(self.method, database, k=k, weighting=weighting),
+                                           period, input_filter=tau,
+                                           inertia_compensation=self.inertia_compensation,
+                                           transient_acceleration=self.transient_acceleration)
             self.get_logger().info(f"{self.method} estimator on {len(database)} calibration points "
                                    f"from {self.calibration_file}")
         except CalibrationError as err:
@@ -76,21 +76,12 @@ class EstimatorNode(Node):
         self.received += 1
         if self.estimator is None:
             return
-        omega, alpha = self.speed.update(sample.omega_worm)
-        current, _ = self.current.update(sample.current_drive)
-        if self.inertia_compensation:
-            current = float(inertia_free_current(self.rig, current, omega, alpha))
-        result = self.estimator.estimate(omega, current)
-        flags = int(result.flags)
-        if not (math.isfinite(sample.omega_worm) and math.isfinite(sample.current_drive)):
-            flags |= EstimateFlags.INVALID_INPUT
-        if abs(alpha) > self.transient_acceleration:
-            flags |= EstimateFlags.TRANSIENT
-        for flag in EstimateFlags(flags):
+        est = self.estimator.update(sample.omega_worm, sample.current_drive)
+        for flag in EstimateFlags(est.flags):
             self.flag_counts[flag.name] += 1
-        msg = TorqueEstimate(header=sample.header, seq=sample.seq, torque=float(result.torque),
-                             uncertainty=float(result.uncertainty), method=self.method,
-                             omega_worm=float(omega), current_drive=float(current), flags=flags)
+        msg = TorqueEstimate(header=sample.header, seq=sample.seq, torque=est.torque, uncertainty=est.uncertainty,
+                             method=self.method, omega_worm=est.omega_worm, current_drive=est.current_drive,
+                             flags=est.flags)
         self.pub.publish(msg)
 
     def report(self) -> tuple[bytes, str, dict]:

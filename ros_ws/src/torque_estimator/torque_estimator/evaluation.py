@@ -1,21 +1,30 @@
-"""Held-out evaluation of an estimator, like the paper's Table 3 and Figure 13.
+"""Held-out evaluation of an estimator, like the paper's Table 3 and Figure 13, and its sweeps.
 
 Operating points not in the calibration grid (random speeds and torques, both
 signs, both directions) are measured quasi-statically on the simulated rig the
 same way calibration was; the estimator maps each measured (omega, i) to tau_d,
-and the error is reported as a percentage of the calibrated torque range.
+and the error is reported as a percentage of the calibrated torque range
+(max - min of the database's tau_load). The truth is the load torque the
+simulated load motors applied, averaged over the same window.
+
+Sweeps redo this while changing one thing: the estimator's k (and weighting),
+the grid density (points per axis of the calibration), or the sensor noise
+(both calibration and held-out points measured with it).
 Plain numpy; no ROS.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Callable
 
 import numpy as np
 
 from worm_model.parameters import Rig
 
-from .calibration import CalibrationGrid, measure_on_simulator
-from .estimator import TorqueEstimator
+from .calibration import CalibrationGrid, calibrate_simulated, measure_on_simulator
+from .calibration_database import CalibrationDatabase
+from .estimator import EstimateFlags, TorqueEstimator, make_estimator
+from .operating_points import OperatingPoints
 
 
 @dataclass
@@ -36,28 +45,37 @@ class Evaluation:
 
     @property
     def mae_pct(self) -> float:
+        """Mean of error_pct [%]."""
         return float(np.mean(self.error_pct))
 
     @property
     def max_pct(self) -> float:
+        """Largest error_pct [%]."""
         return float(np.max(self.error_pct))
 
 
 def held_out_setpoints(grid: CalibrationGrid, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     """n random (speed, torque) set-points inside the grid's span but off its nodes.
 
-    Speeds are drawn between the smallest and largest calibrated magnitudes
-    with a random direction; torques within the calibrated span. A draw closer
-    than 20 % of a grid step to a grid node in both coordinates is redrawn.
+    The four quadrants (direction of rotation x sign of the torque) take turns,
+    so any n >= 4 has both directions and both torque signs, i.e. resistive and
+    assistive loads each way. Speed magnitudes are drawn uniformly between the
+    smallest and largest calibrated ones, torques uniformly within the
+    calibrated span on their side of zero. A draw closer than 20 % of a grid
+    step to a grid node in both coordinates is redrawn.
     """
     rng = np.random.default_rng(seed)
     magnitudes = np.unique(np.abs(grid.speeds))
     speed_step = np.min(np.diff(magnitudes)) if len(magnitudes) > 1 else magnitudes[0]
     torque_step = np.min(np.diff(grid.torques))
+    low, high = grid.torques[0], grid.torques[-1]
     speeds, torques = [], []
     while len(speeds) < n:
-        speed = rng.uniform(magnitudes[0], magnitudes[-1]) * rng.choice((-1.0, 1.0))
-        torque = rng.uniform(grid.torques[0], grid.torques[-1])
+        quadrant = len(speeds) % 4
+        direction = 1.0 if quadrant in (0, 3) else -1.0
+        positive = quadrant < 2
+        speed = direction * rng.uniform(magnitudes[0], magnitudes[-1])
+        torque = rng.uniform(max(0.0, low), high) if positive else rng.uniform(low, min(0.0, high))
         near_speed = np.min(np.abs(np.abs(speed) - magnitudes)) < 0.2 * speed_step
         near_torque = np.min(np.abs(torque - grid.torques)) < 0.2 * torque_step
         if not (near_speed and near_torque):
@@ -66,12 +84,116 @@ def held_out_setpoints(grid: CalibrationGrid, n: int, seed: int) -> tuple[np.nda
     return np.array(speeds), np.array(torques)
 
 
-def evaluate_held_out(rig: Rig, estimator: TorqueEstimator, grid: CalibrationGrid, torque_range: float,
-                      n: int = 17, seed: int = 1) -> Evaluation:
-    """Measure n held-out points on the simulated rig and estimate each (seed differs from calibration's)."""
+def measure_held_out(rig: Rig, grid: CalibrationGrid, n: int = 17, seed: int = 1) -> OperatingPoints:
+    """Measure n held-out points (held_out_setpoints(grid, n, seed)) on the simulated rig.
+
+    The noise seed differs from any calibration's (seed + 1000).
+    """
     speeds, torques = held_out_setpoints(grid, n, seed)
-    measured = measure_on_simulator(rig, speeds, torques, seed=seed + 1000)
+    return measure_on_simulator(rig, speeds, torques, seed=seed + 1000)
+
+
+def score(estimator: TorqueEstimator, measured: OperatingPoints, torque_range: float) -> Evaluation:
+    """Estimate every measured point and compare with the applied load."""
     result = estimator.estimate(measured.omega_worm, measured.current_drive)
     return Evaluation(omega_worm=measured.omega_worm, current_drive=measured.current_drive,
                       tau_true=measured.tau_true, tau_estimated=np.asarray(result.torque),
                       flags=np.asarray(result.flags), torque_range=torque_range)
+
+
+def evaluate_held_out(rig: Rig, estimator: TorqueEstimator, grid: CalibrationGrid, torque_range: float,
+                      n: int = 17, seed: int = 1) -> Evaluation:
+    """Measure n held-out points on the simulated rig and estimate each (seed differs from calibration's)."""
+    return score(estimator, measure_held_out(rig, grid, n, seed), torque_range)
+
+
+def flag_names(flags: int) -> str:
+    """'AMBIGUOUS,OUT_OF_CALIBRATION' for a flags value, '-' for none."""
+    return ",".join(f.name for f in EstimateFlags if f and int(flags) & f) or "-"
+
+
+def format_table(ev: Evaluation, indent: str = "  ") -> list[str]:
+    """The paper's Table 3 layout: speed, current, true and estimated tau_d, error %, one row per test."""
+    lines = [f"{indent} #  speed [rad/s]  current [A]  true τ_d [N·m]  est. τ_d [N·m]  error [%]  flags"]
+    for i in range(len(ev.tau_true)):
+        lines.append(f"{indent}{i + 1:2d} {ev.omega_worm[i]:14.1f} {ev.current_drive[i]:12.3f} "
+                     f"{ev.tau_true[i]:15.4f} {ev.tau_estimated[i]:15.4f} {ev.error_pct[i]:10.2f}  "
+                     f"{flag_names(ev.flags[i])}")
+    return lines
+
+
+# --- sweeps ------------------------------------------------------------------------------------------
+
+@dataclass
+class SweepResult:
+    """One sweep: the values of the swept quantity and the errors at each, in % of the torque range."""
+
+    name: str  # what was swept
+    unit: str
+    values: np.ndarray
+    mae_pct: dict[str, np.ndarray]  # curve label -> mean error at each value
+    max_pct: dict[str, np.ndarray]  # curve label -> largest error at each value
+
+
+def sweep_k(db: CalibrationDatabase, measured: OperatingPoints, ks, method: str = "knn",
+            weightings=("inverse_distance", "uniform")) -> SweepResult:
+    """Error against the number of neighbours k, for each weighting, on one set of measured points."""
+    ks = np.asarray(ks, dtype=int)
+    mae, worst = {}, {}
+    for weighting in weightings:
+        evs = [score(make_estimator(method, db, k=int(k), weighting=weighting), measured, db.torque_range)
+               for k in ks]
+        mae[weighting] = np.array([ev.mae_pct for ev in evs])
+        worst[weighting] = np.array([ev.max_pct for ev in evs])
+    return SweepResult("neighbours k", "1", ks, mae, worst)
+
+
+def sweep_grid_density(rig: Rig, sizes, measured: OperatingPoints, *, seed: int = 0, method: str = "knn",
+                       options: dict | None = None,
+                       progress: Callable[[], None] | None = None) -> SweepResult:
+    """Error against the grid density: calibrate CalibrationGrid.paper(rig, speeds, torques) for each
+    (speeds per direction, torques) in sizes; score all on the same measured held-out points.
+    The swept value is the number of calibration points."""
+    mae, worst, counts = [], [], []
+    for n_speeds, n_torques in sizes:
+        grid = CalibrationGrid.paper(rig, n_speeds, n_torques)
+        n = 2 * n_speeds * n_torques
+        db = calibrate_simulated(rig, grid, seed=seed)  # default batches: the 17x16 entry is `calibrate`'s database
+        ev = score(make_estimator(method, db, **(options or {})), measured, db.torque_range)
+        counts.append(n)
+        mae.append(ev.mae_pct)
+        worst.append(ev.max_pct)
+        if progress is not None:
+            progress()
+    return SweepResult("calibration points", "1", np.array(counts), {method: np.array(mae)},
+                       {method: np.array(worst)})
+
+
+def with_noise(rig: Rig, factor: float) -> Rig:
+    """The rig with its current and tachogenerator noise scaled by factor (ripple and ADC step kept)."""
+    s = rig.sensors
+    return replace(rig, sensors=replace(s, current_noise_std=factor * s.current_noise_std,
+                                        tacho_noise_std=factor * s.tacho_noise_std))
+
+
+def sweep_noise(rig: Rig, grid: CalibrationGrid, factors, n_points: int, *, seed: int = 0, method: str = "knn",
+                options: dict | None = None, progress: Callable[[], None] | None = None) -> SweepResult:
+    """Error against sensor noise: for each factor, calibrate and measure the held-out points on a rig
+    whose current and speed noise are that many times the rig's. With no noise at all the current
+    ADC's step is not dithered any more, so window means are quantised: the error does not fall to 0."""
+    mae, worst = [], []
+    for factor in factors:
+        noisy = with_noise(rig, float(factor))
+        db = calibrate_simulated(noisy, grid, seed=seed)
+        ev = score(make_estimator(method, db, **(options or {})),
+                   measure_held_out(noisy, grid, n_points, seed + 1), db.torque_range)
+        mae.append(ev.mae_pct)
+        worst.append(ev.max_pct)
+        if progress is not None:
+            progress()
+    return SweepResult("sensor noise (x the rig's)", "1", np.asarray(factors, dtype=float),
+                       {method: np.array(mae)}, {method: np.array(worst)})
+
+
+__all__ = ["Evaluation", "SweepResult", "held_out_setpoints", "measure_held_out", "score", "evaluate_held_out",
+           "flag_names", "format_table", "sweep_k", "sweep_grid_density", "sweep_noise", "with_noise"]

@@ -25,6 +25,15 @@ class GraphError(RuntimeError):
     """A graph file or executable problem, naming the file or node."""
 
 
+def default_graph_file() -> Path:
+    """The installed sim_graph.yaml (share/torque_estimator/config), else the source tree's."""
+    for prefix in ament_prefixes():
+        candidate = prefix / "share" / "torque_estimator" / "config" / "sim_graph.yaml"
+        if candidate.is_file():
+            return candidate
+    return Path(__file__).resolve().parent.parent / "config" / "sim_graph.yaml"
+
+
 def graph_nodes(params_file: Path) -> list[str]:
     """Node names (= executable names) at the top level of a ROS 2 parameter file."""
     try:

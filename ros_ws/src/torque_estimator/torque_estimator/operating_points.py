@@ -6,8 +6,11 @@ steady-state criterion holds over a whole averaging window, the window's mean
 and spread of every channel are kept. Calibration measures the grid this way,
 evaluation measures held-out points the same way.
 
-Runs an ensemble of simulated rigs side by side (one per point), so a full
-17 x 16 x 2 grid settles in seconds. Plain numpy; no ROS.
+SteadyStateDetector applies the criterion to samples as they come, for n
+points at once: measure_operating_points runs an ensemble of simulated rigs
+side by side (one per point, a full 17 x 16 x 2 grid settles in seconds);
+live calibration (calibrate --live) feeds it one rig's samples off the graph.
+Plain numpy; no ROS.
 """
 from __future__ import annotations
 
@@ -58,6 +61,77 @@ class OperatingPoints:
     settled: np.ndarray  # bool: the criterion held (else: the last window at timeout)
 
 
+class SteadyStateDetector:
+    """The criterion applied to n points fed one sample at a time (batch and live alike).
+
+    Counting starts at the first sample added. Windows of ``window`` samples
+    are checked when the count is a multiple of the window and at least
+    settle_time + window; the first steady window of a point is kept. At the
+    first check at or after ``timeout`` every point not yet steady keeps that
+    last window and stays marked unsettled, and the detector is finished.
+
+    Args:
+        criterion: the steady-state criterion.
+        sample_period: time between samples [s].
+        speed_setpoints: worm speed set-points [rad/s], shape (n,).
+    """
+
+    CHANNELS = ("omega_worm", "current_drive", "tau_load", "tau_true")
+
+    def __init__(self, criterion: SteadyStateCriterion, sample_period: float, speed_setpoints) -> None:
+        self.criterion = criterion
+        self.speed_setpoints = np.atleast_1d(np.asarray(speed_setpoints, dtype=float))
+        n = len(self.speed_setpoints)
+        self.window = max(2, int(round(criterion.window / sample_period)))
+        self.first_check = int(round(criterion.settle_time / sample_period)) + self.window
+        self.timeout_samples = int(round(criterion.timeout / sample_period))
+        self.count = 0
+        self._buffers = {name: np.empty((self.window, n)) for name in self.CHANNELS}
+        self.mean = {name: np.full(n, np.nan) for name in self.CHANNELS}
+        self.std = {name: np.full(n, np.nan) for name in self.CHANNELS}
+        self.settled = np.zeros(n, dtype=bool)
+        self.finished = False
+
+    def add(self, omega_worm, current_drive, tau_load, tau_true=np.nan) -> bool:
+        """Feed one sample of every point: speed [rad/s], current [A], load torque [N m]
+        (measured, and the applied truth if known). Returns True when a window was checked."""
+        if self.finished:
+            raise RuntimeError("SteadyStateDetector is finished; start a new one for new points")
+        row = self.count % self.window
+        self.count += 1
+        for name, value in zip(self.CHANNELS, (omega_worm, current_drive, tau_load, tau_true)):
+            self._buffers[name][row] = value
+        if self.count < self.first_check or self.count % self.window:
+            return False
+        buffers = self._buffers
+        means = {name: buf.mean(axis=0) for name, buf in buffers.items()}
+        half = self.window // 2
+        current = buffers["current_drive"]  # rows are in time order at a check (count % window == 0)
+        drift = np.abs(current[:half].mean(axis=0) - current[half:].mean(axis=0))
+        c = self.criterion
+        steady = ((np.abs(means["omega_worm"] - self.speed_setpoints)
+                   <= c.speed_tolerance * np.abs(self.speed_setpoints) + c.speed_floor)
+                  & (drift <= c.current_drift))
+        last = self.count >= self.timeout_samples
+        take = ~self.settled & (steady | last)
+        for name, buf in buffers.items():
+            self.mean[name] = np.where(take, means[name], self.mean[name])
+            self.std[name] = np.where(take, buf.std(axis=0), self.std[name])
+        self.settled |= steady
+        self.finished = last or bool(self.settled.all())
+        return True
+
+    def result(self, torque_setpoints) -> OperatingPoints:
+        """The kept windows (call once finished; before, unfinished points are NaN)."""
+        return OperatingPoints(
+            speed_setpoint=self.speed_setpoints, torque_setpoint=np.asarray(torque_setpoints, dtype=float),
+            omega_worm=self.mean["omega_worm"], omega_std=self.std["omega_worm"],
+            current_drive=self.mean["current_drive"], current_std=self.std["current_drive"],
+            tau_load=self.mean["tau_load"], tau_std=self.std["tau_load"],
+            tau_true=self.mean["tau_true"], samples=np.full(len(self.speed_setpoints), self.window),
+            settled=self.settled.copy())
+
+
 def measure_operating_points(
     sim: SimulatedRig,
     controller: SpeedController,
@@ -80,49 +154,14 @@ def measure_operating_points(
     n = sim.n
     if speed_sp.shape != (n,) or torque_sp.shape != (n,):
         raise ValueError(f"need {n} speed and torque set-points, got {speed_sp.shape} and {torque_sp.shape}")
-    dt = sim.sample_period
-    window = max(2, int(round(criterion.window / dt)))
-    first_check = int(round(criterion.settle_time / dt)) + window
-    last_sample = max(first_check, int(round(criterion.timeout / dt)))
-
-    channels = ("omega_worm", "current_drive", "tau_load", "tau_true")
-    buffers = {name: np.empty((window, n)) for name in channels}
-    result = {name: np.full(n, np.nan) for name in channels}
-    spread = {name: np.full(n, np.nan) for name in channels}
-    settled = np.zeros(n, dtype=bool)
-
+    detector = SteadyStateDetector(criterion, sim.sample_period, speed_sp)
     sim.command(voltage_drive=0.0, load_torque=torque_sp)
-    for k in range(1, last_sample + 1):
+    while not detector.finished:
         measured = sim.sample()
-        row = (k - 1) % window
-        buffers["omega_worm"][row] = measured.omega_worm
-        buffers["current_drive"][row] = measured.current_drive
-        buffers["tau_load"][row] = measured.tau_load
-        buffers["tau_true"][row] = sim.applied_load_torque
-        out = controller.update(dt, speed_sp, measured.omega_worm)
+        checked = detector.add(measured.omega_worm, measured.current_drive, measured.tau_load,
+                               sim.applied_load_torque)
+        out = controller.update(sim.sample_period, speed_sp, measured.omega_worm)
         sim.command(voltage_drive=out.voltage)
-
-        if k < first_check or k % window:
-            continue
-        means = {name: buf.mean(axis=0) for name, buf in buffers.items()}
-        half = window // 2
-        drift = np.abs(buffers["current_drive"][:half].mean(axis=0) - buffers["current_drive"][half:].mean(axis=0))
-        steady = (np.abs(means["omega_worm"] - speed_sp) <= criterion.speed_tolerance * np.abs(speed_sp)
-                  + criterion.speed_floor) & (drift <= criterion.current_drift)
-        take = (steady & ~settled) | ((k + window > last_sample) & ~settled)
-        for name, buf in buffers.items():
-            result[name] = np.where(take, means[name], result[name])
-            spread[name] = np.where(take, buf.std(axis=0), spread[name])
-        settled |= steady
-        if progress is not None:
-            progress(float(settled.mean()))
-        if settled.all():
-            break
-
-    return OperatingPoints(
-        speed_setpoint=speed_sp, torque_setpoint=torque_sp,
-        omega_worm=result["omega_worm"], omega_std=spread["omega_worm"],
-        current_drive=result["current_drive"], current_std=spread["current_drive"],
-        tau_load=result["tau_load"], tau_std=spread["tau_load"],
-        tau_true=result["tau_true"], samples=np.full(n, window), settled=settled,
-    )
+        if checked and progress is not None:
+            progress(float(detector.settled.mean()))
+    return detector.result(torque_sp)

@@ -21,6 +21,8 @@ def held_out_deviation(path: Path, tau_true, tau_est, torque_range: float) -> Pa
     bottom.bar(idx, 100 * (np.asarray(tau_est) - tau_true) / torque_range)
     bottom.set_ylabel("error [% of range]")
     bottom.set_xlabel("held-out test")
+    bottom.set_xticks(idx)
+    bottom.axhline(0.0, color="black", lw=0.6)
     fig.suptitle("Held-out operating points (not in the calibration grid)")
     return _save(fig, path)
 
@@ -49,6 +51,31 @@ def tracking(path: Path, runs: dict) -> Path:
     ax.set_ylabel("worm speed [rad/s]")
     ax.legend(loc="lower left")
     ax.set_title("Speed tracking through load steps")
+    return _save(fig, path)
+
+
+def sweeps(path: Path, results, reference: dict | None = None) -> Path:
+    """Held-out error against each swept quantity (evaluation.SweepResult), one panel each.
+
+    Solid lines: mean error; dashed: largest error; both in % of the calibrated torque range.
+    reference: swept name -> the value the main evaluation used (marked by a vertical line).
+    """
+    fig, axes = plt.subplots(1, len(results), figsize=(4.6 * len(results), 4), squeeze=False)
+    for ax, result in zip(axes[0], results):
+        for i, (label, mae) in enumerate(result.mae_pct.items()):
+            color = f"C{i}"
+            ax.plot(result.values, mae, "o-", color=color, label=f"{label}: mean")
+            ax.plot(result.values, result.max_pct[label], "s--", color=color, alpha=0.7, label=f"{label}: max")
+        if reference and result.name in reference:
+            ax.axvline(reference[result.name], color="grey", lw=0.8, ls=":")
+        if result.name == "calibration points":
+            ax.set_xscale("log")
+        ax.set_xlabel(result.name)
+        ax.set_ylabel("held-out error [% of torque range]")
+        ax.set_ylim(bottom=0)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle("k-NN held-out error against k, grid density and sensor noise")
     return _save(fig, path)
 
 

@@ -24,6 +24,59 @@ class RunMetrics:
     modes_seen: tuple[int, ...]  # worm_model.modes.Mode values the truth visited
 
 
+def load_steps(scenario) -> list[int]:
+    """Indices of the segments that start with a pure load step: same speed as the segment before,
+    other load."""
+    return [k for k in range(1, len(scenario))
+            if scenario[k].speed == scenario[k - 1].speed and scenario[k].load != scenario[k - 1].load]
+
+
+@dataclass
+class LoadStepResponse:
+    """How the speed loop rejected one load step (times from the step)."""
+
+    segment: int  # index of the segment the step starts
+    speed: float  # [rad/s] set-point held through the step
+    load_before: float  # [N m]
+    load_after: float  # [N m]
+    peak_dip: float  # [rad/s] largest |omega - set-point| after the step, within the segment
+    settling_time: float  # [s] until |omega - set-point| stays within the band; nan if it never does
+    iae: float  # [rad] integral of |omega - set-point| from the step to the segment's end
+    band: float  # [rad/s] the settling band used
+
+
+def load_step_responses(scenario, t, omega, setpoint, band_fraction: float = 0.01,
+                        band_floor: float = 0.5) -> list[LoadStepResponse]:
+    """Peak dip, settling time and IAE of every pure load step of a scenario.
+
+    Args:
+        t: sample times [s] from the scenario's start (uniformly spaced); omega: worm speed
+            [rad/s] (the true speed, where known: tacho noise is not a dip); setpoint [rad/s].
+        band_fraction, band_floor: settled means |omega - set-point| <= max(band_fraction x
+            |set-point|, band_floor) from then to the end of the segment.
+    """
+    t, error = np.asarray(t), np.abs(np.asarray(omega) - np.asarray(setpoint))
+    dt = float(np.median(np.diff(t)))
+    starts = segment_starts(scenario)
+    responses = []
+    for k in load_steps(scenario):
+        seg = scenario[k]
+        inside = (t >= starts[k]) & (t < starts[k] + seg.duration)
+        e, te = error[inside], t[inside] - starts[k]
+        band = max(band_fraction * abs(seg.speed), band_floor)
+        outside = np.flatnonzero(e > band)
+        if outside.size == 0:
+            settling = 0.0
+        elif outside[-1] == len(e) - 1:
+            settling = float("nan")  # still outside at the segment's end
+        else:
+            settling = float(te[outside[-1] + 1])
+        responses.append(LoadStepResponse(
+            segment=k, speed=seg.speed, load_before=scenario[k - 1].load, load_after=seg.load,
+            peak_dip=float(e.max()), settling_time=settling, iae=float(e.sum() * dt), band=band))
+    return responses
+
+
 def _steady_mask(t: np.ndarray, scenario, settle: float) -> np.ndarray:
     starts = segment_starts(scenario)
     ends = starts + np.array([s.duration for s in scenario])
@@ -38,10 +91,9 @@ def analyse_run(scenario, t_speed, omega, setpoint, t_est, estimate, t_truth, tr
     dt = np.diff(t_speed, prepend=t_speed[0])
     starts = segment_starts(scenario)
     dips = []
-    for k in range(1, len(scenario)):
-        if scenario[k].speed == scenario[k - 1].speed:  # a pure load step
-            window = (t_speed >= starts[k]) & (t_speed < starts[k] + settle)
-            dips.append(np.max(np.abs(error[window])) if window.any() else np.nan)
+    for k in load_steps(scenario):
+        window = (t_speed >= starts[k]) & (t_speed < starts[k] + settle)
+        dips.append(np.max(np.abs(error[window])) if window.any() else np.nan)
 
     truth_at_est = np.interp(t_est, t_truth, truth)
     steady = _steady_mask(t_est, scenario, settle) & np.isfinite(estimate)

@@ -23,6 +23,8 @@ from worm_model.dynamics import reflected_input_torque
 from worm_model.friction import friction_coefficient
 from worm_model.parameters import Rig
 
+from .estimator import EstimateFlags
+
 
 @dataclass(frozen=True)
 class PiGains:
@@ -109,3 +111,37 @@ class SpeedController:
         return ControlOutput(voltage=np.clip(voltage, -self.voltage_limit, self.voltage_limit),
                              torque_command=torque, feedforward_torque=np.broadcast_to(tau_ff, torque.shape),
                              saturated=saturated)
+
+
+class FeedforwardGate:
+    """Which load estimate the controller may feed forward (controller_node's rule, plain).
+
+    The latest estimate offered is held. It is used for a control period at
+    time ``now`` only if feedforward is enabled, its torque is finite, it is not
+    flagged INVALID_INPUT or OUT_OF_CALIBRATION (an extrapolated value is not
+    trusted as a command), and it is at most ``timeout`` [s] older than ``now``
+    (the sample being controlled): a stalled estimator must not leave a stale
+    torque in the loop. Otherwise the PI alone holds the speed.
+    AMBIGUOUS and TRANSIENT estimates are used: the nearest branch is the best
+    guess, and a transient estimate still points the right way.
+    """
+
+    UNUSABLE = EstimateFlags.INVALID_INPUT | EstimateFlags.OUT_OF_CALIBRATION
+
+    def __init__(self, timeout: float, enabled: bool = True) -> None:
+        self.timeout = timeout
+        self.enabled = enabled
+        self._torque: float | None = None
+        self._flags = 0
+        self._stamp = 0.0
+
+    def offer(self, torque: float, flags: int, stamp: float) -> None:
+        """Hold a new estimate: τ_d [N m], EstimateFlags bits, stamp of the sample it came from [s]."""
+        self._torque, self._flags, self._stamp = float(torque), int(flags), float(stamp)
+
+    def load(self, now: float) -> float | None:
+        """The usable held τ_d [N m] for a control period at time ``now`` [s], or None."""
+        torque = self._torque
+        if not self.enabled or torque is None or self._flags & self.UNUSABLE or not np.isfinite(torque):
+            return None
+        return torque if now - self._stamp <= self.timeout else None

@@ -54,3 +54,19 @@ def test_sliding_velocity_and_models() -> None:
     assert np.allclose(doubled, 2 * mu)
     const = friction_coefficient(Friction("constant", 0.07, 1.0), gb, w)
     assert np.allclose(const, 0.07) and const.shape == (3,)
+
+
+def test_agma_metric_form_checks_the_unit_conversion() -> None:
+    """The same AGMA relation printed in SI (engineersedge.com, "AGMA WormGear Equations For
+    Rating Factors", https://engineersedge.com/calculators/agma_wormgear_equations_15309.htm):
+    mu = 0.124 exp(-2.233 V^0.645) for 0 < V <= 0.0508 m/s, 0.103 exp(-1.185 V^0.45) above,
+    V in m/s.  The exponent factors are ours (0.074, 0.110 per ft/min) times 196.85^0.645 and
+    196.85^0.45, so this checks the ft/min conversion independently of our code.  That page
+    omits Shigley's "+ 0.012" on the high branch (Shigley 9th ed. Eq. 15-38 has it; Mott's
+    Example 10-7 reading, test_textbook_example.py, confirms it), so it is added here.
+    """
+    assert 10.0 * FT_PER_MIN == pytest.approx(0.0508)
+    low = np.array([0.001, 0.01, 0.03, 0.0508])
+    high = np.array([0.06, 0.2, 1.0, 2.5, 10.0])
+    assert np.allclose(agma_friction_coefficient(low), 0.124 * np.exp(-2.233 * low**0.645), rtol=2e-3)
+    assert np.allclose(agma_friction_coefficient(high), 0.103 * np.exp(-1.185 * high**0.45) + 0.012, rtol=2e-3)

@@ -126,3 +126,26 @@ def test_motion_sign() -> None:
 def test_classify_mode_boundaries() -> None:
     modes = classify_mode([0.1, 0.0, -0.05, -0.051, np.nan], 0.05)
     assert list(modes) == [Mode.RESISTIVE, Mode.PSEUDO_RESISTIVE, Mode.PSEUDO_RESISTIVE, Mode.ASSISTIVE, Mode.STANDSTILL]
+
+
+def test_mesh_power_balance_with_accelerations_every_mode() -> None:
+    """Power into the mesh = power out to the gear + F_f v_s, sample by sample (Eqs 19-22).
+
+    (tau_in - J_w alpha_w) omega_w = (tau_d + J_g alpha_g) omega_g + F_f v_s, with
+    omega_g = r_w tan(lambda)/r_g omega_w; holds in every mode and on both flanks, also when
+    accelerating (the quasi-static case is in test_dynamics.py).
+    """
+    from worm_model.friction import sliding_velocity
+
+    rng = np.random.default_rng(11)
+    n = 3000
+    tau_in, tau_d = rng.normal(0, 0.05, n), rng.normal(0, 0.4, n)
+    omega = rng.choice([-1, 1], n) * rng.uniform(1, 400, n)
+    alpha_w, alpha_g = rng.normal(0, 300, n), rng.normal(0, 10, n)
+    res = internal_forces(GB, tau_in, tau_d, omega, alpha_w, alpha_g, TSW, worm_inertia=JW, gear_inertia=JG)
+    assert set(np.unique(res.mode)) == {Mode.RESISTIVE, Mode.PSEUDO_RESISTIVE, Mode.ASSISTIVE}
+    assert set(np.unique(res.flank)) == {-1, 1}
+    p_in = (tau_in - JW * alpha_w) * omega
+    p_out = (tau_d + JG * alpha_g) * GB.geometric_ratio * omega
+    p_friction = res.friction_force * sliding_velocity(GB, omega)
+    assert np.allclose(p_in, p_out + p_friction, rtol=1e-9, atol=1e-12)

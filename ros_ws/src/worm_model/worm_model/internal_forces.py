@@ -10,6 +10,10 @@ Sign conventions (fixed frame, used by every argument):
   alpha_gear gear acceleration [rad/s^2], worm-referenced (+ with + worm rotation).
 The equations are solved in the frame of motion (modes.motion_sign); results are
 frame-free: N >= 0, F_f > 0 opposes the sliding, s = +1 driving flank / -1 coast flank.
+
+Textbook check: test/test_textbook_example.py reproduces the worked force and efficiency
+analysis of Mott, Machine Elements in Mechanical Design, 4th ed., Example Problem 10-7, with
+these functions; the textbook's W_x, W_r, W_t are :func:`mesh_force_components`.
 """
 
 from __future__ import annotations
@@ -39,6 +43,43 @@ class InternalForces:
     switching_torque: FloatArray  # tau_sw used for the classification [N m]
     mu_valid: BoolArray  # valid and 0 <= mu <= mu_engagement_max (Remark 4)
     valid: BoolArray  # finite inputs and a moving worm
+
+
+@dataclass
+class MeshForceComponents:
+    """Contact force resolved along the shafts (Shigley's W_x, W_y, W_z; Mott's W_tW, W_r, W_tG) [N].
+
+    Magnitudes in the frame of motion (signs as in Eqs 19-20): the worm and gear shafts
+    are perpendicular, so each tangential force on one member is the axial force on the other.
+    """
+
+    worm_tangential: FloatArray  # = gear axial: s N cos(phi_n) sin(lambda) + F_f cos(lambda); resists the worm [N]
+    gear_tangential: FloatArray  # = worm axial: s N cos(phi_n) cos(lambda) - F_f sin(lambda); drives the gear [N]
+    radial: FloatArray  # separating force N sin(phi_n), pushes the shafts apart [N]
+
+
+def mesh_force_components(
+    gearbox: Gearbox, normal_force: ArrayLike, friction_force: ArrayLike, flank: ArrayLike
+) -> MeshForceComponents:
+    """Tangential, axial and radial components of the contact force (the brackets of Eqs 19-20).
+
+    Args:
+        normal_force: N >= 0 [N]; friction_force: F_f [N], > 0 opposing the sliding;
+        flank: s, +1 driving / -1 coast.
+    Returns:
+        :class:`MeshForceComponents`.  worm_tangential * r_w is the torque the mesh takes
+        from the worm (T - J_w a_w), gear_tangential * r_g the torque it gives the gear
+        (D + J_g a_g), both in the frame of motion.  The radial force is the same on
+        either flank.
+    """
+    n, f, s = (np.asarray(x, dtype=float) for x in (normal_force, friction_force, flank))
+    cphi = np.cos(gearbox.normal_pressure_angle)
+    sl, cl = np.sin(gearbox.lead_angle), np.cos(gearbox.lead_angle)
+    return MeshForceComponents(
+        worm_tangential=s * n * cphi * sl + f * cl,
+        gear_tangential=s * n * cphi * cl - f * sl,
+        radial=n * np.sin(gearbox.normal_pressure_angle),
+    )
 
 
 def switching_torque(gearbox: Gearbox, no_load_input_torque: ArrayLike) -> FloatArray:

@@ -59,9 +59,12 @@ def classify_mode(D: ArrayLike, switching_torque: ArrayLike = 0.0) -> IntArray:
     """
     d = np.asarray(D, dtype=float)
     tsw = np.asarray(switching_torque, dtype=float)
-    mode = np.select(
-        [d > 0.0, d >= -tsw, d < -tsw],
-        [Mode.RESISTIVE, Mode.PSEUDO_RESISTIVE, Mode.ASSISTIVE],
-        default=Mode.STANDSTILL,
-    )
-    return mode.astype(np.int8)
+    # nested where on plain ints: same first-match rule as np.select, several times faster
+    # per live sample (np.select with IntEnum choices dominated model_node's callback)
+    mode = np.where(d > 0.0, _RESISTIVE,
+                    np.where(d >= -tsw, _PSEUDO_RESISTIVE, np.where(d < -tsw, _ASSISTIVE, _STANDSTILL)))
+    return np.asarray(mode, dtype=np.int8)
+
+
+_RESISTIVE, _PSEUDO_RESISTIVE = int(Mode.RESISTIVE), int(Mode.PSEUDO_RESISTIVE)
+_ASSISTIVE, _STANDSTILL = int(Mode.ASSISTIVE), int(Mode.STANDSTILL)

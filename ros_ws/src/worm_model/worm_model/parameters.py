@@ -40,6 +40,10 @@ FORMAT_NAME = "worm_rig_parameters"
 FORMAT_VERSION = 1
 #: relative tolerance of the check n/Z == r_w tan(lambda) / r_g
 RATIO_TOLERANCE = 0.05
+#: optional top-level sections other modules read from the same file (load_rig skips them):
+#: ``free`` (parameters the residual analysis may fit) and ``effects`` (effects beyond
+#: Eqs 19-30, see worm_model.residuals.effects and the simulator's effect plug-ins)
+OPTIONAL_TOP_SECTIONS = frozenset({"free", "effects"})
 
 
 class ParameterError(ValueError):
@@ -284,7 +288,7 @@ def _build(cls: type, node: Any, origin: str, prefix: str, leaves: bool) -> Any:
             kwargs[f.name] = _read_leaf(raw, f, origin, where)
         else:
             kwargs[f.name] = _checked(f, _numeric(raw, origin, where), origin, where, repr(raw))
-    extra = set(node) - known - {"format", "version"}
+    extra = set(node) - known - {"format", "version"} - (OPTIONAL_TOP_SECTIONS if not prefix else set())
     if extra:
         raise ParameterError(origin, prefix + sorted(extra)[0], "unknown field")
     return cls(**kwargs)

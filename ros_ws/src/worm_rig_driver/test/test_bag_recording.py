@@ -192,11 +192,16 @@ def test_misuse_raises_domain_errors(tmp_path: Path, types: MessageTypes) -> Non
 
 
 def test_deserialize_accepts_fast_cdr_final_padding(types: MessageTypes) -> None:
-    """rmw_fastrtps pads payloads to 8 bytes; rosbags' own decoder rejects >3 bytes."""
+    """rmw_fastrtps pads payloads and reserves alignment for empty sequences; rosbags rejects >3 bytes."""
     data = bytes(serialize_message(joint_state(2)))  # ends with an empty effort sequence
     decoded = deserialize_cdr(types.typestore, data, 'sensor_msgs/msg/JointState')
     assert list(decoded.position) == [2.0, -2.0]  # type: ignore[attr-defined]
+    # Fast DDS also sends the alignment it reserved for empty sequences.
+    empty = bytes(serialize_message(JointState(name=['worm'], position=[1.0])))
+    assert list(deserialize_cdr(types.typestore, empty, 'sensor_msgs/msg/JointState')
+                .position) == [1.0]  # type: ignore[attr-defined]
+    # More than 7 bytes of final padding + 4 per sequence (JointState has 4) is not padding.
     with pytest.raises(BagReadError, match='left over'):
-        deserialize_cdr(types.typestore, data + bytes(8), 'sensor_msgs/msg/JointState')
+        deserialize_cdr(types.typestore, data + bytes(24), 'sensor_msgs/msg/JointState')
     with pytest.raises(BagReadError, match='plain CDR'):
         deserialize_cdr(types.typestore, b'\x00\x07\x00\x00', 'sensor_msgs/msg/JointState')

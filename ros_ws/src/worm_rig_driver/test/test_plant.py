@@ -5,6 +5,8 @@ the gear-side drag), never copied from a run of the plant.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -255,3 +257,94 @@ def test_n_rigs_side_by_side_equal_separate_single_rig_runs() -> None:
     for name in ("current_drive", "omega_worm", "theta_worm", "current_load"):
         np.testing.assert_array_equal(getattr(together.state, name),
                                       [getattr(p.state, name)[0] for p in alone])
+
+
+# --- the plant's own Eq. 28 is worm_model's ---------------------------------------------------------
+
+def test_plant_eq28_agrees_with_worm_model_dynamics() -> None:
+    from worm_model.dynamics import worm_acceleration
+    from worm_rig_driver.plant import Eq28
+
+    rng = np.random.default_rng(5)
+    n = 20000
+    mu = rng.uniform(0.0, 0.3, n)  # both sides of self-locking (cos(phi_n) tan(lambda) ~ 0.094)
+    tau_in, tau_d = rng.normal(0, 0.05, n), rng.normal(0, 0.3, n)
+    omega = rng.normal(0, 100, n)
+    jw, jg = RIG.total_worm_inertia * 1.3, RIG.total_gear_inertia * 0.7
+    alpha, flank = Eq28(RIG, jw, jg)(mu, tau_in, tau_d, omega)
+    alpha_ref, flank_ref = worm_acceleration(GB, mu, tau_in, tau_d, omega, jw, jg)
+    np.testing.assert_array_equal(flank, flank_ref)
+    np.testing.assert_allclose(alpha, alpha_ref, rtol=1e-12, atol=1e-9)
+
+
+# --- energy balance with every effect on the shafts, backlash included ------------------------------
+
+def test_energy_balance_with_every_plant_effect_and_backlash() -> None:
+    """Electrical input = copper + magnetic + motor drag + worm-side effects + mesh friction
+    + gear-shaft work (load motors, their drag, gear-side effects) + kinetic energy + impacts.
+
+    Load flips cross the backlash (impacts), reversals pass zero speed; the oil warms.
+    Mesh friction is F_f V_s with F_f from Eq. 22 on the torques and the true inertias,
+    counted only while the teeth touch. Tolerance 1e-3 of the input (the semi-implicit
+    step at dt = 1e-4 s leaves ~3e-4).
+    """
+    from worm_rig_driver.effects import EFFECTS, EffectsConfig
+
+    shaft_effects = [name for name in EFFECTS if name not in ("sensor_gain", "sensor_offset", "pwm")]
+    config = EffectsConfig.defaults(*shaft_effects, oil_temperature={"time_constant": 0.05, "thermal_resistance": 50})
+    dt, steps = 1e-4, 4000
+    plant = RigPlant(RIG, 2, effects=config)
+    names = ("v", "i0", "i1", "w0", "w1", "g0", "g1", "tau_in", "gear_load", "alpha", "worm_fx", "contact", "impact")
+    rec = {name: np.empty((steps, 2)) for name in names}
+    for k in range(steps):
+        t = k * dt
+        volts = np.array([12.0, -15.0]) if t < 0.17 else np.array([-8.0, 10.0])
+        loads = np.array([0.1, 0.05]) if t < 0.08 else np.array([-0.15, -0.1])
+        if t > 0.3:
+            loads = np.array([0.2, 0.0])
+        s = plant.state
+        rec["i0"][k], rec["w0"][k], rec["g0"][k] = s.current_drive, s.omega_worm, s.omega_gear
+        out = plant.step(dt, volts, loads)
+        rec["i1"][k], rec["w1"][k], rec["g1"][k] = s.current_drive, s.omega_worm, s.omega_gear
+        rec["v"][k], rec["tau_in"][k], rec["gear_load"][k] = out.voltage_drive, out.tau_in, out.gear_load
+        rec["alpha"][k], rec["worm_fx"][k] = out.alpha_worm, out.worm_effect_torque
+        rec["contact"][k], rec["impact"][k] = out.contact, out.impact_loss
+    assert np.all((rec["contact"] == 0).sum(0) > 20)  # the teeth did cross the gap
+    assert np.all((rec["impact"] > 0).sum(0) >= 2)
+
+    i_mid, w_mid, g_mid, w0 = (0.5 * (rec["i0"] + rec["i1"]), 0.5 * (rec["w0"] + rec["w1"]),
+                               0.5 * (rec["g0"] + rec["g1"]), rec["w0"])
+    electrical_in = (rec["v"] * i_mid).sum(0) * dt
+    copper = (DRIVE.resistance * 0.5 * (rec["i0"] ** 2 + rec["i1"] ** 2)).sum(0) * dt
+    magnetic = 0.5 * DRIVE.inductance * plant.state.current_drive ** 2
+    motor_drag = ((DRIVE.viscous_drag * w0 + DRIVE.coulomb_drag * np.sign(w0)) * w_mid).sum(0) * dt
+    # the worm-side effect torques: tau_in minus the motor's shaft torque
+    np.testing.assert_allclose(rec["worm_fx"], rec["tau_in"] - (DRIVE.torque_constant * rec["i1"]
+                               - DRIVE.viscous_drag * w0 - DRIVE.coulomb_drag * np.sign(w0)), atol=1e-12)
+    worm_effects = (-rec["worm_fx"] * w_mid).sum(0) * dt
+    forces = internal_forces(GB, rec["tau_in"], rec["gear_load"], w0, rec["alpha"],
+                             worm_inertia=plant.worm_inertia, gear_inertia=plant.gear_inertia)
+    touching = rec["contact"] != 0
+    mesh = np.where(touching, forces.friction_force * sliding_velocity(GB, w_mid), 0.0).sum(0) * dt
+    gear_shaft = (rec["gear_load"] * g_mid).sum(0) * dt
+    kinetic = 0.5 * plant.worm_inertia * plant.state.omega_worm ** 2 + 0.5 * plant.gear_inertia \
+        * plant.state.omega_gear ** 2
+    impacts = rec["impact"].sum(0)
+    assert np.all(mesh > 0.005 * electrical_in) and np.all(worm_effects > 0.05 * electrical_in)
+    residual = electrical_in - (copper + magnetic + motor_drag + worm_effects + mesh + gear_shaft + kinetic + impacts)
+    assert np.all(np.abs(residual) < 1e-3 * electrical_in), residual / electrical_in
+
+
+# --- self-locking where the parameters say so -------------------------------------------------------
+
+@pytest.mark.parametrize("mu, locks", [(0.15, True), (0.03, False)])
+def test_an_aiding_load_back_drives_the_worm_only_when_the_box_does_not_self_lock(mu: float, locks: bool) -> None:
+    rig = replace(RIG, friction=replace(RIG.friction, model="constant", mu_constant=mu))
+    assert (mu > GB.self_locking_mu) == locks
+    plant = RigPlant(rig, 2)
+    history = _run(plant, 400, 0.0, np.array([0.25, -0.25]))  # no voltage, the load pushes either way
+    if locks:
+        assert np.all(history == 0.0)
+    else:  # the gear drives the worm, in the direction the load pushes
+        np.testing.assert_array_equal(np.sign(history[-1]), [-1.0, 1.0])
+        assert np.all(np.abs(history[-1]) > 10.0)

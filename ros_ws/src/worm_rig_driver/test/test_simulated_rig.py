@@ -55,7 +55,8 @@ def test_same_seed_gives_identical_samples_and_different_seed_different_noise() 
     current_c = np.array([m.current_drive for m in c])
     tacho_a = np.array([m.omega_worm for m in a])
     tacho_c = np.array([m.omega_worm for m in c])
-    assert np.mean(current_a != current_c) > 0.5 and np.mean(tacho_a != tacho_c) > 0.99
+    # (the drive tacho's ADC step is ~2 noise sigmas: different noise often rounds alike)
+    assert np.mean(current_a != current_c) > 0.5 and np.mean(tacho_a != tacho_c) > 0.3
     # the noise is in the sensors only: the plant (truth) does not depend on the seed
     np.testing.assert_array_equal(truth_a.omega_worm, truth_c.omega_worm)
     np.testing.assert_array_equal(truth_a.current_drive, truth_c.current_drive)

@@ -1,23 +1,19 @@
-"""Write and read rosbag2 bags of raw CDR messages, without rclpy.
+"""Write rosbag2 bags of raw CDR messages, without rclpy; read them via :mod:`bag_reader`.
 
 This is the core of the recorder node (``recorder_node.py`` is a thin rclpy
 shell over it). It uses the pure-Python ``rosbags`` library, so it runs where
 rosbag2 itself is not installed, and writes bags that the stock tools read:
 ``ros2 bag info/play``, Foxglove, PlotJuggler.
 
-Message definitions are embedded in every bag. A type's definition comes from
+Message definitions are embedded in every bag; where a type's definition
+comes from is described in :mod:`worm_rig_driver.bag_types`. The MCAP storage
+carries the definition as a ``ros2msg`` schema per type; the sqlite3 storage
+carries it in its ``message_definitions`` table. Both carry the RIHS01 type
+hash in the topic metadata, as rosbag2 does since Iron.
 
-1. the stock ROS 2 typestore of ``rosbags`` (:data:`STOCK_STORE`, the newest
-   distribution it knows): ``std_msgs``, ``sensor_msgs``, ``builtin_interfaces``,
-   ``rcl_interfaces``, ... ;
-2. otherwise from its interface file under an ament prefix:
-   ``<prefix>/share/<pkg>/<kind>/<Name>.msg`` (or ``.idl``), searched in the
-   order of ``AMENT_PREFIX_PATH``. Types it references are resolved the same
-   way, recursively.
-
-The MCAP storage carries the definition as a ``ros2msg`` schema per type; the
-sqlite3 storage carries it in its ``message_definitions`` table. Both carry
-the RIHS01 type hash in the topic metadata, as rosbag2 does since Iron.
+Reading goes through :class:`worm_rig_driver.bag_reader.BagReader`, which
+also reads what the real rosbag2 writes; :func:`read_bag_counts` and
+:func:`read_messages` are kept here as short cuts.
 
 Units: timestamps are integer nanoseconds (ROS time) throughout.
 
@@ -28,29 +24,29 @@ Raises:
 
 from __future__ import annotations
 
-import os
-import struct
 import threading
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
-from typing import Final, Literal, Self, cast
+from typing import Final, Literal, Self
 
-from rosbags.highlevel import AnyReader, AnyReaderError
-from rosbags.interfaces import Connection, Nodetype, Qos
-from rosbags.interfaces.typing import FieldDesc, Typesdict
-from rosbags.rosbag2 import ReaderError, StoragePlugin, Writer, WriterError
-from rosbags.typesys import (
-    Stores,
-    TypesysError,
-    get_types_from_idl,
-    get_types_from_msg,
-    get_typestore,
+from rosbags.interfaces import Connection, Qos
+from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+from rosbags.typesys import TypesysError
+
+from worm_rig_driver.bag_reader import BagReader
+from worm_rig_driver.bag_types import (
+    STOCK_STORE,
+    BagClosedError,
+    BagReadError,
+    BagRecordingError,
+    MessageTypes,
+    TypeDefinitionNotFoundError,
+    ament_prefixes,
+    deserialize_cdr,
+    normalize_type_name,
 )
-from rosbags.typesys.store import Typestore
-from ruamel.yaml import YAML
-from ruamel.yaml.error import YAMLError
 
 __all__ = [
     'STOCK_STORE',
@@ -69,13 +65,6 @@ __all__ = [
     'read_messages',
 ]
 
-STOCK_STORE: Final[Stores] = next(
-    getattr(Stores, name)
-    for name in ('ROS2_KILTED', 'ROS2_JAZZY', 'ROS2_HUMBLE')
-    if hasattr(Stores, name)
-)
-"""Newest stock ROS 2 typestore this ``rosbags`` version ships."""
-
 StorageName = Literal['mcap', 'sqlite3']
 
 STORAGES: Final[Mapping[str, StoragePlugin]] = {
@@ -83,172 +72,6 @@ STORAGES: Final[Mapping[str, StoragePlugin]] = {
     'sqlite3': StoragePlugin.SQLITE3,
 }
 """Storage name (as ``ros2 bag record -s`` spells it) -> rosbags plugin."""
-
-INTERFACE_LOADERS: Final[Mapping[str, Callable[[str, str], Typesdict]]] = {
-    '.msg': lambda text, type_name: get_types_from_msg(text, type_name),
-    '.idl': lambda text, _type_name: get_types_from_idl(text),
-}
-"""Interface file suffix -> parser, in order of preference."""
-
-
-class BagRecordingError(Exception):
-    """A bag could not be written or read; the message names path/topic/type."""
-
-
-class TypeDefinitionNotFoundError(BagRecordingError):
-    """No definition of a message type in the stock store or the ament prefixes."""
-
-
-class BagClosedError(BagRecordingError):
-    """A write reached a bag that is already closed."""
-
-
-class BagReadError(BagRecordingError):
-    """A bag could not be opened or decoded."""
-
-
-def ament_prefixes(environ: Mapping[str, str] | None = None) -> list[Path]:
-    """Return the ament prefixes of ``AMENT_PREFIX_PATH``, in search order.
-
-    Args:
-        environ: Environment to read; ``os.environ`` when None.
-
-    """
-    value = (os.environ if environ is None else environ).get('AMENT_PREFIX_PATH', '')
-    return [Path(entry) for entry in value.split(os.pathsep) if entry]
-
-
-def normalize_type_name(type_name: str) -> str:
-    """Return the canonical ``pkg/msg/Name`` form of a message type name.
-
-    ``pkg/Name`` (ROS 1 / short form) becomes ``pkg/msg/Name``.
-
-    Raises:
-        BagRecordingError: The name has neither two nor three parts.
-
-    """
-    parts = type_name.split('/')
-    if len(parts) == 2 and all(parts):
-        return f'{parts[0]}/msg/{parts[1]}'
-    if len(parts) == 3 and all(parts):
-        return type_name
-    msg = f'Invalid message type name {type_name!r}; expected "pkg/msg/Name".'
-    raise BagRecordingError(msg)
-
-
-def _referenced_types(desc: FieldDesc) -> Iterator[str]:
-    """Yield the message type names a field descriptor refers to."""
-    kind, payload = desc
-    if kind == Nodetype.NAME:
-        yield cast('str', payload)
-    elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
-        inner, _length = cast('tuple[FieldDesc, int]', payload)
-        yield from _referenced_types(inner)
-
-
-class MessageTypes:
-    """A typestore: the stock ROS 2 types plus custom types loaded on demand.
-
-    Custom types are parsed from their interface files under ament prefixes
-    (see the module docstring); what is registered once stays registered.
-    """
-
-    def __init__(
-        self,
-        search_prefixes: Sequence[Path] | None = None,
-        stock_store: Stores = STOCK_STORE,
-    ) -> None:
-        """Create the store.
-
-        Args:
-            search_prefixes: Ament prefixes to search for custom interface
-                files; ``AMENT_PREFIX_PATH`` when None.
-            stock_store: Stock typestore to start from.
-
-        """
-        self.search_prefixes: list[Path] = (
-            ament_prefixes() if search_prefixes is None else list(search_prefixes)
-        )
-        self.typestore: Typestore = get_typestore(stock_store)
-
-    def __contains__(self, type_name: str) -> bool:
-        """Whether ``type_name`` is registered already (no file lookup)."""
-        return normalize_type_name(type_name) in self.typestore.fielddefs
-
-    def ensure(self, type_name: str) -> str:
-        """Make ``type_name`` and every type it references known to the store.
-
-        Args:
-            type_name: ``pkg/msg/Name`` (or ``pkg/Name``).
-
-        Returns:
-            The canonical type name.
-
-        Raises:
-            TypeDefinitionNotFoundError: No interface file for it (or for a type
-                it references) under any search prefix.
-            BagRecordingError: An interface file does not parse, or clashes with
-                a registered type of the same name.
-
-        """
-        name = normalize_type_name(type_name)
-        found: Typesdict = {}
-        pending = [name]
-        while pending:
-            current = pending.pop()
-            if current in self.typestore.fielddefs or current in found:
-                continue
-            parsed = self._load(current)
-            found.update(parsed)
-            pending.extend(
-                ref
-                for _consts, fields in parsed.values()
-                for _field, desc in fields
-                for ref in _referenced_types(desc)
-            )
-        if found:
-            try:
-                self.typestore.register(found)
-            except TypesysError as err:
-                msg = f'Cannot register {sorted(found)} for {name!r}: {err}'
-                raise BagRecordingError(msg) from err
-        return name
-
-    def interface_file(self, type_name: str) -> Path:
-        """Return the first interface file defining ``type_name``.
-
-        Raises:
-            TypeDefinitionNotFoundError: None exists under the search prefixes.
-
-        """
-        package, kind, base = normalize_type_name(type_name).split('/')
-        candidates = [
-            prefix / 'share' / package / kind / f'{base}{suffix}'
-            for suffix in INTERFACE_LOADERS
-            for prefix in self.search_prefixes
-        ]
-        if path := next((c for c in candidates if c.is_file()), None):
-            return path
-        prefixes = os.pathsep.join(str(p) for p in self.search_prefixes) or '<empty>'
-        msg = (
-            f'Type definition not found for {type_name!r}: not in the stock '
-            f'{STOCK_STORE.value} typestore, and no share/{package}/{kind}/{base}'
-            f'{{{",".join(INTERFACE_LOADERS)}}} under AMENT_PREFIX_PATH={prefixes}'
-        )
-        raise TypeDefinitionNotFoundError(msg)
-
-    def _load(self, type_name: str) -> Typesdict:
-        """Parse the interface file of one type (not its references)."""
-        path = self.interface_file(type_name)
-        try:
-            parsed = INTERFACE_LOADERS[path.suffix](path.read_text(encoding='utf-8'), type_name)
-        except (OSError, TypesysError) as err:
-            msg = f'Cannot parse definition of {type_name!r} in {path}: {err}'
-            raise BagRecordingError(msg) from err
-        if type_name not in parsed:
-            msg = f'{path} does not define {type_name!r} (it defines {sorted(parsed)})'
-            raise BagRecordingError(msg)
-        return parsed
 
 
 @dataclass(frozen=True, slots=True)
@@ -431,96 +254,6 @@ class BagWriter:
         self.close()
 
 
-CDR_HEADER_BYTES: Final[int] = 4
-"""Encapsulation header (representation id + options) before a CDR payload."""
-CDR_MAX_FINAL_PADDING: Final[int] = 7
-"""Fast CDR pads a payload to 8-byte alignment; rosbags tolerates only 3."""
-CDR_ENCAPSULATIONS: Final[Mapping[bytes, bool]] = {b'\x00\x00': False, b'\x00\x01': True}
-"""Representation id (plain CDR) -> little endian."""
-
-
-def deserialize_cdr(typestore: Typestore, data: bytes | memoryview, type_name: str) -> object:
-    """Decode one CDR message as the ROS 2 middlewares write it.
-
-    Like ``Typestore.deserialize_cdr`` but accepting up to 7 bytes of final
-    padding: Fast DDS (rmw_fastrtps) pads every payload to 8-byte alignment,
-    so e.g. a ``sensor_msgs/msg/JointState`` with an empty ``effort`` arrives
-    4 bytes longer than its content, and rosbags would reject it.
-
-    Raises:
-        BagReadError: Not plain CDR, or the bytes do not fit ``type_name``.
-
-    """
-    little_endian = CDR_ENCAPSULATIONS.get(bytes(data[:2]))
-    if little_endian is None or len(data) < CDR_HEADER_BYTES:
-        msg = f'Not a plain CDR message of {type_name!r} (header {bytes(data[:4])!r})'
-        raise BagReadError(msg)
-    msgdef = typestore.get_msgdef(type_name)
-    decode = msgdef.deserialize_cdr_le if little_endian else msgdef.deserialize_cdr_be
-    try:
-        message, end = decode(data[CDR_HEADER_BYTES:], 0, msgdef.cls, typestore)
-    except (struct.error, UnicodeDecodeError, ValueError, IndexError) as err:
-        msg = f'Cannot decode {len(data)} bytes as {type_name!r}: {err}'
-        raise BagReadError(msg) from err
-    if (excess := len(data) - CDR_HEADER_BYTES - end) > CDR_MAX_FINAL_PADDING:
-        msg = f'{excess} bytes left over after decoding {len(data)} bytes as {type_name!r}'
-        raise BagReadError(msg)
-    return message
-
-
-def _reader_paths(path: Path) -> list[Path]:
-    """Return what to open with rosbags to read the bag at ``path``.
-
-    For an uncompressed bag directory these are its storage files, opened
-    one by one: rosbags' directory reader matches the topics of
-    ``metadata.yaml`` against those of the storage file by their offered-QoS
-    text, and yields nothing when the real rosbag2 wrote the two differently.
-    A storage file carries its own topics, types and definitions. Compressed
-    bags (and anything else) go to the directory reader.
-
-    Raises:
-        BagReadError: No such path, or an unreadable ``metadata.yaml``.
-
-    """
-    if not path.exists():
-        msg = f'No bag at {path}'
-        raise BagReadError(msg)
-    metapath = path / 'metadata.yaml'
-    if not metapath.is_file():
-        return [path]
-    try:
-        document = YAML(typ='safe').load(metapath.read_text(encoding='utf-8'))
-        info = document['rosbag2_bagfile_information']
-        files = [path / Path(name).name for name in info['relative_file_paths']]
-        compressed = (info.get('compression_mode') or 'none').lower() != 'none'
-    except (OSError, YAMLError, KeyError, TypeError) as err:
-        msg = f'Cannot read bag metadata {metapath}: {err!r}'
-        raise BagReadError(msg) from err
-    if compressed or not files or not all(f.is_file() for f in files):
-        return [path]
-    return files
-
-
-class _BagReader:
-    """An open rosbags ``AnyReader`` over one bag, with domain errors."""
-
-    def __init__(self, path: Path | str, types: MessageTypes | None) -> None:
-        self.path = Path(path)
-        self.types = MessageTypes() if types is None else types
-        self.reader = AnyReader(_reader_paths(self.path), default_typestore=self.types.typestore)
-
-    def __enter__(self) -> AnyReader:
-        try:
-            self.reader.open()
-        except (AnyReaderError, ReaderError, TypesysError, OSError) as err:
-            msg = f'Cannot open bag {self.path}: {err}'
-            raise BagReadError(msg) from err
-        return self.reader
-
-    def __exit__(self, *exc: object) -> None:
-        self.reader.close()
-
-
 def read_bag_counts(path: Path | str, types: MessageTypes | None = None) -> dict[str, int]:
     """Count the messages actually stored per topic (not the metadata's claim).
 
@@ -532,15 +265,8 @@ def read_bag_counts(path: Path | str, types: MessageTypes | None = None) -> dict
         BagReadError: The bag cannot be opened or read.
 
     """
-    with _BagReader(path, types) as reader:
-        counts = dict.fromkeys(sorted({c.topic for c in reader.connections}), 0)
-        try:
-            for connection, _timestamp, _data in reader.messages():
-                counts[connection.topic] += 1
-        except (AnyReaderError, ReaderError) as err:
-            msg = f'Cannot read bag {path}: {err}'
-            raise BagReadError(msg) from err
-    return counts
+    with BagReader(path, types) as reader:
+        return reader.count_messages()
 
 
 def read_messages(
@@ -548,7 +274,7 @@ def read_messages(
     topic: str,
     types: MessageTypes | None = None,
 ) -> Iterator[tuple[int, object]]:
-    """Yield ``(timestamp_ns, message)`` of one topic in time order.
+    """Yield ``(timestamp_ns, message)`` of one topic in storage order.
 
     Messages are rosbags dataclasses (field names as in the ``.msg``),
     decoded with the definitions embedded in the bag.
@@ -562,16 +288,6 @@ def read_messages(
         BagReadError: The bag cannot be opened or decoded, or has no such topic.
 
     """
-    with _BagReader(path, types) as reader:
-        connections = [c for c in reader.connections if c.topic == topic]
-        if not connections:
-            have = sorted({c.topic for c in reader.connections})
-            msg = f'Bag {path} has no topic {topic!r}; it has {have}'
-            raise BagReadError(msg)
-        try:
-            for connection, timestamp, data in reader.messages(connections=connections):
-                yield timestamp, deserialize_cdr(reader.typestore, data, connection.msgtype)
-        except (AnyReaderError, ReaderError) as err:
-            msg = f'Cannot decode topic {topic!r} of bag {path}: {err}'
-            raise BagReadError(msg) from err
-
+    with BagReader(path, types) as reader:
+        for message in reader.messages([topic]):
+            yield message.timestamp, message.decoded

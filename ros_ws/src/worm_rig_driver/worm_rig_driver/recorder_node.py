@@ -17,6 +17,12 @@ Parameters:
     queue_depth (integer): KEEP_LAST depth of each subscription; deep enough
         that a 1 kHz stream survives a stall of the executor.
 
+Loss: for every topic whose type starts ``Header header; uint64 seq`` (our
+streams), the recorder follows ``seq`` as messages arrive and, when it stops,
+logs per topic the range recorded and the number of messages missing from it,
+then one verdict line: ``recorder: lost nothing ...`` or ``recorder: LOST
+<n> messages ...`` (see :mod:`worm_rig_driver.seq_check`).
+
 QoS: a subscription matches its publishers, as rosbag2 does: RELIABLE unless a
 publisher is BEST_EFFORT, TRANSIENT_LOCAL if all publishers are (to receive
 latched messages), else VOLATILE. The publishers' profiles are stored as the
@@ -67,6 +73,7 @@ from worm_rig_driver.bag_recording import (
     TopicHandle,
     normalize_type_name,
 )
+from worm_rig_driver.seq_check import StreamCheck
 
 DEFAULT_QUEUE_DEPTH: Final[int] = 1000
 SPIN_TIMEOUT_S: Final[float] = 0.1
@@ -174,6 +181,8 @@ class TopicRecorder:
         """Topics to record -> type name (None: take it from the graph)."""
         self.record_all = False
         self.dropped_after_close = 0
+        self.sequences = StreamCheck()
+        """Sequence numbers of the recorded streams that carry one."""
         self._subscriptions: dict[str, Subscription[Any]] = {}
         self._failed: set[str] = set()
         self._discovery_timer: Timer | None = None
@@ -259,6 +268,7 @@ class TopicRecorder:
             topic, type_name, offered_qos=[bag_qos(p.qos_profile) for p in publishers]
         )
         self._check_type_hash(handle, publishers)
+        self.sequences.watch(topic, self.writer.types.typestore, type_name)
         self._subscriptions[topic] = self.node.create_subscription(
             message_type,
             topic,
@@ -288,6 +298,23 @@ class TopicRecorder:
             self.writer.write(handle, self.node.get_clock().now().nanoseconds, data)
         except BagClosedError:
             self.dropped_after_close += 1
+            return
+        self.sequences.add(handle.topic, data)
+
+    def loss_report(self) -> tuple[int, list[str]]:
+        """Messages lost by the seq count, and one line per tracked topic plus a verdict."""
+        lost = self.sequences.lost + self.dropped_after_close
+        lines = self.sequences.report()
+        if self.dropped_after_close:
+            lines.append(f'{self.dropped_after_close} messages arrived after the bag was closed')
+        tracked = len(self.sequences.trackers)
+        if lost:
+            lines.append(f'recorder: LOST {lost} messages (by sequence numbers of {tracked} '
+                         'stream(s); see the lines above)')
+        else:
+            lines.append(f'recorder: lost nothing: {tracked} stream(s) with sequence numbers, '
+                         'no gap' + ('' if tracked else ' (none of the topics carries a seq)'))
+        return lost, lines
 
 
 class RecorderNode(Node):
@@ -353,6 +380,9 @@ class RecorderNode(Node):
         self.get_logger().info(
             f'Closed bag {self.recorder.writer.path}: {sum(counts.values())} messages ({summary})'
         )
+        lost, lines = self.recorder.loss_report()
+        for line in lines:
+            (self.get_logger().warning if lost else self.get_logger().info)(line)
 
 
 def drain(executor: Executor, recorder: TopicRecorder) -> None:

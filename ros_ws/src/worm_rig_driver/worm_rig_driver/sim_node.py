@@ -1,7 +1,7 @@
 """sim_node: the simulated rig on the graph, a stand-in for driver_node.
 
 Publishes, for every sample of the rig's clock (sensor-data QoS):
-  /rig/sample       worm_msgs/RigSample       all channels of one instant, with seq
+  /rig/sample       worm_msgs/RigSample       all channels of one sample period, with seq
   /rig/currents     worm_msgs/MotorCurrents   (every `channel_decimation`-th sample)
   /rig/joint_states sensor_msgs/JointState    worm and gear position, velocity, effort
   /rig/encoders     worm_msgs/EncoderCounts
@@ -10,6 +10,8 @@ and obeys /rig/drive_command (DriveCommand) and /rig/load_command (LoadCommand).
 A drive command older than command_timeout stops the drive motor (as the rig's
 watchdog does). The simulation advances in real time in chunks of
 publish_period: every sample keeps its own stamp on the rig's exact clock.
+The parameter effects_file switches on effects the model lacks (a
+worm_rig_effects file, see effects.py); the model is not told.
 """
 from __future__ import annotations
 
@@ -43,6 +45,9 @@ class SimNode(Node):
         rig_file = declare(self, "rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
         seed = declare(self, "seed", 0, "Seed of the sensor noise (same seed, same commands -> same samples).",
                        low=0, high=2**31 - 1)
+        effects_file = declare(self, "effects_file", "",
+                               "worm_rig_effects YAML: effects the model lacks, switched on in the simulator "
+                               "only (see `python -m worm_rig_driver.effects --list`); empty = none.")
         substeps = declare(self, "substeps", 1, "Integration steps per sample period (the armature step is exact; "
                            "the mechanics have a ~10 ms time constant).", low=1, high=50)
         self.publish_period = declare(self, "publish_period", 0.005,
@@ -58,7 +63,7 @@ class SimNode(Node):
         self.frame_id = declare(self, "frame_id", "worm_rig", "frame_id of published headers.")
 
         self.rig = load_rig(rig_file or None)
-        self.sim = SimulatedRig(self.rig, n=1, seed=seed, substeps=substeps)
+        self.sim = SimulatedRig(self.rig, n=1, seed=seed, substeps=substeps, effects=effects_file or None)
         self.counts_per_rev = self.sim.sensors.counts_per_rev
 
         self.pub_sample = self.create_publisher(RigSample, "/rig/sample", STREAM)
@@ -76,8 +81,9 @@ class SimNode(Node):
         self.skipped_samples = 0
         self.create_timer(self.publish_period, self.on_tick)
         Diagnostics(self, self.report)
+        effects = ", ".join(self.sim.effects.names) or "none"
         self.get_logger().info(f"simulating '{self.rig.name}' at {self.rig.sensors.sample_rate_hz:g} Hz "
-                               f"(rig file: {self.rig.source})")
+                               f"(rig file: {self.rig.source}; effects: {effects})")
 
     # --- commands ----------------------------------------------------------------
     def on_drive_command(self, msg: DriveCommand) -> None:

@@ -1,0 +1,97 @@
+"""Benchmark of model_node's per-sample work: its /rig/sample callback, timed in-process.
+
+    python bench/model_node_bench.py       (run_all.py runs it with its own ROS_DOMAIN_ID)
+
+Builds the real ModelNode (rclpy, bundled rig), prepares RigSample messages of a
+simulated run (speed swings through both directions, load torque sweeps all modes, the
+current the model needs plus sensor noise), and calls node.on_sample(msg) on each in
+turn, timing every call with perf_counter_ns, in 3 rounds of 10^4 calls.  Each call is the whole callback: filter update, Eqs 21-23, mode, the
+GearboxForces message and its publish (to no subscriber, so the DDS write but no
+delivery).  Executor dispatch and DDS transport to a subscriber are not included (the
+graph benchmark measures those end to end).  Prints to stdout:
+
+  model_node_latency_p99: <x> us     p99 of one on_sample call (lowest of the 3 rounds:
+                                     on a shared machine the tail is mostly other processes)
+  model_node_latency_p50: <x> us     median of the same (lowest round)
+  model_node_cpu_p99: <x> us         p99 of the thread CPU time of one call (what the code
+                                     costs, without the waits for a CPU that wall time includes)
+
+Progress goes to stderr. Never asserts.
+"""
+from __future__ import annotations
+
+import sys
+import time
+
+import numpy as np
+import rclpy
+from worm_msgs.msg import RigSample
+
+from worm_model.dynamics import reflected_input_torque
+from worm_model.friction import friction_coefficient
+from worm_model.gear_side import gear_side_load
+from worm_model.model_node import ModelNode
+
+N = 10000  # calls per round
+ROUNDS = 3
+WARMUP = 1000
+
+
+def info(text: str) -> None:
+    print(f"[model_node_bench] {text}", file=sys.stderr, flush=True)
+
+
+def messages(rig, n: int) -> list[RigSample]:
+    """A 1 kHz run: speed swings -300 -> 300 rad/s, load sweeps +-0.25 N m (every mode), and the
+    drive current the quasi-static model needs for that (Eqs 28-29) plus sensor noise."""
+    rng = np.random.default_rng(4)
+    t = np.arange(n) / 1000.0
+    omega = 300.0 * np.sin(2 * np.pi * t / (n / 1000.0)) + rng.normal(0, 0.5, n)
+    tau = 0.25 * np.sin(2 * np.pi * 7 * t / (n / 1000.0))
+    mu = friction_coefficient(rig.friction, rig.gearbox, omega)
+    t_mesh = reflected_input_torque(rig.gearbox, mu, gear_side_load(rig, tau, omega), omega)
+    m = rig.drive_motor
+    current = (t_mesh + m.viscous_drag * omega + m.coulomb_drag * np.sign(omega)) / m.torque_constant
+    current += rng.normal(0, rig.sensors.current_noise_std, n)
+    out = []
+    for k in range(n):
+        msg = RigSample(seq=k, omega_worm=float(omega[k]), current_drive=float(current[k]),
+                        tau_load=float(tau[k]), omega_gear=float(omega[k] * rig.gearbox.ratio))
+        msg.header.stamp.sec, msg.header.stamp.nanosec = int(t[k]), int((t[k] % 1.0) * 1e9)
+        out.append(msg)
+    return out
+
+
+def main() -> int:
+    rclpy.init()
+    node = ModelNode()
+    try:
+        msgs = messages(node.rig, WARMUP + ROUNDS * N)
+        for msg in msgs[:WARMUP]:
+            node.on_sample(msg)
+        clock, cpu_clock = time.perf_counter_ns, time.thread_time_ns
+        p50, p99, cpu99 = [], [], []
+        for r in range(ROUNDS):
+            times, cpu = np.empty(N), np.empty(N)
+            for k, msg in enumerate(msgs[WARMUP + r * N:WARMUP + (r + 1) * N]):
+                t0, c0 = clock(), cpu_clock()
+                node.on_sample(msg)
+                times[k], cpu[k] = clock() - t0, cpu_clock() - c0
+            p50.append(np.percentile(times, 50) / 1e3)
+            p99.append(np.percentile(times, 99) / 1e3)
+            cpu99.append(np.percentile(cpu, 99) / 1e3)
+            info(f"round {r + 1}: {N} on_sample calls, p50 {p50[-1]:.1f} us, p99 {p99[-1]:.1f} us, "
+                 f"max {times.max() / 1e3:.1f} us; CPU time p99 {cpu99[-1]:.1f} us")
+        info(f"mu out of bound {node.mu_out_of_bound}, invalid {node.invalid} of {node.received} samples")
+        # the least disturbed round: on a shared machine the tail is mostly other processes
+        print(f"model_node_latency_p99: {min(p99):.1f} us", flush=True)
+        print(f"model_node_latency_p50: {min(p50):.1f} us", flush=True)
+        print(f"model_node_cpu_p99: {min(cpu99):.1f} us", flush=True)
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

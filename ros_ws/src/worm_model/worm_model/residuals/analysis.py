@@ -1,0 +1,447 @@
+"""Close the loop on measured data: fit, residual, rank candidate effects, add the significant ones.
+
+The fitted signal is the drive current [A].  Procedure (issue 7, physics.md section 9):
+
+1. Split the samples into interleaved time blocks: a fraction is *held out* and never
+   enters a fit (:func:`make_split`); a guard interval at every block edge belongs to
+   neither set, so no filter reaches across from one set into the other.
+2. Fit the declared model (its free parameters) to the training samples (:func:`fit`).
+3. Rank every candidate effect by the held-out RMS error left after adding it
+   (:func:`screen`: a Gauss-Newton step from the current fit with the effect's
+   regressors and the model's own Jacobian, its grid parameters chosen on training data).
+4. Take the best candidate whose full refit lowers the held-out RMS by at least
+   ``min_improvement`` (relative) *and* lowers the BIC on the training samples; repeat
+   while one is left; finally drop any effect the others made redundant.
+
+BIC and confidence intervals use an effective sample size n_eff = n (1 - rho)/(1 + rho),
+rho the lag-1 autocorrelation of the training residual (AR(1) approximation), because
+1 kHz residuals are not independent samples; confidence intervals are then
+least-squares intervals inflated by sqrt(n / n_eff).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.stats import chi2, norm
+
+from worm_model.parameters import Rig
+from worm_model.units import FloatArray
+
+from .effects import EFFECTS, Effect, Shapes, channels_of, mask_shapes, regressors
+from .free import get_value, set_values
+from .model import ALPHA_TIME_CONSTANT, ModelState, Signals, evaluate
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Options of the analysis (the CLI exposes each one)."""
+
+    holdout_fraction: float = 1.0 / 3.0  # share of the blocks held out
+    block_seconds: float = 2.0  # length of a split block [s]
+    guard_seconds: float = 0.05  # excluded at both ends of every block [s]
+    min_speed: float = 5.0  # samples slower than this [rad/s] are not used (no kinetic model at rest)
+    min_improvement: float = 0.02  # relative held-out RMS improvement an effect must bring
+    max_effects: int = 6
+    alpha_time_constant: float = ALPHA_TIME_CONSTANT  # [s]
+    confidence: float = 0.95
+    candidates: tuple[str, ...] = tuple(EFFECTS)
+
+
+# --------------------------------------------------------------------------- split
+@dataclass
+class Split:
+    """Boolean masks over the samples; train and held_out never overlap."""
+
+    train: np.ndarray
+    held_out: np.ndarray
+    block: np.ndarray  # block index per sample (global over runs)
+
+    def __post_init__(self) -> None:
+        assert not np.any(self.train & self.held_out)
+
+
+def make_split(signals: Signals, settings: Settings, finite: np.ndarray | None = None) -> Split:
+    """Interleaved block split: of consecutive blocks, a share ``holdout_fraction`` is held out.
+
+    Block j (counted over all runs) is held out when floor((j + 1) f) > floor(j f): the
+    held-out blocks are spread evenly over the record, so both sets see every part of
+    the experiment (and slow drift).  Samples within ``guard_seconds`` of a block edge,
+    slower than ``min_speed``, or not finite (``finite`` mask) are in neither set.
+    """
+    n = len(signals)
+    block = np.zeros(n, dtype=int)
+    edge_distance = np.zeros(n)
+    offset = 0
+    for r in np.unique(signals.run):
+        idx = np.flatnonzero(signals.run == r)
+        t = signals.t[idx] - signals.t[idx][0]
+        local = np.floor(t / settings.block_seconds).astype(int)
+        block[idx] = local + offset
+        start = local * settings.block_seconds
+        end = np.minimum(start + settings.block_seconds, t[-1])
+        edge_distance[idx] = np.minimum(t - start, end - t)
+        offset += int(local.max()) + 1
+    f = settings.holdout_fraction
+    held = np.floor((block + 1) * f) > np.floor(block * f)
+    usable = (edge_distance >= settings.guard_seconds) & (np.abs(signals.omega) >= settings.min_speed)
+    if finite is not None:
+        usable &= finite
+    return Split(train=usable & ~held, held_out=usable & held, block=block)
+
+
+# --------------------------------------------------------------------------- fit
+@dataclass
+class EffectFit:
+    """One effect in a fit: its grid parameters and identified values with CI half-widths."""
+
+    effect: Effect
+    grid: dict[str, float]
+    values: dict[str, float]
+    ci: dict[str, float] = field(default_factory=dict)  # half-width at Settings.confidence
+    grid_ci: dict[str, tuple[float, float]] = field(default_factory=dict)  # profile interval on the grid
+
+    @property
+    def name(self) -> str:
+        return self.effect.name
+
+
+@dataclass
+class Fit:
+    """A fitted model (declared + effects) and its errors."""
+
+    rig: Rig
+    free: list[str]
+    free_values: dict[str, float]
+    free_ci: dict[str, float]
+    effects: list[EffectFit]
+    prediction: FloatArray  # model current [A], every sample
+    residual: FloatArray  # measured - model [A]
+    rms_train: float
+    rms_held_out: float
+    rss_train: float
+    n_train: int
+    n_eff: float
+    n_params: int
+
+    @property
+    def bic(self) -> float:
+        return bic(self.rss_train, self.n_train, self.n_eff, self.n_params)
+
+    @property
+    def names(self) -> list[str]:
+        return [e.name for e in self.effects]
+
+
+def bic(rss: float, n: int, n_eff: float, k: int) -> float:
+    """Gaussian BIC with an effective sample size: n_eff ln(RSS / n) + k ln(n_eff)."""
+    return n_eff * math.log(max(rss, 1e-300) / n) + k * math.log(n_eff)
+
+
+def effective_samples(residual: FloatArray, mask: np.ndarray, run: np.ndarray) -> float:
+    """n (1 - rho)/(1 + rho), rho the lag-1 autocorrelation of the residual on mask (AR(1))."""
+    n = int(mask.sum())
+    pair = mask[:-1] & mask[1:] & (run[:-1] == run[1:])
+    if n < 3 or pair.sum() < 2:
+        return float(max(n, 1))
+    r = residual - residual[mask].mean()
+    rho = float(np.sum(r[:-1][pair] * r[1:][pair]) / np.sum(r[mask] ** 2))
+    rho = min(max(rho, 0.0), 0.999)
+    return float(max(2.0, n * (1.0 - rho) / (1.0 + rho)))
+
+
+def _rms(x: FloatArray) -> float:
+    return float(np.sqrt(np.mean(x**2))) if len(x) else math.nan
+
+
+class Problem:
+    """Data, split and settings of one analysis, with a cache of effect shapes."""
+
+    def __init__(self, rig: Rig, free: Sequence[str], signals: Signals, current: FloatArray,
+                 split: Split, settings: Settings) -> None:
+        self.rig0 = rig
+        self.free = list(free)
+        self.signals = signals
+        self.current = np.asarray(current, dtype=float)
+        self.split = split
+        self.settings = settings
+        self._shapes: dict[tuple, Shapes] = {}
+
+    def shapes(self, effect: Effect, rig: Rig, grid: Mapping[str, float]) -> Shapes:
+        """(n, p) shapes on every sample; cached unless they depend on the fitted rig (thermal proxy)."""
+        key = (effect.name, tuple(sorted(grid.items())))
+        if effect.family == "thermal" and self.signals.temperature is None:
+            return effect.shapes(rig, self.signals, grid)  # the heating proxy follows the fit
+        if key not in self._shapes:
+            self._shapes[key] = effect.shapes(rig, self.signals, grid)
+        return self._shapes[key]
+
+    # ------------------------------------------------------------------ model as a function of theta
+    def _unpack(self, theta: FloatArray, specs: Sequence[tuple[Effect, dict[str, float]]]
+                ) -> tuple[Rig, list[tuple[Effect, dict[str, float], dict[str, float]]]]:
+        nf = len(self.free)
+        rig = set_values(self.rig0, self.free, theta[:nf])
+        fitted, k = [], nf
+        for effect, grid in specs:
+            p = len(effect.parameters)
+            fitted.append((effect, {q.name: float(v) for q, v in zip(effect.parameters, theta[k:k + p])}, grid))
+            k += p
+        return rig, fitted
+
+    def predict(self, theta: FloatArray, specs, mask: np.ndarray | None = None,
+                shapes: Sequence[Shapes] | None = None) -> tuple[ModelState, Rig, Signals, list[Shapes]]:
+        rig, fitted = self._unpack(theta, specs)
+        sig = self.signals if mask is None else self.signals.subset(mask)
+        if shapes is None:
+            shapes = [self.shapes(e, rig, g) for e, g in specs]
+        shapes = [s if mask is None else mask_shapes(s, mask) for s in shapes]
+        return evaluate(rig, sig, channels_of(fitted, rig, sig, shapes)), rig, sig, shapes
+
+    def jacobian(self, theta: FloatArray, specs, mask: np.ndarray | None = None,
+                 shapes: Sequence[Shapes] | None = None) -> FloatArray:
+        """d model current / d theta on the masked samples: numeric for rig parameters, exact for effects."""
+        state, rig, sig, sh = self.predict(theta, specs, mask, shapes)
+        cols = []
+        for k in range(len(self.free)):
+            step = 1e-6 * max(abs(theta[k]), 1e-9) if theta[k] != 0 else 1e-9
+            bumped = theta.copy()
+            bumped[k] += step
+            cols.append((self.predict(bumped, specs, mask, shapes)[0].current - state.current) / step)
+        for (effect, _grid), s in zip(specs, sh):
+            cols.extend(regressors(effect, rig, sig, state, s).T)
+        return np.column_stack(cols) if cols else np.zeros((len(sig), 0))
+
+    def theta0(self, previous: Fit | None, specs, guesses: Mapping[str, Mapping[str, float]] | None = None
+               ) -> FloatArray:
+        base = previous.rig if previous is not None else self.rig0
+        theta = [get_value(base, p) for p in self.free]
+        known = {e.name: e.values for e in previous.effects} if previous is not None else {}
+        guesses = guesses or {}
+        for effect, _grid in specs:
+            values = known.get(effect.name) or guesses.get(effect.name) or {}
+            theta.extend(values.get(p.name, 0.0) for p in effect.parameters)
+        return np.asarray(theta, dtype=float)
+
+
+def fit(problem: Problem, specs: Sequence[tuple[Effect, dict[str, float]]], previous: Fit | None = None,
+        guesses: Mapping[str, Mapping[str, float]] | None = None) -> Fit:
+    """Least-squares fit of the free parameters and the effects' parameters on the training samples.
+
+    Args:
+        specs: [(effect, grid values), ...] to include.
+        previous: a fit to start from (its rig and effect values).
+        guesses: start values per effect name (e.g. from :func:`screen`).
+    """
+    train, held = problem.split.train, problem.split.held_out
+    y = problem.current[train]
+    shapes = [problem.shapes(e, problem.rig0, g) for e, g in specs]
+    theta = problem.theta0(previous, specs, guesses)
+    if len(theta):
+        sub_shapes = [mask_shapes(s, train) for s in shapes]
+        sig_train = problem.signals.subset(train)
+        # shapes are passed already masked: predict on the training signals directly
+        def residual(th: FloatArray) -> FloatArray:
+            rig, fitted = problem._unpack(th, specs)
+            return y - evaluate(rig, sig_train, channels_of(fitted, rig, sig_train, sub_shapes)).current
+
+        def jac(th: FloatArray) -> FloatArray:
+            return -problem.jacobian(th, specs, train, shapes)
+
+        result = least_squares(residual, theta, jac=jac, method="lm", x_scale="jac", max_nfev=200)
+        theta = result.x
+    state, rig, _, _ = problem.predict(theta, specs, None, shapes)
+    res = problem.current - state.current
+    n_train = int(train.sum())
+    rss = float(np.sum(res[train] ** 2))
+    n_eff = effective_samples(res, train, problem.signals.run)
+    # least-squares covariance, inflated for autocorrelation
+    free_ci: dict[str, float] = {}
+    cis: list[dict[str, float]] = [{} for _ in specs]
+    if len(theta):
+        J = problem.jacobian(theta, specs, train, shapes)
+        dof = max(n_train - len(theta), 1)
+        cov = rss / dof * np.linalg.pinv(J.T @ J) * (n_train / n_eff)
+        half = norm.ppf(0.5 + problem.settings.confidence / 2.0) * np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        nf = len(problem.free)
+        free_ci = dict(zip(problem.free, half[:nf].tolist()))
+        k = nf
+        for idx, (effect, _g) in enumerate(specs):
+            p = len(effect.parameters)
+            cis[idx] = {q.name: float(h) for q, h in zip(effect.parameters, half[k:k + p])}
+            k += p
+    _, fitted = problem._unpack(theta, specs)
+    effects = [EffectFit(e, dict(g), v, cis[i]) for i, (e, v, g) in enumerate(fitted)]
+    n_grid = sum(1 for e, _g in specs for _ in e.grid_parameters if len(e.grid(problem.rig0, problem.signals)) > 1)
+    return Fit(rig=rig, free=list(problem.free), free_values={p: get_value(rig, p) for p in problem.free},
+               free_ci=free_ci, effects=effects, prediction=state.current, residual=res,
+               rms_train=_rms(res[train]), rms_held_out=_rms(res[held]), rss_train=rss, n_train=n_train,
+               n_eff=n_eff, n_params=len(theta) + n_grid)
+
+
+# --------------------------------------------------------------------------- screening
+@dataclass
+class Candidate:
+    """One candidate effect's score in one round (linearised from the current fit)."""
+
+    name: str
+    grid: dict[str, float]
+    rms_held_out: float  # [A] left after adding it
+    improvement: float  # relative held-out improvement over the current fit
+    delta_bic: float  # BIC(with) - BIC(without) on training data; < 0 favours the effect
+    guess: dict[str, float]  # linear parameter estimates
+    note: str = ""
+    profile: list[tuple[float, float]] = field(default_factory=list)  # (grid value, training RSS)
+
+    @property
+    def significant(self) -> bool:
+        return self.delta_bic < 0.0 and self.improvement >= 0.0
+
+
+def screen(problem: Problem, current: Fit, progress: Callable[[int], None] | None = None) -> list[Candidate]:
+    """Score every candidate effect not yet in ``current``; best (lowest held-out RMS) first."""
+    train, held = problem.split.train, problem.split.held_out
+    use = train | held
+    specs = [(e.effect, e.grid) for e in current.effects]
+    theta = problem.theta0(current, specs)
+    state, rig, _, _ = problem.predict(theta, specs)
+    base = problem.jacobian(theta, specs, use)  # model's own directions, re-adjusted with each candidate
+    r = current.residual[use]
+    tr = train[use]
+    out: list[Candidate] = []
+    done = 0
+    for name in problem.settings.candidates:
+        effect = EFFECTS[name]
+        if name in current.names:
+            continue
+        why = effect.unavailable(rig, problem.signals)
+        if why:
+            out.append(Candidate(name, {}, current.rms_held_out, 0.0, math.inf, {}, note=why))
+            continue
+        best = None
+        profile = []
+        for grid in effect.grid(rig, problem.signals):
+            shapes = problem.shapes(effect, rig, grid)
+            X = regressors(effect, rig, problem.signals, state, shapes)[use]
+            A = np.column_stack([base, X])
+            norms = np.linalg.norm(A[tr], axis=0)
+            norms[norms == 0] = 1.0
+            delta, *_ = np.linalg.lstsq(A[tr] / norms, r[tr], rcond=None)
+            delta = delta / norms
+            left = r - A @ delta
+            rss = float(np.sum(left[tr] ** 2))
+            profile.append((grid, rss))
+            if best is None or rss < best[1]:
+                best = (grid, rss, left, delta[base.shape[1]:])
+        grid, rss, left, coef = best
+        full = np.zeros(len(problem.current))
+        full[use] = left
+        n_eff = effective_samples(full, train, problem.signals.run)
+        k_new = len(effect.parameters) + (len(effect.grid_parameters) if len(profile) > 1 else 0)
+        d_bic = bic(rss, current.n_train, n_eff, current.n_params + k_new) - bic(
+            current.rss_train, current.n_train, n_eff, current.n_params)
+        rms_ho = _rms(left[~tr])
+        out.append(Candidate(name, dict(grid), rms_ho, 1.0 - rms_ho / current.rms_held_out, d_bic,
+                             {p.name: float(c) for p, c in zip(effect.parameters, coef)},
+                             profile=[(next(iter(g.values()), math.nan), s) for g, s in profile]))
+        done += 1
+        if progress:
+            progress(done)
+    return sorted(out, key=lambda c: c.rms_held_out)
+
+
+def grid_interval(candidate: Candidate, n_eff: float, n: int, confidence: float) -> tuple[float, float]:
+    """Profile-likelihood interval of a 1-D grid parameter: grid values within the chi2(1) bound."""
+    if len(candidate.profile) < 2:
+        return (math.nan, math.nan)
+    rss = np.array([s for _g, s in candidate.profile])
+    values = np.array([g for g, _s in candidate.profile])
+    stat = n_eff * np.log(rss / rss.min())
+    inside = values[stat <= chi2.ppf(confidence, 1)]
+    return float(inside.min()), float(inside.max())
+
+
+# --------------------------------------------------------------------------- the loop
+@dataclass
+class Round:
+    """One round of the search: the ranking and what was added."""
+
+    candidates: list[Candidate]
+    accepted: str | None
+    refit_rms_held_out: float | None = None
+
+
+@dataclass
+class Analysis:
+    declared: Fit  # the declared model, its free parameters fitted
+    final: Fit  # with the effects found
+    rounds: list[Round]
+    split: Split
+    pruned: list[str] = field(default_factory=list)
+
+    @property
+    def found(self) -> list[str]:
+        return self.final.names
+
+
+def accepts(before: Fit, after: Fit, settings: Settings) -> bool:
+    """Significant evidence: held-out RMS down by min_improvement AND a lower training BIC."""
+    n_eff = after.n_eff
+    d_bic = bic(after.rss_train, after.n_train, n_eff, after.n_params) - bic(
+        before.rss_train, before.n_train, n_eff, before.n_params)
+    return (before.rms_held_out - after.rms_held_out) >= settings.min_improvement * before.rms_held_out \
+        and d_bic < 0.0
+
+
+def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None = None) -> Analysis:
+    """Fit the declared model, then add significant effects one at a time (module docstring)."""
+    settings = problem.settings
+    declared = fit(problem, [])
+    current = declared
+    rounds: list[Round] = []
+    total = len(settings.candidates)
+    while len(current.effects) < settings.max_effects:
+        label = f"round {len(rounds) + 1}"
+        ranking = screen(problem, current, (lambda k: progress(label, k, total)) if progress else None)
+        accepted = None
+        for cand in ranking:
+            if not cand.significant or cand.improvement < settings.min_improvement:
+                continue
+            effect = EFFECTS[cand.name]
+            specs = [(e.effect, e.grid) for e in current.effects] + [(effect, cand.grid)]
+            trial = fit(problem, specs, current, {cand.name: cand.guess})
+            if accepts(current, trial, settings):
+                interval = grid_interval(cand, trial.n_eff, trial.n_train, settings.confidence)
+                for g in effect.grid_parameters:
+                    if len(cand.profile) > 1:
+                        trial.effects[-1].grid_ci[g.name] = interval
+                accepted = (cand.name, trial)
+                break
+        rounds.append(Round(ranking, accepted[0] if accepted else None,
+                            accepted[1].rms_held_out if accepted else None))
+        if accepted is None:
+            break
+        grid_cis = {e.name: e.grid_ci for e in current.effects}
+        current = accepted[1]
+        for e in current.effects:
+            e.grid_ci = e.grid_ci or grid_cis.get(e.name, {})
+    # backward pass: an effect the later ones made redundant is dropped
+    pruned: list[str] = []
+    changed = len(current.effects) > 1
+    while changed and len(current.effects) > 1:
+        changed = False
+        for e in list(current.effects):
+            rest = [(x.effect, x.grid) for x in current.effects if x is not e]
+            without = fit(problem, rest, current)
+            if not accepts(without, current, settings):
+                grid_cis = {x.name: x.grid_ci for x in current.effects}
+                current = without
+                for x in current.effects:
+                    x.grid_ci = grid_cis.get(x.name, {})
+                pruned.append(e.name)
+                changed = True
+                break
+    return Analysis(declared=declared, final=current, rounds=rounds, split=problem.split, pruned=pruned)

@@ -1,0 +1,602 @@
+"""Candidate effects beyond Eqs 19-30 (physics.md section 9), as plug-ins behind one protocol.
+
+An effect adds to the model's channels (:data:`worm_model.residuals.model.CHANNELS`: mu,
+mu_relative, worm_torque, gear_torque, worm_inertia, gear_inertia, current_gain,
+current) a sum of *shapes*, one column per linear parameter:
+``channel += shapes[channel] @ values``.  Its regressors (current per unit parameter
+[A/unit]) are those shapes times the model's sensitivity of the current to each channel
+(:func:`regressors`), so one declaration gives both the exact extended model and the
+linear screening.  Parameters an effect is not linear in (a time constant, a harmonic
+order, a Stribeck speed, a drag exponent) are *grid parameters*: the analysis tries
+every grid value with linear least squares inside.
+
+Signs: fixed frame; the worm_torque and gear_torque channels are extra torques the drive
+has to overcome (+ opposes + rotation, as tau_load).  Angles: theta_worm, and theta_gear
+worm-referenced (+ with + worm rotation).
+
+The effects and their parameters mirror the simulator's plug-ins (worm_rig_driver's
+effects.py, file format ``worm_rig_effects``): same names, and :meth:`Effect.simulator_entry`
+/ :meth:`Effect.from_simulator_entry` translate fitted values to and from an entry of an
+``effects:`` section with the simulator's parameter names and meanings (there, a
+worm-shaft torque is + when it *drives*; the sign is flipped in the translation).
+Adding an effect is adding a class and a row in :data:`EFFECTS`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar, Protocol, runtime_checkable
+
+import numpy as np
+from scipy.signal import lfilter
+
+from worm_model.friction import sliding_velocity
+from worm_model.gear_side import gear_side_load
+from worm_model.parameters import Rig
+from worm_model.units import FloatArray
+
+from .model import CHANNELS, Channels, ModelState, Signals, evaluate, ripple_response, sensitivities
+
+#: Shapes: channel -> (n, number of parameters); a parameter's column is zero in the
+#: channels it does not touch (channels an effect never touches are left out).
+Shapes = dict[str, FloatArray]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A parameter the effect is linear in."""
+
+    name: str
+    unit: str
+    description: str = ""
+
+
+@dataclass(frozen=True)
+class GridParameter:
+    """A parameter searched on a grid (the effect is nonlinear in it)."""
+
+    name: str
+    unit: str
+    description: str = ""
+
+
+@runtime_checkable
+class Effect(Protocol):
+    """What every candidate effect provides."""
+
+    name: str  # one of the vocabulary of the issue (EFFECTS keys)
+    family: str  # "periodic" (angle spectrum), "regression", "thermal" (first-order drift)
+    description: str
+    parameters: tuple[Parameter, ...]
+    grid_parameters: tuple[GridParameter, ...]
+
+    def grid(self, rig: Rig, signals: Signals) -> list[dict[str, float]]:
+        """Grid values to try ([{}] if the effect has no grid parameter)."""
+
+    def unavailable(self, rig: Rig, signals: Signals) -> str | None:
+        """Why the data cannot show this effect (None if it can)."""
+
+    def shapes(self, rig: Rig, signals: Signals, grid: Mapping[str, float]) -> Shapes:
+        """channel -> (n, len(parameters)): channel contribution per unit of each parameter."""
+
+    def signature(self, rig: Rig, signals: Signals, grid: Mapping[str, float]) -> tuple[str, FloatArray]:
+        """(axis label, per-sample values) to plot the residual against."""
+
+    def simulator_entry(self, values: Mapping[str, float], grid: Mapping[str, float]) -> dict[str, float]:
+        """The effect's entry of an ``effects:`` section (simulator's names, units and signs)."""
+
+    def from_simulator_entry(self, entry: Mapping[str, Any], rig: Rig) -> tuple[dict[str, float], dict[str, float]]:
+        """Inverse of :meth:`simulator_entry`: (values, grid); ``rig`` gives geometry (Z_g)."""
+
+
+def _column(n: int, p: int, j: int, x: FloatArray) -> FloatArray:
+    out = np.zeros((n, p))
+    out[:, j] = x
+    return out
+
+
+def _sigma(signals: Signals) -> FloatArray:
+    return np.where(signals.omega < 0.0, -1.0, 1.0)
+
+
+def mesh_load(rig: Rig, signals: Signals) -> FloatArray:
+    """|tau_load + declared gear-side drag| [N m]: the torque the mesh carries on the gear side."""
+    return np.abs(gear_side_load(rig, signals.tau_load, signals.omega))
+
+
+class _Base:
+    """Shared plumbing: no grid, always available."""
+
+    name: ClassVar[str]
+    family: ClassVar[str] = "regression"
+    description: ClassVar[str] = ""
+    parameters: ClassVar[tuple[Parameter, ...]] = ()
+    grid_parameters: ClassVar[tuple[GridParameter, ...]] = ()
+
+    def grid(self, rig: Rig, signals: Signals) -> list[dict[str, float]]:
+        return [{}]
+
+    def unavailable(self, rig: Rig, signals: Signals) -> str | None:
+        return None
+
+    def signature(self, rig: Rig, signals: Signals, grid: Mapping[str, float]) -> tuple[str, FloatArray]:
+        return "omega_worm [rad/s]", signals.omega
+
+    def simulator_entry(self, values: Mapping[str, float], grid: Mapping[str, float]) -> dict[str, float]:
+        return {p.name: float(values[p.name]) for p in self.parameters}
+
+    def from_simulator_entry(self, entry: Mapping[str, Any], rig: Rig) -> tuple[dict[str, float], dict[str, float]]:
+        return {p.name: float(entry.get(p.name, 0.0)) for p in self.parameters}, {}
+
+
+# --------------------------------------------------------------------------- regression effects
+class BearingCoulomb(_Base):
+    """Simulator: worm -worm_torque sign(omega_worm), gear +gear_torque sign(omega_gear)."""
+
+    name = "bearing_coulomb"
+    description = "bearing/seal Coulomb drag on the worm and gear shafts: a step with sign(omega)"
+    parameters = (
+        Parameter("worm_torque", "N m", "Coulomb drag on the worm shaft"),
+        Parameter("gear_torque", "N m", "Coulomb drag on the gear shaft"),
+    )
+
+    def shapes(self, rig, signals, grid):
+        s, n = _sigma(signals), len(signals)
+        return {"worm_torque": _column(n, 2, 0, s), "gear_torque": _column(n, 2, 1, s)}
+
+    def simulator_entry(self, values, grid):
+        # the simulator's drags are magnitudes (>= 0)
+        return {p.name: max(0.0, float(values[p.name])) for p in self.parameters}
+
+
+class ViscousDrag(_Base):
+    """Simulator: T_ref (|omega| / omega_ref)^exponent on each shaft, gear term at the worm speed."""
+
+    name = "viscous_drag"
+    description = "viscous and oil-churning drag, T_ref (|omega_worm| / omega_ref)^p on the worm and gear shafts"
+    reference_speed: ClassVar[float] = 300.0  # [rad/s], the simulator's default omega_ref
+    parameters = (
+        Parameter("worm_torque", "N m", "worm-shaft drag at the reference speed (300 rad/s)"),
+        Parameter("gear_torque", "N m", "gear-shaft drag at the reference worm speed"),
+    )
+    grid_parameters = (GridParameter("exponent", "1", "speed exponent: 1 viscous, 0.5..1 churning"),)
+
+    def grid(self, rig, signals):
+        return [{"exponent": p} for p in (0.5, 0.75, 1.0, 1.25, 1.5)]
+
+    def shapes(self, rig, signals, grid):
+        x = _sigma(signals) * (np.abs(signals.omega) / self.reference_speed) ** grid["exponent"]
+        n = len(signals)
+        return {"worm_torque": _column(n, 2, 0, x), "gear_torque": _column(n, 2, 1, x)}
+
+    def simulator_entry(self, values, grid):
+        return {"worm_torque": max(0.0, values["worm_torque"]), "gear_torque": max(0.0, values["gear_torque"]),
+                "reference_speed": self.reference_speed, "exponent": float(grid["exponent"])}
+
+    def from_simulator_entry(self, entry, rig):
+        scale = (self.reference_speed / float(entry.get("reference_speed", self.reference_speed))) \
+            ** float(entry.get("exponent", 1.0))
+        return ({"worm_torque": float(entry.get("worm_torque", 0.0)) * scale,
+                 "gear_torque": float(entry.get("gear_torque", 0.0)) * scale},
+                {"exponent": float(entry.get("exponent", 1.0))})
+
+
+class SpeedDependentMu(_Base):
+    """Simulator: mu = mu_rig(V_s) (1 + low_speed_gain exp(-V_s / stribeck_speed))."""
+
+    name = "speed_dependent_mu"
+    description = "Stribeck rise of mu at low sliding speed: mu *= 1 + gain exp(-V_s / v_stribeck)"
+    parameters = (Parameter("low_speed_gain", "1", "relative increase of mu as the sliding speed goes to 0"),)
+    grid_parameters = (GridParameter("stribeck_speed", "m/s", "sliding speed over which the increase decays"),)
+
+    def grid(self, rig, signals):
+        return [{"stribeck_speed": float(v)} for v in np.geomspace(0.03, 1.5, 13)]
+
+    def shapes(self, rig, signals, grid):
+        vs = sliding_velocity(rig.gearbox, signals.omega)
+        return {"mu_relative": np.exp(-vs / grid["stribeck_speed"])[:, None]}
+
+    def signature(self, rig, signals, grid):
+        return "sliding speed [m/s]", sliding_velocity(rig.gearbox, signals.omega)
+
+    def simulator_entry(self, values, grid):
+        return {"low_speed_gain": float(values["low_speed_gain"]), "stribeck_speed": float(grid["stribeck_speed"])}
+
+    def from_simulator_entry(self, entry, rig):
+        return ({"low_speed_gain": float(entry.get("low_speed_gain", 0.0))},
+                {"stribeck_speed": float(entry.get("stribeck_speed", 0.3))})
+
+
+class LoadDependentMu(_Base):
+    """Simulator: mu = mu_rig (1 + sensitivity mesh_load / reference_torque)."""
+
+    name = "load_dependent_mu"
+    description = "mu changing with the transmitted torque: mu *= 1 + sensitivity |mesh load| / 0.25 N m"
+    reference_torque: ClassVar[float] = 0.25  # [N m], the simulator's default
+    parameters = (Parameter("sensitivity", "1", "relative change of mu at a mesh load of 0.25 N m"),)
+
+    def shapes(self, rig, signals, grid):
+        return {"mu_relative": (mesh_load(rig, signals) / self.reference_torque)[:, None]}
+
+    def signature(self, rig, signals, grid):
+        return "tau_load [N m]", signals.tau_load
+
+    def simulator_entry(self, values, grid):
+        return {"sensitivity": float(values["sensitivity"]), "reference_torque": self.reference_torque}
+
+    def from_simulator_entry(self, entry, rig):
+        ref = float(entry.get("reference_torque", self.reference_torque))
+        return {"sensitivity": float(entry.get("sensitivity", 0.0)) * self.reference_torque / ref}, {}
+
+
+class SensorGain(_Base):
+    """Simulator: reading = (1 + gain) x true, per sensor (drive current, load currents, tachos)."""
+
+    name = "sensor_gain"
+    description = "current-sensor gain errors: drive current x (1 + g_d); measured tau_load x (1 + g_l)"
+    parameters = (
+        Parameter("drive_current", "1", "relative gain error of the drive current sensor"),
+        Parameter("load_current", "1", "relative gain error of the load current sensors (tau_load)"),
+    )
+
+    def shapes(self, rig, signals, grid):
+        n = len(signals)
+        # true load = measured / (1 + g_l) ~ measured (1 - g_l): linear in g_l to first order
+        return {"current_gain": _column(n, 2, 0, np.ones(n)), "gear_torque": _column(n, 2, 1, -signals.tau_load)}
+
+    def signature(self, rig, signals, grid):
+        return "tau_load [N m]", signals.tau_load
+
+    def simulator_entry(self, values, grid):
+        # tacho gains scale alpha like an inertia error: not separable from the drive current, written as 0
+        return {"drive_current": float(values["drive_current"]), "load_current": float(values["load_current"]),
+                "drive_tacho": 0.0, "load_tacho": 0.0}
+
+
+class SensorOffset(_Base):
+    """Simulator: reading = true + offset, per sensor."""
+
+    name = "sensor_offset"
+    description = "current-sensor offsets: drive current + o_d; each load current + o_l (tau_load)"
+    parameters = (
+        Parameter("drive_current", "A", "offset of the drive current sensor"),
+        Parameter("load_current", "A", "offset of each load current sensor"),
+    )
+
+    def shapes(self, rig, signals, grid):
+        n = len(signals)
+        per_amp = rig.load_motor.torque_constant * rig.load_motor_count  # tau_load per A of offset on each sensor
+        return {"current": _column(n, 2, 0, np.ones(n)), "gear_torque": _column(n, 2, 1, -per_amp * np.ones(n))}
+
+    def signature(self, rig, signals, grid):
+        return "t [s]", signals.t
+
+    def simulator_entry(self, values, grid):
+        return {"drive_current": float(values["drive_current"]), "load_current": float(values["load_current"]),
+                "drive_tacho": 0.0, "load_tacho": 0.0}
+
+
+class InertiaError(_Base):
+    """Simulator: J_true = (1 + worm) J_worm,file and (1 + gear) J_gear,file."""
+
+    name = "inertia_error"
+    description = "error of the declared worm-shaft inertia (worm + rotor): residual proportional to alpha"
+    # The gear shaft's inertia reaches the drive current through i (r_w/r_g) K_s ~ 0.2 % of the
+    # worm side's: not identifiable from the current, so only the worm part is fitted.
+    parameters = (Parameter("worm", "1", "relative error of the worm-shaft inertia"),)
+
+    def shapes(self, rig, signals, grid):
+        return {"worm_inertia": np.full((len(signals), 1), rig.total_worm_inertia)}
+
+    def signature(self, rig, signals, grid):
+        return "alpha_worm [rad/s^2]", signals.alpha
+
+    def simulator_entry(self, values, grid):
+        return {"worm": float(values["worm"]), "gear": 0.0}
+
+
+# --------------------------------------------------------------------------- thermal
+def first_order_lag(t: FloatArray, x: FloatArray, run: np.ndarray, time_constant: float) -> FloatArray:
+    """y' = (x - y) / time_constant with y = 0 at the start of every run (first-order thermal model).
+
+    Discretised exactly for x held over each (median) sample period of the run.
+    """
+    y = np.zeros(len(x))
+    for r in np.unique(run):
+        idx = np.flatnonzero(run == r)
+        period = float(np.median(np.diff(t[idx]))) if len(idx) > 1 else 0.0
+        decay = math.exp(-period / time_constant) if time_constant > 0 else 0.0
+        y[idx] = lfilter([1.0 - decay], [1.0, -decay], x[idx])
+    return y
+
+
+def mesh_heat(rig: Rig, signals: Signals, state: ModelState | None = None) -> FloatArray:
+    """Friction power in the mesh [W] by the declared model: |omega| G ((r_w/r_g) K_s - i) >= 0.
+
+    Power in from the worm, (r_w/r_g) K_s G |omega|, minus power out to the gear, G i |omega|
+    (frame of motion, inertia included in G).
+    """
+    st = state if state is not None else evaluate(rig, signals)
+    gb = rig.gearbox
+    return np.maximum(np.abs(signals.omega) * st.mesh_demand * (gb.radius_ratio * st.flank_factor - gb.ratio), 0.0)
+
+
+class OilTemperature(_Base):
+    """Simulator: C dT/dt = P - (T - T_amb)/R_th, mu *= 1 + mu_per_kelvin (T - T_amb), T(0) = T_amb."""
+
+    name = "oil_temperature"
+    family = "thermal"
+    description = ("oil warming with the mesh's friction power (first-order thermal model) and scaling mu: "
+                   "mu *= 1 + mu_per_kelvin dT")
+    thermal_resistance: ClassVar[float] = 5.0  # [K/W] the simulator's default; only the product is identifiable
+    parameters = (Parameter("mu_per_kelvin", "1/K", "relative change of mu per kelvin of oil warming"),)
+    grid_parameters = (GridParameter("time_constant", "s", "thermal time constant (0: measured temperature)"),)
+
+    def grid(self, rig, signals):
+        if signals.temperature is not None:
+            return [{"time_constant": 0.0}]
+        span = float(np.max(np.bincount(signals.run, weights=np.gradient(signals.t)))) \
+            if len(signals) > 1 else 1.0  # the longest run [s]
+        return [{"time_constant": float(tc)} for tc in np.geomspace(max(span / 30.0, 0.5), 10.0 * span, 12)]
+
+    def warming(self, rig: Rig, signals: Signals, grid: Mapping[str, float]) -> FloatArray:
+        """Oil temperature rise over ambient [K]: measured, or the first-order model of the mesh heat."""
+        if signals.temperature is not None:
+            temp = signals.temperature
+            finite = np.isfinite(temp)
+            ambient = temp[finite][0] if finite.any() else 0.0
+            return np.where(finite, temp - ambient, 0.0)
+        heat = mesh_heat(rig, signals)
+        return self.thermal_resistance * first_order_lag(signals.t, heat, signals.run, grid["time_constant"])
+
+    def shapes(self, rig, signals, grid):
+        return {"mu_relative": self.warming(rig, signals, grid)[:, None]}
+
+    def signature(self, rig, signals, grid):
+        return "modelled oil warming [K]", self.warming(rig, signals, grid)
+
+    def simulator_entry(self, values, grid):
+        return {"mu_per_kelvin": float(values["mu_per_kelvin"]), "time_constant": float(grid["time_constant"]),
+                "thermal_resistance": self.thermal_resistance, "ambient": 25.0, "initial": 25.0}
+
+    def from_simulator_entry(self, entry, rig):
+        r_th = float(entry.get("thermal_resistance", self.thermal_resistance))
+        return ({"mu_per_kelvin": float(entry.get("mu_per_kelvin", 0.0)) * r_th / self.thermal_resistance},
+                {"time_constant": float(entry.get("time_constant", 900.0))})
+
+
+# --------------------------------------------------------------------------- periodic effects
+def seen_ripple(rig: Rig, signals: Signals, phase: FloatArray, frequency: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """What the quasi-static model sees of sin(phase) and cos(phase) torque ripples [N m per N m].
+
+    A ripple at frequency Omega (order x shaft speed, signed) reaches the residual scaled
+    and shifted by D = model.ripple_response (the rotor inertia absorbs fast ripple):
+    sin(p) -> Re D sin(p) + Im D cos(p), cos(p) -> Re D cos(p) - Im D sin(p), evaluated at
+    the instantaneous frequency (speed changes slowly against the ~10 ms response).
+    """
+    d = ripple_response(rig, frequency, signals.sample_period, signals.alpha_time_constant)
+    s, c = np.sin(phase), np.cos(phase)
+    return d.real * s + d.imag * c, d.real * c - d.imag * s
+
+
+def _phase(sin_part: float, cos_part: float) -> tuple[float, float]:
+    """(amplitude, phase) of s sin(x) + c cos(x) = A sin(x + phase)."""
+    return math.hypot(sin_part, cos_part), math.atan2(cos_part, sin_part)
+
+
+class _Ripple(_Base):
+    """(A + f L) sin(order angle + phase) on one shaft, L a load; linear as four parameters.
+
+    A sin(x + ph) = A cos(ph) sin(x) + A sin(ph) cos(x): the parameters are the sine and
+    cosine parts of the constant amplitude and of the load fraction.
+    """
+
+    family = "periodic"
+    angle: ClassVar[str] = "theta_worm"
+    channel: ClassVar[str] = "worm_torque"
+    parameters = (
+        Parameter("amplitude_sin", "N m", "load-independent ripple, sine part"),
+        Parameter("amplitude_cos", "N m", "load-independent ripple, cosine part"),
+        Parameter("load_fraction_sin", "1", "ripple per unit of load, sine part"),
+        Parameter("load_fraction_cos", "1", "ripple per unit of load, cosine part"),
+    )
+    grid_parameters = (GridParameter("order", "1", "cycles per turn of the shaft"),)
+
+    def orders(self, rig: Rig) -> list[float]:
+        return [1.0]
+
+    def load(self, rig: Rig, signals: Signals) -> FloatArray:
+        return mesh_load(rig, signals)
+
+    def angle_of(self, rig: Rig, signals: Signals) -> FloatArray:
+        return getattr(signals, self.angle)
+
+    def grid(self, rig, signals):
+        return [{"order": float(k)} for k in self.orders(rig)]
+
+    def unavailable(self, rig, signals):
+        theta = self.angle_of(rig, signals)
+        turns = np.sum([np.ptp(theta[signals.run == r]) for r in np.unique(signals.run)]) / (2 * math.pi)
+        if turns < 2.0:
+            return f"the data cover {turns:.1f} turns of {self.angle}; need at least 2"
+        return None
+
+    def rate(self, rig: Rig, signals: Signals) -> FloatArray:
+        """Speed of the angle [rad/s] (worm-referenced gear angle: ratio * omega_worm)."""
+        return signals.omega * (rig.gearbox.ratio if self.angle == "theta_gear" else 1.0)
+
+    def shapes(self, rig, signals, grid):
+        L = self.load(rig, signals)
+        sin_col, cos_col = seen_ripple(rig, signals, grid["order"] * self.angle_of(rig, signals),
+                                       grid["order"] * self.rate(rig, signals))
+        return {self.channel: np.column_stack([sin_col, cos_col, L * sin_col, L * cos_col])}
+
+    def signature(self, rig, signals, grid):
+        period = 2.0 * math.pi / grid["order"]
+        return f"{self.angle} modulo 2 pi / {grid['order']:g} [rad]", np.mod(self.angle_of(rig, signals), period)
+
+    def simulator_entry(self, values, grid):
+        # one phase in the simulator: that of the larger part; the other part is projected on it
+        a, pa = _phase(values["amplitude_sin"], values["amplitude_cos"])
+        f, pf = _phase(values["load_fraction_sin"], values["load_fraction_cos"])
+        typical = grid.get("typical_load", 0.0)
+        phase = pa if a >= f * typical else pf
+        amp = values["amplitude_sin"] * math.cos(phase) + values["amplitude_cos"] * math.sin(phase)
+        frac = values["load_fraction_sin"] * math.cos(phase) + values["load_fraction_cos"] * math.sin(phase)
+        return {"amplitude": max(0.0, amp), "load_fraction": max(0.0, frac), "phase": phase}
+
+    def from_simulator_entry(self, entry, rig):
+        a, f, ph = (float(entry.get(k, 0.0)) for k in ("amplitude", "load_fraction", "phase"))
+        values = {"amplitude_sin": a * math.cos(ph), "amplitude_cos": a * math.sin(ph),
+                  "load_fraction_sin": f * math.cos(ph), "load_fraction_cos": f * math.sin(ph)}
+        return values, {"order": self.orders(rig)[0]}
+
+
+class WormRunout(_Ripple):
+    """Simulator: worm torque -(A + f i mesh_load) sin(theta_worm + phase)."""
+
+    name = "worm_runout"
+    description = "worm runout / eccentricity: torque ripple once per worm turn, (A + f i L) sin(theta_w + ph)"
+
+    def load(self, rig, signals):
+        return rig.gearbox.ratio * mesh_load(rig, signals)  # the mesh torque at the worm
+
+    def grid(self, rig, signals):
+        return [{"order": 1.0, "typical_load": float(np.median(self.load(rig, signals)))}]
+
+
+class ToothPass(_Ripple):
+    """Simulator: gear torque (A + f mesh_load) sin(Z_g theta_gear + phase)."""
+
+    name = "tooth_pass"
+    description = "mesh (tooth-pass) ripple on the gear shaft: Z_g per gear turn = n (starts) per worm turn"
+    angle = "theta_gear"
+    channel = "gear_torque"
+
+    def orders(self, rig):
+        return [float(rig.gearbox.gear_teeth)]
+
+    def grid(self, rig, signals):
+        return [{"order": float(rig.gearbox.gear_teeth), "typical_load": float(np.median(self.load(rig, signals)))}]
+
+
+class GearRunout(_Ripple):
+    """Simulator: gear torque (A + f mesh_load) sin(theta_gear + phase)."""
+
+    name = "gear_runout"
+    description = "gear runout: torque ripple on the gear shaft once per gear turn"
+    angle = "theta_gear"
+    channel = "gear_torque"
+
+    def grid(self, rig, signals):
+        return [{"order": 1.0, "typical_load": float(np.median(self.load(rig, signals)))}]
+
+
+class MotorCogging(_Base):
+    """Simulator: worm torque -amplitude sin(order theta_worm + phase), order an integer."""
+
+    name = "motor_cogging"
+    family = "periodic"
+    description = "motor cogging / commutation: torque ripple at the motor's cogging order (per motor turn)"
+    max_order: ClassVar[int] = 60
+    parameters = (
+        Parameter("amplitude_sin", "N m", "cogging torque, sine part"),
+        Parameter("amplitude_cos", "N m", "cogging torque, cosine part"),
+    )
+    grid_parameters = (GridParameter("order", "1", "cogging cycles per motor turn"),)
+
+    def grid(self, rig, signals):
+        # orders 1 and n (and the tooth-pass order n) belong to worm_runout / tooth_pass
+        skip = {1, rig.gearbox.worm_starts}
+        return [{"order": float(k)} for k in range(2, self.max_order + 1) if k not in skip]
+
+    def shapes(self, rig, signals, grid):
+        sin_col, cos_col = seen_ripple(rig, signals, grid["order"] * signals.theta_worm,
+                                       grid["order"] * signals.omega)
+        return {"worm_torque": np.column_stack([sin_col, cos_col])}
+
+    def signature(self, rig, signals, grid):
+        period = 2.0 * math.pi / grid["order"]
+        return f"theta_worm modulo 2 pi / {grid['order']:g} [rad]", np.mod(signals.theta_worm, period)
+
+    def simulator_entry(self, values, grid):
+        amplitude, phase = _phase(values["amplitude_sin"], values["amplitude_cos"])
+        return {"amplitude": amplitude, "order": float(grid["order"]), "phase": phase}
+
+    def from_simulator_entry(self, entry, rig):
+        a, ph = float(entry.get("amplitude", 0.0)), float(entry.get("phase", 0.0))
+        return {"amplitude_sin": a * math.cos(ph), "amplitude_cos": a * math.sin(ph)}, \
+            {"order": float(entry.get("order", 14))}
+
+
+class Backlash(_Base):
+    """Simulator: a dead zone of ``angle`` [rad at the gear] crossed at every flank change."""
+
+    name = "backlash"
+    description = "backlash: a transient after each flank change (tau_load + drag crossing zero)"
+    parameters = (Parameter("spike", "N m", "torque transient at the flank change"),)
+    grid_parameters = (GridParameter("decay_time", "s", "decay time of the transient"),)
+
+    def grid(self, rig, signals):
+        return [{"decay_time": tc} for tc in (0.005, 0.01, 0.02, 0.05)]
+
+    def flank_changes(self, rig: Rig, signals: Signals) -> np.ndarray:
+        flank = np.where(_sigma(signals) * gear_side_load(rig, signals.tau_load, signals.omega) >= 0, 1.0, -1.0)
+        return np.flatnonzero((np.diff(flank) != 0) & (np.diff(signals.run) == 0)) + 1
+
+    def unavailable(self, rig, signals):
+        return None if len(self.flank_changes(rig, signals)) else "no flank change in the data"
+
+    def shapes(self, rig, signals, grid):
+        flank = np.where(_sigma(signals) * gear_side_load(rig, signals.tau_load, signals.omega) >= 0, 1.0, -1.0)
+        out = np.zeros(len(signals))
+        for k in self.flank_changes(rig, signals):
+            end = np.searchsorted(signals.t, signals.t[k] + 8 * grid["decay_time"])
+            seg = slice(k, end)
+            out[seg] += flank[k] * np.exp(-(signals.t[seg] - signals.t[k]) / grid["decay_time"])
+        return {"worm_torque": out[:, None]}
+
+    def signature(self, rig, signals, grid):
+        return "tau_load [N m]", signals.tau_load
+
+    def simulator_entry(self, values, grid):
+        return {"angle": 0.0}
+
+
+#: effect name -> plug-in instance (the vocabulary of physics.md section 9)
+EFFECTS: dict[str, Effect] = {e.name: e for e in (
+    BearingCoulomb(), ViscousDrag(), SpeedDependentMu(), LoadDependentMu(), OilTemperature(),
+    WormRunout(), ToothPass(), GearRunout(), MotorCogging(), Backlash(),
+    SensorGain(), SensorOffset(), InertiaError(),
+)}
+
+
+# --------------------------------------------------------------------------- helpers used by the analysis
+def channels_of(effects: Sequence[tuple[Effect, Mapping[str, float], Mapping[str, float]]],
+                rig: Rig, signals: Signals, shapes: Sequence[Shapes] | None = None) -> Channels:
+    """Channel contributions of fitted effects: [(effect, values, grid), ...]."""
+    ch = Channels()
+    for k, (effect, values, grid) in enumerate(effects):
+        sh = shapes[k] if shapes is not None else effect.shapes(rig, signals, grid)
+        v = np.array([values[p.name] for p in effect.parameters])
+        for channel, cols in sh.items():
+            ch.add(channel, cols @ v)
+    return ch
+
+
+def regressors(effect: Effect, rig: Rig, signals: Signals, state: ModelState, shapes: Shapes) -> FloatArray:
+    """(n, p) d current / d parameter [A per parameter unit] at the model state."""
+    sens = sensitivities(rig, signals, state)
+    total = np.zeros((len(signals), len(effect.parameters)))
+    for channel, cols in shapes.items():
+        total += sens[channel][:, None] * cols
+    return total
+
+
+def mask_shapes(shapes: Shapes, mask: np.ndarray) -> Shapes:
+    return {k: v[mask] for k, v in shapes.items()}
+
+
+assert all(c in CHANNELS for c in ("mu_relative", "worm_torque", "gear_torque", "current_gain", "current"))

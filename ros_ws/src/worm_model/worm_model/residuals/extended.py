@@ -1,0 +1,184 @@
+"""The extended model: the declared model plus identified effects, as a parameter file and a function.
+
+File: a ``worm_rig_parameters`` v1 file (worm_model.parameters) with two optional
+top-level sections that ``load_rig`` skips:
+
+``free``     the parameters the residual analysis fitted (dotted names, see residuals.free);
+``effects``  effect name -> {parameter: value} with the simulator's parameter names,
+             units and signs (worm_rig_driver effects.py, the ``effects:`` mapping of a
+             ``worm_rig_effects`` file), so ``SimulatedRig(rig, effects=doc["effects"])``
+             simulates the identified model.
+
+Use from an estimator or model_node (plain numpy, no ROS)::
+
+    model = ExtendedModel.load("extended_rig.yaml")
+    sig = model.signals(omega_worm, alpha_worm, tau_load, theta_worm, theta_gear=None, t=t)
+    i_expected = model.current(sig)                       # drive current [A] the model expects
+    tau_d = model.estimate_load_torque(sig, current)       # load torque [N m] that explains `current`
+
+Sign conventions as worm_model: omega/alpha + along + worm rotation, tau_load + opposes +
+rotation, current + drives + rotation.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from numpy.typing import ArrayLike
+
+from worm_model.parameters import ParameterError, Rig, load_rig
+from worm_model.units import UNITS, FloatArray, normalize_unit
+
+from .effects import EFFECTS, Effect, channels_of
+from .free import check_free, get_value
+from .model import ALPHA_TIME_CONSTANT, Signals, evaluate
+
+
+@dataclass
+class ExtendedModel:
+    """Rig parameters (free ones identified) plus effects [(effect, values, grid), ...]."""
+
+    rig: Rig
+    effects: list[tuple[Effect, dict[str, float], dict[str, float]]] = field(default_factory=list)
+    alpha_time_constant: float = ALPHA_TIME_CONSTANT  # [s] of the acceleration filter the ripple terms assume
+
+    @property
+    def names(self) -> list[str]:
+        return [e.name for e, _v, _g in self.effects]
+
+    def without_effects(self) -> "ExtendedModel":
+        return replace(self, effects=[])
+
+    # ------------------------------------------------------------------ evaluation
+    def signals(self, omega_worm: ArrayLike, alpha_worm: ArrayLike, tau_load: ArrayLike, theta_worm: ArrayLike,
+                theta_gear: ArrayLike | None = None, t: ArrayLike | None = None, run: ArrayLike | None = None,
+                temperature: ArrayLike | None = None) -> Signals:
+        """Bundle per-sample inputs (arrays of one shape (n,)); t defaults to the rig's sample clock.
+
+        alpha_worm is the worm acceleration [rad/s^2] as the caller filters it (periodic
+        terms assume the filter of ALPHA_TIME_CONSTANT; a live causal filter makes them approximate).
+        """
+        w = np.atleast_1d(np.asarray(omega_worm, dtype=float))
+        n = len(w)
+        th = np.broadcast_to(np.asarray(theta_worm, dtype=float), (n,))
+        return Signals(
+            t=np.arange(n) / self.rig.sensors.sample_rate_hz if t is None else np.broadcast_to(np.asarray(t, float), (n,)),
+            omega=w, alpha=np.broadcast_to(np.asarray(alpha_worm, dtype=float), (n,)),
+            theta_worm=th,
+            theta_gear=self.rig.gearbox.ratio * th if theta_gear is None
+            else np.broadcast_to(np.asarray(theta_gear, dtype=float), (n,)),
+            tau_load=np.broadcast_to(np.asarray(tau_load, dtype=float), (n,)),
+            run=np.zeros(n, dtype=int) if run is None else np.asarray(run, dtype=int),
+            temperature=None if temperature is None else np.asarray(temperature, dtype=float),
+            alpha_time_constant=self.alpha_time_constant,
+        )
+
+    def current(self, signals: Signals) -> FloatArray:
+        """Drive current [A] the extended model expects (what the current sensor would read)."""
+        ch = channels_of(self.effects, self.rig, signals)
+        return evaluate(self.rig, signals, ch).current
+
+    def drive_torque(self, signals: Signals) -> FloatArray:
+        """The same as a motor torque, K_t * current [N m]."""
+        return self.rig.drive_motor.torque_constant * self.current(signals)
+
+    def estimate_load_torque(self, signals: Signals, current: ArrayLike, limit: float | None = None,
+                             iterations: int = 40) -> FloatArray:
+        """Load torque tau_d [N m] for which the model's current equals the measured one (bisection).
+
+        Args:
+            current: measured drive current [A] per sample.
+            limit: search interval [-limit, limit] [N m]; default 3x the load motors' capacity.
+        Returns:
+            tau_d per sample; NaN where no load in the interval explains the current (the
+            model's current does not bracket it) or the input is not finite.
+        """
+        i = np.asarray(current, dtype=float)
+        lim = 3.0 * self.rig.max_load_torque if limit is None else float(limit)
+        lo = np.full(len(signals), -lim)
+        hi = np.full(len(signals), lim)
+
+        def f(tau: FloatArray) -> FloatArray:
+            return self.current(replace(signals, tau_load=tau)) - i
+
+        f_lo, f_hi = f(lo), f(hi)
+        ok = np.isfinite(f_lo) & np.isfinite(f_hi) & (np.sign(f_lo) != np.sign(f_hi))
+        for _ in range(iterations):
+            mid = 0.5 * (lo + hi)
+            f_mid = f(mid)
+            same = np.sign(f_mid) == np.sign(f_lo)
+            lo, f_lo = np.where(same, mid, lo), np.where(same, f_mid, f_lo)
+            hi = np.where(same, hi, mid)
+        return np.where(ok, 0.5 * (lo + hi), np.nan)
+
+    # ------------------------------------------------------------------ file
+    @classmethod
+    def load(cls, path: str | Path, alpha_time_constant: float = ALPHA_TIME_CONSTANT) -> "ExtendedModel":
+        """Read a parameter file with an optional ``effects:`` section.
+
+        Raises:
+            ParameterError: bad rig file, unknown effect, or a non-mapping section.
+        """
+        rig = load_rig(path)
+        document = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+        section = document.get("effects") or {}
+        if not isinstance(section, Mapping):
+            raise ParameterError(str(path), "effects", "expected a mapping effect name -> parameters")
+        effects = []
+        for name, entry in section.items():
+            if name not in EFFECTS:
+                raise ParameterError(str(path), f"effects.{name}", f"unknown effect (known: {', '.join(EFFECTS)})")
+            entry = entry or {}
+            if not isinstance(entry, Mapping):
+                raise ParameterError(str(path), f"effects.{name}", "expected a mapping of parameters")
+            if entry.get("enabled", True) is False:
+                continue
+            effect = EFFECTS[name]
+            plain = {k: (v["value"] if isinstance(v, Mapping) else v) for k, v in entry.items() if k != "enabled"}
+            values, grid = effect.from_simulator_entry(plain, rig)
+            effects.append((effect, values, grid))
+        return cls(rig, effects, alpha_time_constant)
+
+
+def _si_to_unit(value: float, unit: str) -> float:
+    factor, _dimension = UNITS[normalize_unit(unit)]
+    return value / factor
+
+
+def write_parameter_file(path: str | Path, base_file: str | Path, model: ExtendedModel, free: Sequence[str],
+                         free_ci: Mapping[str, float], provenance: str,
+                         effect_notes: Mapping[str, str] | None = None) -> None:
+    """Write the extended model: the base rig file with identified free values, ``free:`` and ``effects:``.
+
+    Every identified leaf gets ``source: "<provenance> (95 % CI +-x unit)"`` in place of its
+    assumption, so the file stays a valid ``worm_rig_parameters`` file.
+    """
+    document = yaml.safe_load(Path(base_file).read_text(encoding="utf-8"))
+    document = json.loads(json.dumps(document))  # break YAML anchors: load_motor aliases drive_motor
+    for name in check_free(free):
+        section, leaf = name.split(".")
+        node = document[section][leaf]
+        unit = node["unit"]
+        value = _si_to_unit(get_value(model.rig, name), unit)
+        ci = _si_to_unit(free_ci.get(name, math.nan), unit)
+        node = {k: v for k, v in node.items() if k not in ("source", "assumption")}
+        node["value"] = float(f"{value:.6g}")
+        node["source"] = f"{provenance} (95 % CI +-{ci:.2g} {unit})"
+        document[section][leaf] = node
+    document["free"] = list(free)
+    effects: dict[str, Any] = {}
+    for effect, values, grid in model.effects:
+        effects[effect.name] = {k: float(f"{v:.6g}") for k, v in effect.simulator_entry(values, grid).items()}
+    document["effects"] = effects
+    header = (f"# Extended model written by `residuals` ({provenance}).\n"
+              "# Rig parameters as in the base file, free ones identified; `effects:` uses the simulator's\n"
+              "# effect plug-ins' parameter names and units (worm_rig_driver effects.py).\n")
+    notes = "".join(f"# {name}: {note}\n" for name, note in (effect_notes or {}).items())
+    Path(path).write_text(header + notes + yaml.safe_dump(document, sort_keys=False), encoding="utf-8")

@@ -1,0 +1,150 @@
+"""Sequence numbers of recorded streams: what was lost, told from the ``seq`` field (no rclpy).
+
+Our streams (``RigSample``, ``GearboxForces``, ``TorqueEstimate``,
+``SimTruth``) start with ``std_msgs/Header header`` followed by ``uint64
+seq``, the rig's sample counter. A recorder (or a bag check) reads ``seq``
+straight out of the CDR bytes, without decoding the message, and counts:
+
+* lost: the seqs missing between the first and the last one seen (a gap);
+* repeated: a seq not above the previous one (duplicate or reordered).
+
+Messages published after the last one received cannot show as a gap; the
+publisher's own count (the bench compares it) closes that hole.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import Final
+
+from rosbags.interfaces import Nodetype
+from rosbags.typesys.store import Typestore
+
+__all__ = ['SequenceTracker', 'StreamCheck', 'check_messages', 'header_seq', 'seq_reader']
+
+SEQ_FIELD: Final = ('seq', (Nodetype.BASE, ('uint64', 0)))
+HEADER_FIELD: Final = ('header', (Nodetype.NAME, 'std_msgs/msg/Header'))
+MAX_GAPS_KEPT: Final[int] = 20
+
+
+def header_seq(data: bytes | memoryview) -> int:
+    """``seq`` of a CDR message laid out ``Header header; uint64 seq; ...``.
+
+    CDR: 4-byte encapsulation header (byte 1: 1 = little endian), then
+    ``int32 sec``, ``uint32 nanosec``, ``uint32`` length of ``frame_id``
+    (with its NUL) and its bytes, then ``seq`` aligned to 8 bytes from the
+    start of the payload.
+
+    Raises:
+        struct.error: The bytes are too short for this layout.
+
+    """
+    order = '<' if data[1] == 1 else '>'
+    (length,) = struct.unpack_from(f'{order}I', data, 12)
+    offset = (12 + length + 7) & ~7
+    (seq,) = struct.unpack_from(f'{order}Q', data, 4 + offset)
+    return int(seq)
+
+
+def seq_reader(typestore: Typestore, type_name: str) -> Callable[[bytes | memoryview], int] | None:
+    """:func:`header_seq` if ``type_name`` has the ``Header header; uint64 seq`` layout, else None."""
+    fields = typestore.fielddefs.get(type_name, ((), []))[1]
+    if len(fields) >= 2 and tuple(fields[0]) == HEADER_FIELD and tuple(fields[1]) == SEQ_FIELD:
+        return header_seq
+    return None
+
+
+@dataclass
+class SequenceTracker:
+    """Counts of one stream's sequence numbers, fed in receive order."""
+
+    count: int = 0
+    first: int | None = None
+    last: int | None = None
+    lost: int = 0
+    repeated: int = 0
+    gaps: list[tuple[int, int]] = field(default_factory=list)
+    """The first :data:`MAX_GAPS_KEPT` gaps as (first missing, last missing) seq."""
+
+    def add(self, seq: int) -> None:
+        """Account for one received ``seq``."""
+        self.count += 1
+        if self.last is None:
+            self.first = self.last = seq
+            return
+        if seq <= self.last:
+            self.repeated += 1
+            return
+        if seq > self.last + 1:
+            self.lost += seq - self.last - 1
+            if len(self.gaps) < MAX_GAPS_KEPT:
+                self.gaps.append((self.last + 1, seq - 1))
+        self.last = seq
+
+    def summary(self) -> str:
+        """One line: range, lost, repeated."""
+        if self.first is None:
+            return 'no messages'
+        text = f'seq {self.first}..{self.last}: {self.count} received, lost {self.lost}'
+        if self.repeated:
+            text += f', {self.repeated} repeated or out of order'
+        if self.gaps:
+            text += ', gaps ' + ', '.join(f'{a}' if a == b else f'{a}-{b}' for a, b in self.gaps)
+            if self.lost and len(self.gaps) == MAX_GAPS_KEPT:
+                text += ', ...'
+        return text
+
+
+class StreamCheck:
+    """Trackers for every topic whose type carries a ``seq`` (others are skipped)."""
+
+    def __init__(self) -> None:
+        self.trackers: dict[str, SequenceTracker] = {}
+        self._readers: dict[str, Callable[[bytes | memoryview], int] | None] = {}
+        self.unreadable: dict[str, int] = {}
+        """Messages per topic too short for the layout (counted, not tracked)."""
+
+    def watch(self, topic: str, typestore: Typestore, type_name: str) -> bool:
+        """Track ``topic`` if its type has a ``seq``; returns whether it is tracked."""
+        reader = seq_reader(typestore, type_name)
+        self._readers[topic] = reader
+        if reader is not None:
+            self.trackers.setdefault(topic, SequenceTracker())
+        return reader is not None
+
+    def add(self, topic: str, data: bytes | memoryview) -> None:
+        """Account for one raw message of ``topic`` (no-op for untracked topics)."""
+        reader = self._readers.get(topic)
+        if reader is None:
+            return
+        try:
+            seq = reader(data)
+        except (struct.error, IndexError):
+            self.unreadable[topic] = self.unreadable.get(topic, 0) + 1
+            return
+        self.trackers[topic].add(seq)
+
+    @property
+    def lost(self) -> int:
+        """Messages lost over all tracked topics."""
+        return sum(t.lost for t in self.trackers.values())
+
+    def report(self) -> list[str]:
+        """One line per tracked topic, sorted by topic."""
+        lines = [f'{topic}: {tracker.summary()}' for topic, tracker in sorted(self.trackers.items())]
+        lines += [f'{topic}: {n} messages too short to hold a seq'
+                  for topic, n in sorted(self.unreadable.items())]
+        return lines
+
+
+def check_messages(messages: Iterable[tuple[str, bytes]], types: Mapping[str, tuple[Typestore, str]]
+                   ) -> StreamCheck:
+    """Run a :class:`StreamCheck` over ``(topic, cdr)`` pairs; ``types``: topic -> (store, type)."""
+    check = StreamCheck()
+    for topic, (store, type_name) in types.items():
+        check.watch(topic, store, type_name)
+    for topic, data in messages:
+        check.add(topic, data)
+    return check
