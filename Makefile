@@ -17,5 +17,11 @@ test: setup
 bench: setup
 	@$(RUN) python bench/run_all.py
 
+# The rig firmware in the loop (simavr) with driver_node connected; ends with one `fil: ...` line.
+FIRMWARE := ros_ws/src/worm_rig_driver/firmware
+fil: setup
+	@$(MAKE) -s -C $(FIRMWARE) all fil
+	@$(RUN) python -m worm_rig_driver.fil_run --elf $(FIRMWARE)/build/rig.elf --harness $(FIRMWARE)/build/libwormfil.so
+
 clean:
 	rm -rf ros_ws/build ros_ws/install ros_ws/log out

@@ -76,8 +76,9 @@ def measure_on_simulator(rig: Rig, speeds, torques, *, seed: int = 0, gains: PiG
 
 def grid_settings(grid: CalibrationGrid, rig: Rig, criterion: SteadyStateCriterion) -> dict:
     """The settings every calibration run records in its journal: grid, criterion, rig parameters."""
+    rig_values = {key: value for key, value in rig_to_dict(rig).items() if key != "source"}  # not where it was read
     return {"grid": {"speed_setpoints": grid.speeds.tolist(), "torque_setpoints": grid.torques.tolist()},
-            "steady_state": criterion.to_dict(), "rig": rig_to_dict(rig)}
+            "steady_state": criterion.to_dict(), "rig": rig_values}
 
 
 def batch_seed(seed: int, batch: int) -> int:

@@ -15,8 +15,6 @@ graph (the controller falls back to no feedforward) carries on.
 """
 from __future__ import annotations
 
-import math
-
 from rclpy.node import Node
 from worm_msgs.msg import RigSample, TorqueEstimate
 

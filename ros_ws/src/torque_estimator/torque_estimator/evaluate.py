@@ -161,9 +161,9 @@ def run_sweeps(args, rig, grid, db, options) -> list:
             results.append(sweep_k(db, measured, args.ks))
         tick()
         results.append(sweep_grid_density(rig, args.grid_sizes, measured, seed=args.seed, method=args.method,
-                                          options=options, progress=tick))
+                                          options=options, reference=db, progress=tick))
         results.append(sweep_noise(rig, grid, args.noise, args.sweep_points, seed=args.seed, method=args.method,
-                                   options=options, progress=tick))
+                                   options=options, reference=(db, measured), progress=tick))
     return results
 
 

@@ -148,19 +148,29 @@ def sweep_k(db: CalibrationDatabase, measured: OperatingPoints, ks, method: str 
     return SweepResult("neighbours k", "1", ks, mae, worst)
 
 
+def _same_grid(db: CalibrationDatabase | None, grid: CalibrationGrid) -> bool:
+    return (db is not None and np.array_equal(db.speed_setpoints, grid.speeds)
+            and np.array_equal(db.torque_setpoints, grid.torques))
+
+
+def _calibrate_once(rig: Rig, grid: CalibrationGrid, seed: int) -> CalibrationDatabase:
+    # The whole grid in one batch: a sweep calibrates many grids and one batch is the fastest.
+    return calibrate_simulated(rig, grid, seed=seed, batch_size=len(grid.speeds) * len(grid.torques))
+
+
 def sweep_grid_density(rig: Rig, sizes, measured: OperatingPoints, *, seed: int = 0, method: str = "knn",
-                       options: dict | None = None,
+                       options: dict | None = None, reference: CalibrationDatabase | None = None,
                        progress: Callable[[], None] | None = None) -> SweepResult:
     """Error against the grid density: calibrate CalibrationGrid.paper(rig, speeds, torques) for each
     (speeds per direction, torques) in sizes; score all on the same measured held-out points.
-    The swept value is the number of calibration points."""
+    The swept value is the number of calibration points. A size whose grid is the reference
+    database's uses that database (so the sweep passes through the main evaluation's figure)."""
     mae, worst, counts = [], [], []
     for n_speeds, n_torques in sizes:
         grid = CalibrationGrid.paper(rig, n_speeds, n_torques)
-        n = 2 * n_speeds * n_torques
-        db = calibrate_simulated(rig, grid, seed=seed)  # default batches: the 17x16 entry is `calibrate`'s database
+        db = reference if _same_grid(reference, grid) else _calibrate_once(rig, grid, seed)
         ev = score(make_estimator(method, db, **(options or {})), measured, db.torque_range)
-        counts.append(n)
+        counts.append(len(db))
         mae.append(ev.mae_pct)
         worst.append(ev.max_pct)
         if progress is not None:
@@ -177,16 +187,23 @@ def with_noise(rig: Rig, factor: float) -> Rig:
 
 
 def sweep_noise(rig: Rig, grid: CalibrationGrid, factors, n_points: int, *, seed: int = 0, method: str = "knn",
-                options: dict | None = None, progress: Callable[[], None] | None = None) -> SweepResult:
+                options: dict | None = None,
+                reference: tuple[CalibrationDatabase, OperatingPoints] | None = None,
+                progress: Callable[[], None] | None = None) -> SweepResult:
     """Error against sensor noise: for each factor, calibrate and measure the held-out points on a rig
-    whose current and speed noise are that many times the rig's. With no noise at all the current
-    ADC's step is not dithered any more, so window means are quantised: the error does not fall to 0."""
+    whose current and speed noise are that many times the rig's. Factor 1 uses the reference
+    (database, held-out points measured on the rig itself) when given. With no noise at all the
+    current ADC's step is not dithered any more, so window means are quantised: the error does not
+    fall to 0."""
     mae, worst = [], []
     for factor in factors:
-        noisy = with_noise(rig, float(factor))
-        db = calibrate_simulated(noisy, grid, seed=seed)
-        ev = score(make_estimator(method, db, **(options or {})),
-                   measure_held_out(noisy, grid, n_points, seed + 1), db.torque_range)
+        if factor == 1.0 and reference is not None and _same_grid(reference[0], grid):
+            db, measured = reference
+        else:
+            noisy = with_noise(rig, float(factor))
+            db = _calibrate_once(noisy, grid, seed)
+            measured = measure_held_out(noisy, grid, n_points, seed + 1)
+        ev = score(make_estimator(method, db, **(options or {})), measured, db.torque_range)
         mae.append(ev.mae_pct)
         worst.append(ev.max_pct)
         if progress is not None:

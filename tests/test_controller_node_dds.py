@@ -1,0 +1,120 @@
+"""controller_node over real DDS: its output limit and anti-windup, with a probe as the rig.
+
+controller_node runs alone (its own process, voltage_limit 3 V, feedforward
+off). The probe publishes rig samples of a worm that does not turn (as a
+blocked or unpowered rig would report) and speed set-points, and records the
+drive commands. Asking for 300 rad/s must give exactly the limit, never more;
+after that, asking for 0 rad/s must give ~0 V at once: the integrator did not
+wind up while the output was limited (a plain PI would have integrated
+ki x 300 rad/s x 0.3 s = 1.8 N m and still command the full 3 V).
+
+ROS_DOMAIN_ID: the environment's if set, else a random one in 100..230;
+discovery stays on this host.
+"""
+from __future__ import annotations
+
+import os
+import random
+import time
+from collections.abc import Callable, Iterator
+
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from std_msgs.msg import Float64
+from worm_msgs.msg import DriveCommand, RigSample
+
+from torque_estimator.graph import Graph
+from worm_model.nodes.qos import COMMAND, STREAM
+
+LIMIT = 3.0  # [V]
+PARAMS = f"""\
+controller_node:
+  ros__parameters:
+    voltage_limit: {LIMIT}
+    feedforward: false
+    speed_setpoint: 0.0
+"""
+
+
+@pytest.fixture(scope="module")
+def controller(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Graph]:
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("ROS_DOMAIN_ID", os.environ.get("ROS_DOMAIN_ID") or str(random.randint(100, 230)))
+        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        folder = tmp_path_factory.mktemp("controller")
+        params = folder / "controller.yaml"
+        params.write_text(PARAMS, encoding="utf-8")
+        graph = Graph(params, {}, log_dir=folder / "logs")
+        try:
+            yield graph.start()
+        finally:
+            codes = graph.stop()
+        assert codes == {"controller_node": 0}, codes
+
+
+class RigProbe:
+    def __init__(self) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node("controller_test_rig", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.commands: list[DriveCommand] = []
+        self.node.create_subscription(DriveCommand, "/rig/drive_command", self.commands.append, STREAM)
+        self.samples = self.node.create_publisher(RigSample, "/rig/sample", STREAM)
+        self.setpoint = self.node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND)
+        self.seq = 0
+
+    def spin_until(self, done: Callable[[], bool], timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while not done() and time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.01)
+        return done()
+
+    def send_samples(self, count: int, omega: float = 0.0) -> None:
+        """`count` samples of a worm turning at omega [rad/s], 1 ms apart on the sample clock."""
+        for _ in range(count):
+            self.seq += 1
+            sample = RigSample(seq=self.seq, omega_worm=omega, status=RigSample.STATUS_SIMULATED)
+            sample.header.stamp = self.node.get_clock().now().to_msg()
+            self.samples.publish(sample)
+            if self.seq % 20 == 0:  # let the commands in; keep the controller's queue short
+                self.spin_until(lambda: False, 0.005)
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def test_output_limit_and_no_windup_over_dds(controller: Graph) -> None:
+    probe = RigProbe()
+    try:
+        matched = probe.spin_until(lambda: probe.samples.get_subscription_count() > 0
+                                   and probe.setpoint.get_subscription_count() > 0, 30.0)
+        assert matched, f"controller_node did not subscribe; logs in {controller.log_dir}"
+        probe.setpoint.publish(Float64(data=300.0))
+
+        def taken(speed: float) -> bool:
+            probe.send_samples(5)
+            return any(c.speed_setpoint == speed for c in probe.commands[-5:])
+        assert probe.spin_until(lambda: taken(300.0), 15.0), "controller_node did not take 300 rad/s"
+
+        probe.commands.clear()
+        probe.send_samples(300)  # 0.3 s of a worm at rest against a 300 rad/s set-point
+        probe.spin_until(lambda: False, 0.5)
+        saturated = [c for c in probe.commands if c.speed_setpoint == 300.0]
+        assert len(saturated) > 100, f"only {len(saturated)} drive commands for 300 samples"
+        assert all(c.voltage == LIMIT for c in saturated), sorted({c.voltage for c in saturated})
+
+        probe.setpoint.publish(Float64(data=0.0))
+        assert probe.spin_until(lambda: taken(0.0), 15.0), "controller_node did not take 0 rad/s"
+        after = [c for c in probe.commands if c.speed_setpoint == 0.0]
+        assert after and all(abs(c.voltage) < 0.01 for c in after), [c.voltage for c in after]
+        assert all(abs(c.voltage) <= LIMIT for c in probe.commands)
+    finally:
+        probe.close()
+    assert not controller.failed(), controller.failed()
