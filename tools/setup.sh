@@ -21,6 +21,14 @@ need "command -v g++" g++
 need "command -v make" make
 need "$PYTHON -c 'import sysconfig,os,sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()[\"include\"], \"Python.h\")))'" python3-dev
 need "$PYTHON -c 'import ensurepip, venv'" python3-venv
+# The rig firmware (avr-gcc, avr-libc, avrdude to flash) and its simulation in the loop (simavr).
+need "command -v avr-gcc" gcc-avr
+need "command -v avr-objcopy" binutils-avr
+need "test -f /usr/lib/avr/include/avr/io.h" avr-libc
+need "command -v avrdude" avrdude
+need "pkg-config --exists simavr" libsimavr-dev
+need "pkg-config --exists libelf" libelf-dev
+need "command -v pkg-config" pkg-config
 if [ ${#missing[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then
     say "installing Debian packages: ${missing[*]}"

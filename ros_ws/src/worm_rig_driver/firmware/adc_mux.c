@@ -8,6 +8,7 @@
 #define STEPS (2u * MOTOR_COUNT)
 
 static volatile uint16_t results[STEPS]; /* step 2i: current of motor i, 2i + 1: its tacho */
+static volatile uint16_t ready[STEPS];   /* the last completed sequence */
 static volatile uint8_t step = STEPS;     /* STEPS: idle */
 static volatile uint8_t done;
 
@@ -28,24 +29,33 @@ void adc_mux_init(void)
     ADCSRA = _BV(ADEN) | _BV(ADIE) | _BV(ADPS2) | _BV(ADPS1) | _BV(ADPS0); /* 16 MHz / 128 */
 }
 
-void adc_mux_start(void)
+uint8_t adc_mux_start(void)
 {
     if (step < STEPS)
-        return;
+        return 0;
     step = 0;
     convert(0);
+    return 1;
 }
 
-ISR(ADC_vect)
+/* ISR_NOBLOCK: encoder edges may preempt it (see the tick ISR); a conversion takes 104 us, so
+ * it cannot preempt itself. */
+ISR(ADC_vect, ISR_NOBLOCK)
 {
     uint8_t s = step;
     results[s] = ADC;
     s++;
     step = s;
-    if (s < STEPS)
+    if (s < STEPS) {
         convert(s);
-    else
-        done = 1;
+        return;
+    }
+    ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { /* adc_mux_read copies under the same lock */
+        for (uint8_t k = 0; k < STEPS; k++)
+            ready[k] = results[k];
+    }
+    adc_mux_sequence_done_isr();
+    done = 1;
 }
 
 uint8_t adc_mux_take_done(void)
@@ -58,12 +68,17 @@ uint8_t adc_mux_take_done(void)
     return d;
 }
 
+uint8_t adc_mux_done_pending(void)
+{
+    return done;
+}
+
 void adc_mux_read(uint16_t currents[MOTOR_COUNT], uint16_t tachos[MOTOR_COUNT])
 {
     ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
         for (uint8_t i = 0; i < MOTOR_COUNT; i++) {
-            currents[i] = results[2u * i];
-            tachos[i] = results[2u * i + 1u];
+            currents[i] = ready[2u * i];
+            tachos[i] = ready[2u * i + 1u];
         }
     }
 }

@@ -1,71 +1,88 @@
 /* encoders.c - see encoders.h.
  *
- * Every edge of either channel interrupts (ISCn = 01: any change) and the new (A, B) state
- * is looked up against the previous one. INTn rather than pin-change interrupts: each channel
- * has its own vector, so an ISR reads only its own port and never has to find which pin moved.
- * An ISR takes about 60 cycles, so the three encoders together keep up with ~250k edges/s
- * (the drive encoder at 2000 counts/rev and 436 rad/s makes 139k edges/s). */
+ * Each channel has its own external interrupt (INTn, any edge), so an ISR knows which channel
+ * moved and decodes from the two levels alone: after an edge of A the count goes up if A != B,
+ * after an edge of B it goes up if A == B (positive sequence 00 -> 10 -> 11 -> 01). The ISR
+ * counts in 16 bits (about 45 cycles per edge, so the drive encoder's 139k edges/s at 436 rad/s
+ * take ~40 % of the CPU, typical speeds a few %); the tick extends the counts to 32 bits every
+ * millisecond, long before 16 bits can wrap (at most 139 counts per ms).
+ * An edge whose channel reads the same level as at its previous edge means an edge pair came
+ * too close together to be seen: counted in encoders_errors(). */
 #include "encoders.h"
 
 #include <avr/interrupt.h>
 #include <avr/io.h>
 #include <util/atomic.h>
 
-#define BAD 2 /* marker in the table: an invalid (double) transition */
-
-/* state = (A << 1) | B; positive sequence 00 -> 10 -> 11 -> 01 -> 00. Index: prev * 4 + new. */
-static const int8_t STEP[16] = {
-    0, -1, +1, BAD,
-    +1, 0, BAD, -1,
-    -1, BAD, 0, +1,
-    BAD, +1, -1, 0,
-};
-
-static volatile int32_t count[MOTOR_COUNT];
-static volatile uint8_t prev[MOTOR_COUNT];
+static volatile int16_t count16[MOTOR_COUNT];
+static volatile uint8_t level_a[MOTOR_COUNT], level_b[MOTOR_COUNT];
 static volatile uint16_t errors;
+static int16_t last16[MOTOR_COUNT]; /* tick ISR only */
+static int32_t count32[MOTOR_COUNT];
 
-/* (A, B) of each encoder from its port. */
-static inline uint8_t state_drive(void) { uint8_t p = PINE; return (uint8_t)((((p >> 4) & 1u) << 1) | ((p >> 5) & 1u)); }
-static inline uint8_t state_load_1(void) { uint8_t p = PIND; return (uint8_t)((((p >> 2) & 1u) << 1) | ((p >> 3) & 1u)); }
-static inline uint8_t state_load_2(void) { uint8_t p = PIND; return (uint8_t)(((p & 1u) << 1) | ((p >> 1) & 1u)); }
+#define EDGE_A(vect, i, pinreg, bit_a, bit_b) \
+    ISR(vect) \
+    { \
+        uint8_t p = pinreg; \
+        uint8_t a = (uint8_t)((p >> (bit_a)) & 1u), b = (uint8_t)((p >> (bit_b)) & 1u); \
+        if (a == level_a[i]) \
+            errors++; \
+        level_a[i] = a; \
+        if (a ^ b) \
+            count16[i]++; \
+        else \
+            count16[i]--; \
+    }
 
-static inline __attribute__((always_inline)) void update(uint8_t i, uint8_t state)
-{
-    int8_t step = STEP[(uint8_t)(prev[i] << 2) | state];
-    prev[i] = state;
-    if (step == BAD)
-        errors++;
-    else
-        count[i] += step;
-}
+#define EDGE_B(vect, i, pinreg, bit_a, bit_b) \
+    ISR(vect) \
+    { \
+        uint8_t p = pinreg; \
+        uint8_t a = (uint8_t)((p >> (bit_a)) & 1u), b = (uint8_t)((p >> (bit_b)) & 1u); \
+        if (b == level_b[i]) \
+            errors++; \
+        level_b[i] = b; \
+        if (a ^ b) \
+            count16[i]--; \
+        else \
+            count16[i]++; \
+    }
 
-ISR(INT4_vect) { update(MOTOR_DRIVE, state_drive()); }
-ISR(INT5_vect, ISR_ALIASOF(INT4_vect));
-ISR(INT2_vect) { update(MOTOR_LOAD_1, state_load_1()); }
-ISR(INT3_vect, ISR_ALIASOF(INT2_vect));
-ISR(INT0_vect) { update(MOTOR_LOAD_2, state_load_2()); }
-ISR(INT1_vect, ISR_ALIASOF(INT0_vect));
+EDGE_A(INT4_vect, MOTOR_DRIVE, PINE, PE4, PE5)
+EDGE_B(INT5_vect, MOTOR_DRIVE, PINE, PE4, PE5)
+EDGE_A(INT2_vect, MOTOR_LOAD_1, PIND, PD2, PD3)
+EDGE_B(INT3_vect, MOTOR_LOAD_1, PIND, PD2, PD3)
+EDGE_A(INT0_vect, MOTOR_LOAD_2, PIND, PD0, PD1)
+EDGE_B(INT1_vect, MOTOR_LOAD_2, PIND, PD0, PD1)
 
 void encoders_init(void)
 {
     DDRE &= (uint8_t)~(_BV(PE4) | _BV(PE5));
-    PORTE |= _BV(PE4) | _BV(PE5); /* pull-ups: a disconnected encoder reads a steady state */
+    PORTE |= _BV(PE4) | _BV(PE5); /* pull-ups: a disconnected encoder reads a steady level */
     DDRD &= (uint8_t)~0x0Fu;
     PORTD |= 0x0Fu;
+    uint8_t e = PINE, d = PIND;
+    level_a[MOTOR_DRIVE] = (e >> PE4) & 1u;
+    level_b[MOTOR_DRIVE] = (e >> PE5) & 1u;
+    level_a[MOTOR_LOAD_1] = (d >> PD2) & 1u;
+    level_b[MOTOR_LOAD_1] = (d >> PD3) & 1u;
+    level_a[MOTOR_LOAD_2] = (d >> PD0) & 1u;
+    level_b[MOTOR_LOAD_2] = (d >> PD1) & 1u;
     EICRA = _BV(ISC00) | _BV(ISC10) | _BV(ISC20) | _BV(ISC30); /* any edge */
     EICRB = _BV(ISC40) | _BV(ISC50);
-    prev[MOTOR_DRIVE] = state_drive();
-    prev[MOTOR_LOAD_1] = state_load_1();
-    prev[MOTOR_LOAD_2] = state_load_2();
     EIFR = 0x3Fu;
     EIMSK = 0x3Fu; /* INT0..INT5 */
 }
 
 void encoders_snapshot_isr(int32_t counts[MOTOR_COUNT])
 {
-    for (uint8_t i = 0; i < MOTOR_COUNT; i++)
-        counts[i] = count[i];
+    for (uint8_t i = 0; i < MOTOR_COUNT; i++) {
+        int16_t c;
+        ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { c = count16[i]; } /* the tick ISR can be preempted */
+        count32[i] += (int16_t)(c - last16[i]); /* wraps correctly: the difference fits 16 bits */
+        last16[i] = c;
+        counts[i] = count32[i];
+    }
 }
 
 uint16_t encoders_errors(void)

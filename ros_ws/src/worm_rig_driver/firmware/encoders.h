@@ -8,7 +8,8 @@
 #include "board.h"
 
 void encoders_init(void);
-/* Copy the counts; call with interrupts disabled (the tick ISR does) for a consistent set. */
+/* The counts now, extended to 32 bits: call from the tick ISR only, once per tick (at least
+ * every 32767 counts of the fastest encoder); the encoder ISRs may preempt it. */
 void encoders_snapshot_isr(int32_t counts[MOTOR_COUNT]);
 /* Invalid transitions (both channels changed between two interrupts) since reset (wraps). */
 uint16_t encoders_errors(void);

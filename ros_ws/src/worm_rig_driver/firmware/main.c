@@ -44,6 +44,7 @@ static uint16_t tx_seq;
 static uint8_t link_ready;
 static uint16_t expected_seq;
 static uint16_t stream_divider; /* 0: not streaming */
+static uint16_t stream_countdown; /* ticks to the next telemetry frame */
 static uint8_t enabled;         /* bridges enabled by a SETPOINT */
 static uint8_t modes;           /* bit i: motor i in current mode */
 static int16_t targets[MOTOR_COUNT];
@@ -54,12 +55,15 @@ static uint16_t cmd_seq;
 static uint16_t status; /* persistent bits */
 static uint16_t sticky; /* bits reported once, in the next telemetry */
 static uint16_t rx_seq_gaps, tx_dropped, watchdog_stops;
+static volatile uint16_t tick_overruns;
 static uint32_t last_stats_ms;
 static uint8_t reset_flags __attribute__((section(".noinit")));
 
 static volatile uint32_t tick_ms;           /* ms since reset */
-static volatile uint32_t sample_ms;         /* tick of the sample being converted */
-static volatile int32_t sample_counts[MOTOR_COUNT];
+/* A sample is the tick that started an ADC sequence and the encoder counts at that tick; it is
+ * latched for the control step when its sequence completes (adc_mux_sequence_done_isr). */
+static volatile uint32_t converting_ms, sample_ms;
+static volatile int32_t converting_counts[MOTOR_COUNT], sample_counts[MOTOR_COUNT];
 
 extern uint8_t _end;
 extern uint8_t __stack;
@@ -76,15 +80,21 @@ void early_init(void)
         *p = STACK_PAINT;
 }
 
-static uint16_t stack_free(void)
+/* Bytes above _end the stack never reached (still painted), measured 8 bytes per tick (a
+ * full pass takes ~1 s): scanning all 7 kB at once would hold the control step for ~4 ms. */
+static uint16_t stack_free_bytes;
+static const uint8_t *stack_scan = &_end;
+
+static void stack_scan_step(void)
 {
-    const uint8_t *p = &_end;
-    uint16_t n = 0;
-    while (p <= &__stack && *p == STACK_PAINT) {
-        p++;
-        n++;
+    for (uint8_t k = 0; k < 8; k++) {
+        if (stack_scan > &__stack || *stack_scan != STACK_PAINT) {
+            stack_free_bytes = (uint16_t)(stack_scan - &_end);
+            stack_scan = &_end;
+            return;
+        }
+        stack_scan++;
     }
-    return n;
 }
 
 static uint32_t now_ms(void)
@@ -95,13 +105,32 @@ static uint32_t now_ms(void)
 }
 
 /* --- the tick ---------------------------------------------------------------------------- */
-ISR(TIMER0_COMPA_vect)
+/* ISR_NOBLOCK (interrupts re-enabled at entry): encoder edges may preempt the tick, so their
+ * latency stays a few tens of cycles; the tick is 1 ms apart and cannot preempt itself. */
+ISR(TIMER0_COMPA_vect, ISR_NOBLOCK)
 {
     uint32_t t = tick_ms + 1u;
     tick_ms = t;
-    sample_ms = t;
-    encoders_snapshot_isr((int32_t *)sample_counts);
-    adc_mux_start();
+    int32_t counts[MOTOR_COUNT];
+    encoders_snapshot_isr(counts); /* every tick: it extends the counts to 32 bits */
+    if (adc_mux_start()) {
+        converting_ms = t;
+        for (uint8_t i = 0; i < MOTOR_COUNT; i++)
+            converting_counts[i] = counts[i];
+    } else {
+        tick_overruns++; /* the last sequence is still converting: this tick has no sample */
+    }
+}
+
+void adc_mux_sequence_done_isr(void)
+{
+    if (adc_mux_done_pending())
+        tick_overruns++; /* the control step has not taken the previous sample: it is lost */
+    ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { /* a late sequence may end while the next tick runs */
+        sample_ms = converting_ms;
+        for (uint8_t i = 0; i < MOTOR_COUNT; i++)
+            sample_counts[i] = converting_counts[i];
+    }
 }
 
 static void tick_init(void)
@@ -226,6 +255,7 @@ static void on_frame(void)
             break;
         }
         stream_divider = st.rate_hz ? PROTO_SAMPLE_RATE_HZ / st.rate_hz : 0;
+        stream_countdown = 0;
         last_stats_ms = now_ms();
         send_ack(seq, type);
         break;
@@ -241,10 +271,14 @@ static void on_frame(void)
     }
 }
 
+/* At most RX_BUDGET bytes per pass of the main loop: a host streaming back to back (up to 100
+ * bytes per ms at 1 Mbaud) must not keep the control step from its sample. */
+#define RX_BUDGET 16u
+
 static void receive(void)
 {
     int16_t c;
-    while ((c = uart_getc()) >= 0) {
+    for (uint8_t n = 0; n < RX_BUDGET && (c = uart_getc()) >= 0; n++) {
         uint16_t bad_before = rx.crc_errors + rx.cobs_errors + rx.length_errors + rx.oversize + rx.unknown_types;
         uint8_t got = frame_rx_push(&rx, (uint8_t)c);
         if (rx.crc_errors + rx.cobs_errors + rx.length_errors + rx.oversize + rx.unknown_types != bad_before)
@@ -285,7 +319,8 @@ static void control_step(void)
             counts[i] = sample_counts[i];
     }
 
-    if (enabled && (uint32_t)(t - last_cmd_ms) > PROTO_WATCHDOG_MS) {
+    /* Against the time now, not the sample's tick: a command may be newer than the sample. */
+    if (enabled && (uint32_t)(now_ms() - last_cmd_ms) > PROTO_WATCHDOG_MS) {
         stop_all();
         status |= STATUS_WATCHDOG_STOP;
         watchdog_stops++;
@@ -304,6 +339,7 @@ static void control_step(void)
         if (currents[i] == 0 || currents[i] >= 1023u || tachos[i] == 0 || tachos[i] >= 1023u)
             flags |= STATUS_SENSOR_FAULT;
     }
+    stack_scan_step();
     static uint16_t last_encoder_errors;
     uint16_t enc_errors = encoders_errors();
     if (enc_errors != last_encoder_errors) {
@@ -318,7 +354,8 @@ static void control_step(void)
 
     if (!stream_divider)
         return;
-    if (t % stream_divider == 0) {
+    if (stream_countdown == 0) {
+        stream_countdown = stream_divider;
         frame_telemetry_t m = {
             .t_us = t * 1000u,
             .current_drive = currents[0], .current_load_1 = currents[1], .current_load_2 = currents[2],
@@ -330,6 +367,7 @@ static void control_step(void)
         sticky = 0;
         send(FRAME_TELEMETRY, &m, sizeof m);
     }
+    stream_countdown--;
     if ((uint32_t)(t - last_stats_ms) >= PROTO_STATS_PERIOD_MS) {
         last_stats_ms = t;
         frame_stats_t s = {
@@ -337,7 +375,7 @@ static void control_step(void)
             .rx_cobs_errors = rx.cobs_errors, .rx_length_errors = (uint16_t)(rx.length_errors + rx.unknown_types),
             .rx_oversize = rx.oversize, .rx_overruns = uart_rx_overruns(), .rx_seq_gaps = rx_seq_gaps,
             .tx_dropped = tx_dropped, .watchdog_stops = watchdog_stops, .encoder_errors = enc_errors,
-            .stack_free = stack_free(),
+            .stack_free = stack_free_bytes, .tick_overruns = tick_overruns,
         };
         send(FRAME_STATS, &s, sizeof s);
     }
@@ -360,11 +398,13 @@ int main(void)
     sei();
     for (;;) {
         wdt_reset();
-        receive();
         if (adc_mux_take_done())
             control_step();
+        receive();
         cli();
-        if (!uart_rx_pending()) {
+        /* Sleep only if nothing arrived since the checks above (interrupts are off here, so
+         * nothing can slip in between this test and the sleep). */
+        if (!uart_rx_pending() && !adc_mux_done_pending()) {
             /* sei; sleep: the instruction after sei runs first, so an interrupt that arrives
              * here still wakes the sleep instead of being missed until the next tick. */
             sleep_enable();

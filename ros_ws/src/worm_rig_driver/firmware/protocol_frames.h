@@ -7,7 +7,7 @@
 #include <stdint.h>
 
 #define PROTO_VERSION 1u
-#define PROTO_TABLE_CRC 0x8B63u
+#define PROTO_TABLE_CRC 0xD063u
 #define PROTO_F_CPU 16000000UL
 #define PROTO_BAUD 1000000UL
 #define PROTO_U2X 1
@@ -48,7 +48,7 @@
 #define FRAME_HELLO_REPLY_LEN 12u
 #define FRAME_ACK_LEN 3u
 #define FRAME_ERROR_LEN 6u
-#define FRAME_STATS_LEN 28u
+#define FRAME_STATS_LEN 30u
 
 /* Payload layouts: little-endian, packed (AVR and x86 are both little-endian). */
 typedef struct __attribute__((packed)) {
@@ -117,7 +117,8 @@ typedef struct __attribute__((packed)) {
     uint16_t rx_seq_gaps; /* [1] breaks in the host's frame sequence; count */
     uint16_t tx_dropped; /* [1] frames not sent: transmit ring full; count */
     uint16_t watchdog_stops; /* [1] motor stops by the command watchdog; count */
-    uint16_t encoder_errors; /* [1] invalid quadrature transitions; count */
+    uint16_t encoder_errors; /* [1] encoder edges too close together to decode; count */
+    uint16_t tick_overruns; /* [1] samples lost: the ADC sequence or the control step not done by the next tick; count */
     uint16_t stack_free; /* [B] SRAM never touched by the stack since reset; 1 byte */
 } frame_stats_t;
 _Static_assert(sizeof(frame_stats_t) == FRAME_STATS_LEN, "STATS layout");
@@ -126,7 +127,7 @@ _Static_assert(sizeof(frame_stats_t) == FRAME_STATS_LEN, "STATS layout");
 #define STATUS_DRIVE_LIMIT 0x0001u /* the drive duty was clamped (current loop saturated or max duty) */
 #define STATUS_WATCHDOG_STOP 0x0002u /* motors stopped by the watchdog: no valid command for WATCHDOG_MS */
 #define STATUS_SENSOR_FAULT 0x0004u /* an ADC channel read 0 or 1023 (open or shorted sensor) */
-#define STATUS_ENCODER_ERROR 0x0008u /* an invalid quadrature transition since the last telemetry */
+#define STATUS_ENCODER_ERROR 0x0008u /* encoder edges too close together to decode, since the last telemetry */
 #define STATUS_RX_ERROR 0x0010u /* a corrupt host frame since the last telemetry */
 #define STATUS_TX_DROPPED 0x0020u /* a frame was dropped since the last telemetry (transmit ring full) */
 #define STATUS_WDT_RESET 0x0040u /* the last reset was by the hardware watchdog */

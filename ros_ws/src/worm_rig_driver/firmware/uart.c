@@ -22,8 +22,10 @@ static volatile uint16_t rx_overruns;
 
 void uart_init(void)
 {
-    UBRR0 = PROTO_UBRR;
+    /* U2X before UBRR: the hardware does not care, but simavr derives the bit time when UBRR is
+     * written, and would otherwise run this UART at half speed in the firmware-in-the-loop. */
     UCSR0A = _BV(U2X0);
+    UBRR0 = PROTO_UBRR;
     UCSR0C = _BV(UCSZ01) | _BV(UCSZ00); /* 8N1 */
     UCSR0B = _BV(RXEN0) | _BV(TXEN0) | _BV(RXCIE0);
 }

@@ -15,6 +15,8 @@ said there); the protocol, the limits and the statistics are link.LinkCore.
 """
 from __future__ import annotations
 
+import json
+
 from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
@@ -85,6 +87,8 @@ class DriverNode(Node):
 
     def destroy_node(self) -> None:
         self.link.stop()
+        # One machine-readable line with the totals (fil_run and the tests read it).
+        self.get_logger().info("link statistics at exit: " + json.dumps(self.link.report(), sort_keys=True))
         super().destroy_node()
 
     # --- commands ---------------------------------------------------------------------------

@@ -35,6 +35,7 @@
 #include <sim_irq.h>
 #include <sim_cycle_timers.h>
 #include <avr_adc.h>
+#include <avr_extint.h>
 #include <avr_ioport.h>
 #include <avr_uart.h>
 
@@ -276,6 +277,14 @@ static avr_cycle_count_t sample_duty(avr_t *avr, avr_cycle_count_t when, void *p
     return when + DUTY_SAMPLE_CYCLES;
 }
 
+/* simavr's default sleep callback waits in wall-clock time while the AVR sleeps; the loop in
+ * Python paces rig time against the wall clock itself, so a sleeping AVR costs nothing here. */
+static void no_wall_clock_sleep(avr_t *avr, avr_cycle_count_t how_long)
+{
+    (void)avr;
+    (void)how_long;
+}
+
 /* --- API ------------------------------------------------------------------------------------- */
 void fil_destroy(fil_t *f);
 
@@ -302,6 +311,7 @@ fil_t *fil_create(const char *elf_path, const char *link, char *error, int error
     avr_init(avr);
     avr->log = LOG_ERROR;
     avr_load_firmware(avr, &fw);
+    avr->sleep = no_wall_clock_sleep;
     avr->frequency = F_CPU_HZ;
     avr->vcc = avr->avcc = avr->aref = 5000;
 
@@ -323,6 +333,10 @@ fil_t *fil_create(const char *elf_path, const char *link, char *error, int error
         return NULL;
     }
 
+    /* No console echo of the UART (simavr's default) and no usleep in the UART's status
+     * polling: the bytes are the protocol's, and time is the simulation's. */
+    uint32_t uart_flags = 0;
+    avr_ioctl(avr, AVR_IOCTL_UART_SET_FLAGS('0'), &uart_flags);
     avr_irq_t *uart = avr_io_getirq(avr, AVR_IOCTL_UART_GETIRQ('0'), 0);
     avr_irq_register_notify(uart + UART_IRQ_OUTPUT, on_uart_output, f);
     avr_irq_register_notify(uart + UART_IRQ_OUT_XON, on_xon, f);
@@ -337,6 +351,10 @@ fil_t *fil_create(const char *elf_path, const char *link, char *error, int error
     for (int bit = 0; bit < 3; bit++)
         avr_irq_register_notify(portc + IOPORT_IRQ_PIN0 + bit, on_select, f);
 
+    /* INT0..INT5 start in low-level mode until the firmware configures them; simavr then polls a
+     * low pin every cycle, forever. The firmware only uses edge mode, so switch that polling off. */
+    for (uint8_t n = 0; n < 6; n++)
+        avr_extint_set_strict_lvl_trig(avr, n, 0);
     f->ext_e.mask = (1u << 4) | (1u << 5);
     f->ext_d.mask = 0x0Fu;
     for (int i = 0; i < 3; i++) {
