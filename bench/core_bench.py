@@ -5,6 +5,8 @@
 Prints to stdout, in this order:
   calibration_grid_time: <x> s           full 17 x 16 x 2 calibration on the simulated rig
   sim_realtime_factor: <x>               simulated s per wall s, one SimulatedRig (n=1) stepped in a loop
+                                         (batch mode: as fast as it goes, no pacing)
+  sim_effects_realtime_factor: <x>       the same with every effect plug-in on (config/effects_all.yaml)
   sim_ensemble_realtime_factor: <x>      rig-seconds per wall s, 544 rigs stepped together
   knn_estimate_latency_p50: <x> us       one KnnEstimator.estimate(omega, i) call on the calibration database
   model_forces_throughput: <x> samples/s internal_forces on 10^6 samples
@@ -21,6 +23,7 @@ from torque_estimator.calibration import CalibrationGrid, calibrate_simulated
 from torque_estimator.knn_estimator import KnnEstimator
 from worm_model.internal_forces import internal_forces
 from worm_model.parameters import load_rig
+from worm_rig_driver.effects import EFFECTS, EffectsConfig
 from worm_rig_driver.simulated_rig import SimulatedRig
 
 
@@ -43,9 +46,9 @@ def bench_calibration(rig):
     return db
 
 
-def step_rate(rig, n: int, sim_seconds: float) -> float:
+def step_rate(rig, n: int, sim_seconds: float, effects=None) -> float:
     """Simulated seconds per wall second of n rigs (at a speed, under load) stepped sample by sample."""
-    sim = SimulatedRig(rig, n=n, seed=0)
+    sim = SimulatedRig(rig, n=n, seed=0, effects=effects)
     sim.command(voltage_drive=np.full(n, 6.0), load_torque=np.full(n, 0.1))
     for _ in range(50):  # warm-up
         sim.sample()
@@ -54,7 +57,8 @@ def step_rate(rig, n: int, sim_seconds: float) -> float:
     for _ in range(steps):
         sim.sample()
     wall = time.perf_counter() - start
-    info(f"SimulatedRig n={n}, substeps={sim.substeps}: {steps} samples in {wall:.2f} s")
+    info(f"SimulatedRig n={n}, substeps={sim.substeps}, effects: {', '.join(sim.effects.names) or 'none'}: "
+         f"{steps} samples in {wall:.2f} s")
     return steps * sim.sample_period / wall
 
 
@@ -97,6 +101,7 @@ def main() -> int:
     rig = load_rig(None)
     db = bench_calibration(rig)
     metric("sim_realtime_factor", step_rate(rig, 1, 5.0), "", ".2f")
+    metric("sim_effects_realtime_factor", step_rate(rig, 1, 5.0, EffectsConfig.defaults(*EFFECTS)), "", ".2f")
     metric("sim_ensemble_realtime_factor", len(db) * step_rate(rig, len(db), 1.0), "", ".1f")
     metric("knn_estimate_latency_p50", bench_knn(db), "us", ".1f")
     metric("model_forces_throughput", bench_forces(rig), "samples/s", ".3g")

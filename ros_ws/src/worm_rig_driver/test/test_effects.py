@@ -255,22 +255,21 @@ def test_oil_temperature_drifts_with_its_time_constant_and_scales_mu() -> None:
     sim, base = SimulatedRig(QUIET, n=1, effects=config), SimulatedRig(QUIET, n=1)
     for s in (sim, base):
         s.command(voltage_drive=12.0, load_torque=0.2)
-    temperature, current, current_base, heat = [], [], [], []
+    temperature, current, current_base = [], [], []
     for _ in range(1500):  # 7.5 time constants
         sim.sample()
         base.sample()
-        truth = sim.truth()
-        temperature.append(truth.effects["oil_temperature"][0])
-        current.append(truth.current_drive[0])
-        current_base.append(base.truth().current_drive[0])
-        # the heat is the mesh friction power F_f V_s (Eq. 22 on the truth)
-        heat.append(truth.friction_force[0] * sliding_velocity(GB, truth.omega_worm[0]))
+        temperature.append(sim.plant.fx.observe()["oil_temperature"][0])
+        current.append(sim.plant.state.current_drive[0])
+        current_base.append(base.plant.state.current_drive[0])
+    truth = sim.truth()
+    assert truth.effects["oil_temperature"][0] == temperature[-1]
+    # the heat is the mesh friction power F_f V_s (Eq. 22 on the truth)
+    heat = [truth.friction_force[0] * sliding_velocity(GB, truth.omega_worm[0])]
     temperature, heat = np.array(temperature), np.array(heat)
-    np.testing.assert_allclose(sim.plant.fx.effects[0].temperature, temperature[-1])
     assert temperature[-1] == pytest.approx(ambient + r_th * heat[-1], rel=1e-3)  # steady state
     rise = (temperature[199] - ambient) / (temperature[-1] - ambient)  # one time constant (t = 0.2 s)
     assert rise == pytest.approx(1 - math.exp(-1), abs=0.03)
-    truth = sim.truth()
     np.testing.assert_allclose(truth.mu, friction_coefficient(RIG.friction, GB, truth.omega_worm)
                                * (1 + k * (temperature[-1] - ambient)), rtol=1e-6)
     # the signature: a slow drift of the current at a constant operating point, to the quasi-static
@@ -413,7 +412,10 @@ def test_sensor_effects_change_the_readings_and_not_the_rig(name: str) -> None:
 
 
 def test_pwm_quantises_the_duty_and_adds_the_sampled_ripple() -> None:
-    levels = 255
+    from worm_rig_driver import protocol_table
+
+    levels = EFFECTS["pwm"].parameters["duty_levels"].default
+    assert levels == protocol_table.PWM_TOP + 1  # the firmware's timer: 800 steps at 20 kHz
     config = EffectsConfig.defaults("pwm")
     sim, base = (SimulatedRig(QUIET, n=2, effects=e) for e in (config, None))
     volts = np.array([10.0, -7.3])

@@ -8,6 +8,7 @@ import pytest
 
 from worm_model.parameters import load_rig
 from worm_rig_driver.plant import PlantOutputs, PlantState
+from worm_rig_driver.scaling import TACHO_DRIVE_FULL_SCALE, TACHO_LOAD_FULL_SCALE
 from worm_rig_driver.sensors import (
     STATUS_DRIVE_LIMIT,
     STATUS_SIMULATED,
@@ -96,10 +97,12 @@ def test_gear_tacho_ripple_is_in_gear_angle() -> None:
 
 def test_tachos_are_quantised_by_the_adc_with_a_range_per_shaft() -> None:
     sensor = SensorModel(QUIET, np.random.default_rng(0))
-    no_load_speed = RIG.supply_voltage / RIG.drive_motor.back_emf_constant
-    drive_lsb = AdcChain().tacho_headroom * no_load_speed / 512
+    # the driver's scaling (one source for simulator and driver), above each shaft's top speed
+    drive_lsb = TACHO_DRIVE_FULL_SCALE / 512
     assert sensor.tacho_lsb["tacho_drive"] == pytest.approx(drive_lsb)
-    assert sensor.tacho_lsb["tacho_load_1"] == pytest.approx(drive_lsb * RIG.gearbox.ratio)
+    assert sensor.tacho_lsb["tacho_load_1"] == pytest.approx(TACHO_LOAD_FULL_SCALE / 512)
+    no_load_speed = RIG.supply_voltage / RIG.drive_motor.back_emf_constant
+    assert no_load_speed < TACHO_DRIVE_FULL_SCALE and RIG.gearbox.ratio * no_load_speed < TACHO_LOAD_FULL_SCALE
     omega = np.linspace(-400.0, 400.0, 997)
     m = sensor.measure(_state(omega.size, omega=omega), _outputs(omega.size))
     np.testing.assert_allclose(m.omega_worm / drive_lsb, np.round(m.omega_worm / drive_lsb), atol=1e-9)
@@ -119,12 +122,12 @@ def test_readings_clip_at_the_ends_of_the_adc_range() -> None:
 def test_tacho_noise_level() -> None:
     n = 20000
     m = _measure(RIG, _state(n, omega=0.0))
-    lsb = SensorModel(RIG, np.random.default_rng(0)).tacho_lsb["tacho_drive"]
+    lsb = SensorModel(RIG, np.random.default_rng(0)).tacho_lsb
     sigma = RIG.sensors.tacho_noise_std
     # noise, then rounding to the ADC step (Sheppard: + lsb^2/12 while sigma is not << lsb)
-    assert abs(m.omega_worm.std() / np.sqrt(sigma ** 2 + lsb ** 2 / 12) - 1) < 0.05
-    # the gear speed averages two independent tachos (their steps are 30x finer)
-    assert abs(m.omega_gear.std() / (sigma / np.sqrt(2)) - 1) < 0.05
+    assert abs(m.omega_worm.std() / np.sqrt(sigma ** 2 + lsb["tacho_drive"] ** 2 / 12) - 1) < 0.05
+    # the gear speed averages two independent tachos (their steps are 25x finer)
+    assert abs(m.omega_gear.std() / np.sqrt((sigma ** 2 + lsb["tacho_load_1"] ** 2 / 12) / 2) - 1) < 0.05
 
 
 # --- the ADC sequence through the two multiplexers ---------------------------------------------------

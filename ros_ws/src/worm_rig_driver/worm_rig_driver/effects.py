@@ -60,6 +60,8 @@ import yaml
 
 from worm_model.parameters import Rig
 
+from . import protocol_table
+
 FORMAT_NAME = "worm_rig_effects"
 FORMAT_VERSION = 1
 #: a rig parameter file (worm_model.parameters) may carry an ``effects`` section too
@@ -545,7 +547,7 @@ class InertiaError(EffectBase):
 class Pwm(EffectBase):
     """The H-bridge's PWM: duty quantised to the timer's levels, and the armature current ripple.
 
-    The plant integrates the average-duty voltage: the PWM period (32 us) is 25x
+    The plant integrates the average-duty voltage: the PWM period (50 us) is 16x
     shorter than L/R (0.8 ms), so the mean current obeys Eq. 29 with V = duty x
     supply. What the average hides is (1) the duty resolution of the timer and
     (2) the triangular current ripple, peak to peak V_s d (1 - d) / (L f_pwm) for
@@ -556,9 +558,10 @@ class Pwm(EffectBase):
     name = "pwm"
     summary = "H-bridge PWM: duty resolution and the current ripple the ADC samples"
     parameters = {
-        "frequency": Parameter(31372.5, "Hz", "PWM frequency (assumption: ATmega2560 phase-correct 8-bit PWM, "
-                               "16 MHz / 510)", "positive"),
-        "duty_levels": Parameter(255, "1", "duty steps from 0 to 100 % (8-bit timer); 0 = continuous", "count0"),
+        "frequency": Parameter(protocol_table.F_CPU_HZ / (protocol_table.PWM_TOP + 1), "Hz",
+                               "PWM frequency (the firmware's: 16 MHz / (PWM_TOP + 1) = 20 kHz)", "positive"),
+        "duty_levels": Parameter(protocol_table.PWM_TOP + 1, "1", "duty steps from 0 to 100 % (the firmware's "
+                                 "PWM_TOP + 1 = 800); 0 = continuous", "count0"),
         "filter_cutoff": Parameter(2000.0, "Hz", "first-order cut-off of the Hall sensor's output filter "
                                    "(assumption: ACS712 with C_F = 47 nF)", "positive"),
     }

@@ -19,8 +19,8 @@ non-zero switching torque (physics.md section 5). "effects" are the plug-ins of
 effects.py (bearing drag, ripples, ...), all zero for the paper's model.
 
 Drive: the BTS7960B H-bridge switches the supply; the plant integrates the
-average-duty voltage (clamped to +-supply). The PWM period (~32 us) is 25x
-shorter than the armature's L/R (0.8 ms) and far shorter than the mechanics,
+average-duty voltage (clamped to +-supply). The PWM period (50 us at the
+firmware's 20 kHz) is 16x shorter than the armature's L/R (0.8 ms) and far shorter than the mechanics,
 so the mean current obeys Eq. 29 with V = duty * supply; the duty resolution
 and the ripple the ADC sees are the `pwm` effect. The armature current is
 integrated exactly over each step with the speed held (motor.exact_current_step).
@@ -347,6 +347,9 @@ class RigPlant:
             direction, alpha_start, flank_start = self._breakaway(current, tau_load)
             alpha_c = np.where(moving, alpha_c, alpha_start)
             implied = np.where(moving, implied, direction * flank_start)
+        if np.all(engaged & (implied == contact)):
+            return self._advance_in_contact(dt, tau_load, omega, moving, alpha_c, tau_in, gear_load, mu,
+                                            worm_fx, gear_fx)
 
         # Each shaft on its own (teeth apart), with its own stick at rest.
         def worm_probe(sigma):
@@ -357,8 +360,8 @@ class RigPlant:
             probe = np.full(n, sigma * _PROBE_SPEED * ratio)
             return -self._forces(omega, probe, current, tau_load, np.zeros(n, bool))[1]
 
-        free_tau_in, free_gear_load, _, _, _ = self._forces(omega, omega_g, current, tau_load,
-                                                            np.zeros(n, bool)) if self._has_effects else \
+        free_tau_in, free_gear_load, _, free_worm_fx, free_gear_fx = self._forces(
+            omega, omega_g, current, tau_load, np.zeros(n, bool)) if self._has_effects else \
             (tau_in, gear_load, None, None, None)
         net_w, stuck_w = self._free_acceleration(free_tau_in, omega, STANDSTILL_SPEED, worm_probe)
         net_g, stuck_g = self._free_acceleration(-free_gear_load, omega_g, GEAR_STANDSTILL_SPEED, gear_probe)
@@ -411,8 +414,10 @@ class RigPlant:
         alpha_g = np.where(engaged, ratio * alpha_c, alpha_gf)
         heat = self._heat(omega_w0, omega_g0, tau_in, gear_load, alpha_w, alpha_g, engaged) \
             if self.fx.needs_heat else None
-        if not self._has_effects:
-            worm_fx = gear_fx = None
+        if worm_fx is not None:
+            worm_fx = np.where(engaged, worm_fx, free_worm_fx)
+        if gear_fx is not None:
+            gear_fx = np.where(engaged, gear_fx, free_gear_fx)
         s.theta_worm, s.omega_worm = theta_w, new_w
         s.theta_gear, s.omega_gear = theta_g, new_g
         out_contact = np.where(engaged, contact, 0).astype(np.int8)
@@ -422,6 +427,22 @@ class RigPlant:
                             alpha_worm=alpha_w, mu=mu, voltage_drive=None, drive_saturated=None,
                             alpha_gear=alpha_g, contact=out_contact, worm_effect_torque=worm_fx,
                             gear_effect_torque=gear_fx, impact_loss=impact_loss, heat=heat)
+
+    def _advance_in_contact(self, dt, tau_load, omega, moving, alpha, tau_in, gear_load, mu, worm_fx,
+                            gear_fx) -> PlantOutputs:
+        """Every rig keeps its flank and moves (the common case): Eq. 28 for all, no free shaft."""
+        s, ratio = self.state, self.rig.gearbox.ratio
+        new_omega = _stop_at_zero(omega, omega + alpha * dt, moving)
+        heat = self._heat(omega, ratio * omega, tau_in, gear_load, alpha, ratio * alpha, s.contact != 0) \
+            if self.fx.needs_heat else None
+        s.theta_worm = s.theta_worm + 0.5 * (omega + new_omega) * dt
+        s.omega_worm = new_omega
+        s.omega_gear = ratio * new_omega
+        s.theta_gear = ratio * s.theta_worm - s.contact * (0.5 * self.backlash)
+        return PlantOutputs(tau_in=tau_in, tau_load=tau_load, gear_load=gear_load, alpha_worm=alpha, mu=mu,
+                            voltage_drive=None, drive_saturated=None, alpha_gear=ratio * alpha,
+                            contact=s.contact.copy(), worm_effect_torque=worm_fx, gear_effect_torque=gear_fx,
+                            impact_loss=np.zeros(self.n), heat=heat)
 
     def _heat(self, omega, omega_g, tau_in, gear_load, alpha_w, alpha_g, engaged) -> np.ndarray:
         """Power [W] made inside the gearbox: mesh friction plus dissipative shaft effects.

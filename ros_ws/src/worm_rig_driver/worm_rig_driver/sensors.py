@@ -43,10 +43,12 @@ class AdcChannel:
     mux_input: int  # 0..7, the 3-bit address the firmware sets
 
 
-#: Conversion order of the firmware (assumption: currents first, on the first multiplexer).
+#: Conversion order of the firmware (firmware/adc_mux.c): for each motor its current (multiplexer A,
+#: on one ADC input) then its tacho (multiplexer B, on the other), both multiplexers on address i.
 DEFAULT_CHANNELS = (
-    AdcChannel("current_drive", 0, 0), AdcChannel("current_load_1", 0, 1), AdcChannel("current_load_2", 0, 2),
-    AdcChannel("tacho_drive", 1, 0), AdcChannel("tacho_load_1", 1, 1), AdcChannel("tacho_load_2", 1, 2),
+    AdcChannel("current_drive", 0, 0), AdcChannel("tacho_drive", 1, 0),
+    AdcChannel("current_load_1", 0, 1), AdcChannel("tacho_load_1", 1, 1),
+    AdcChannel("current_load_2", 0, 2), AdcChannel("tacho_load_2", 1, 2),
 )
 
 
@@ -60,11 +62,14 @@ class AdcChain:
     asks for 10-bit resolution), so 104 us per channel. The SN74HC4051's
     switching time (~tens of ns) is negligible against that.
 
-    Scaling: each Hall channel reads (code - 512) x rig.sensors.current_lsb over
-    codes 0..1023 (zero current at mid-scale); each tacho channel is scaled so that
-    +-tacho_headroom x the no-load speed of its shaft spans the ADC (assumption:
-    the conditioning divider is chosen that way), so the gear-shaft tachos resolve
-    ratio-times finer than the drive tacho.
+    The firmware starts the next conversion from the ADC interrupt; its few
+    microseconds of latency are neglected.
+
+    Scaling (the driver's, worm_rig_driver.scaling, so that simulator and driver
+    agree): each Hall channel reads (code - 512) x rig.sensors.current_lsb over
+    codes 0..1023 (zero current at mid-scale); each tacho channel spans +-its full
+    scale over the codes (scaling.TACHO_DRIVE_FULL_SCALE on the worm shaft,
+    TACHO_LOAD_FULL_SCALE on the gear shaft), unless given here.
     """
 
     bits: int = 10
@@ -72,7 +77,8 @@ class AdcChain:
     conversion_cycles: int = 13
     hold_cycles: float = 1.5
     channels: tuple[AdcChannel, ...] = DEFAULT_CHANNELS
-    tacho_headroom: float = 1.25
+    tacho_drive_full_scale: float | None = None  # [rad/s]; None: scaling.TACHO_DRIVE_FULL_SCALE
+    tacho_load_full_scale: float | None = None  # [rad/s]; None: scaling.TACHO_LOAD_FULL_SCALE
 
     @property
     def codes(self) -> int:
@@ -106,6 +112,8 @@ class Measurement:
     voltage_drive: np.ndarray  # [V]
     tau_load: np.ndarray  # [N m] K_t,load x measured load currents
     status: np.ndarray  # uint32 bit set (RigSample.STATUS_*)
+    tacho_load_1: np.ndarray | None = None  # [rad/s] each load tacho (omega_gear is their mean)
+    tacho_load_2: np.ndarray | None = None
 
 
 class Trajectory:
@@ -175,12 +183,13 @@ class SensorModel:
                              f"{adc.clock_hz:g} Hz = {adc.sequence_time() * 1e6:.0f} us) does not fit in the "
                              f"sample period ({self.sample_period * 1e6:.0f} us)")
         self.sample_time = adc.sample_times()
-        drive_full_scale = adc.tacho_headroom * rig.supply_voltage / rig.drive_motor.back_emf_constant
+        from . import scaling  # here, not at the top: scaling imports this module
+
+        drive = adc.tacho_drive_full_scale or scaling.TACHO_DRIVE_FULL_SCALE
+        load = adc.tacho_load_full_scale or scaling.TACHO_LOAD_FULL_SCALE
         half = adc.codes // 2
         #: [rad/s] per ADC code of the drive tacho and of the gear-shaft (load) tachos
-        self.tacho_lsb = {"tacho_drive": drive_full_scale / half,
-                          "tacho_load_1": drive_full_scale * rig.gearbox.ratio / half,
-                          "tacho_load_2": drive_full_scale * rig.gearbox.ratio / half}
+        self.tacho_lsb = {"tacho_drive": drive / half, "tacho_load_1": load / half, "tacho_load_2": load / half}
 
     # --- one channel -------------------------------------------------------------------------------
     def _adc(self, signal: np.ndarray, lsb: float) -> np.ndarray:
@@ -237,8 +246,8 @@ class SensorModel:
         load_1 = self._current(signals["current_load_1"])
         load_2 = self._current(signals["current_load_2"])
         tacho_drive = self._tacho(signals["tacho_drive"], "tacho_drive")
-        tacho_gear = 0.5 * (self._tacho(signals["tacho_load_1"], "tacho_load_1")
-                            + self._tacho(signals["tacho_load_2"], "tacho_load_2"))
+        tacho_load_1 = self._tacho(signals["tacho_load_1"], "tacho_load_1")
+        tacho_load_2 = self._tacho(signals["tacho_load_2"], "tacho_load_2")
         count_drive, theta_worm = self._encoder(trajectory.at("theta_worm", 0.0))
         count_load, theta_gear = self._encoder(trajectory.at("theta_gear", 0.0))
         status = np.where(outputs.drive_saturated, STATUS_DRIVE_LIMIT, 0) | STATUS_SIMULATED
@@ -247,7 +256,7 @@ class SensorModel:
             current_load_1=load_1,
             current_load_2=load_2,
             omega_worm=tacho_drive,
-            omega_gear=tacho_gear,
+            omega_gear=0.5 * (tacho_load_1 + tacho_load_2),
             theta_worm=theta_worm,
             theta_gear=theta_gear,
             count_drive=count_drive,
@@ -256,6 +265,8 @@ class SensorModel:
             voltage_drive=outputs.voltage_drive.copy(),
             tau_load=rig.load_motor.torque_constant * (load_1 + load_2) * rig.load_motor_count / 2.0,
             status=status.astype(np.uint32),
+            tacho_load_1=tacho_load_1,
+            tacho_load_2=tacho_load_2,
         )
 
     def measure(self, state: PlantState, outputs: PlantOutputs) -> Measurement:
