@@ -33,6 +33,7 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
 from worm_msgs.msg import (DriveCommand, EncoderCounts, GearboxForces, LoadCommand, MotorCurrents, RigSample,
                            SimTruth, TorqueEstimate)
 
@@ -337,6 +338,43 @@ def test_nan_samples_are_flagged_and_the_graph_keeps_running(graph: RunningGraph
         else:
             assert all(math.isfinite(m.normal_force) and not m.flags & GearboxForces.FLAG_INVALID_INPUT
                        for m in later), "forces after the NaN samples are NaN or flagged invalid"
+
+
+def test_nan_commands_are_rejected_with_a_reason_and_nodes_keep_running(
+        graph: RunningGraph, probe: Probe) -> None:
+    """NaN drive and load commands to sim_node and a NaN speed set-point to controller_node: each is
+    refused with a logged reason (a throttled warning followed by another warning once crashed rclpy's
+    logger in sim_node), and the rig keeps streaming samples."""
+    drive = probe.node.create_publisher(DriveCommand, "/rig/drive_command", PROBE_QOS)
+    load = probe.node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
+    setpoint = probe.node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND)
+    rec, subs = probe.record({"/rig/sample": RigSample})
+    try:
+        assert probe.spin_until(lambda: drive.get_subscription_count() >= 1 and load.get_subscription_count() >= 1
+                                and setpoint.get_subscription_count() >= 1, MATCH_TIMEOUT), "publishers unmatched"
+        for _ in range(3):
+            drive.publish(DriveCommand(voltage=math.nan))
+            probe.spin_for(0.02)
+        load.publish(LoadCommand(torque=math.nan))
+        probe.spin_for(0.05)
+        setpoint.publish(Float64(data=math.inf))
+        probe.spin_for(0.3)
+        after = time.monotonic()
+        probe.spin_for(1.0)
+        # Leave the latched set-point valid again for the tests after this one.
+        setpoint.publish(Float64(data=SPEED_SETPOINT))
+        probe.spin_for(0.3)
+    finally:
+        probe.unsubscribe(subs)
+        for pub in (drive, load, setpoint):
+            probe.node.destroy_publisher(pub)
+    graph.assert_alive()
+    later = [t for t in rec.times["/rig/sample"] if after <= t <= after + 1.0]
+    assert len(later) > 0.5 * SAMPLE_RATE, f"/rig/sample: only {len(later)} samples in the 1 s after NaN commands"
+    logs = graph.logs()
+    assert "rejected drive command: voltage=nan" in logs, logs
+    assert "rejected load command: torque=nan" in logs, logs
+    assert "ignored speed set-point inf" in logs, logs
 
 
 def test_missing_calibration_reports_error_and_keeps_running(

@@ -70,7 +70,7 @@ class ControllerNode(Node):
 
     def on_setpoint(self, msg: Float64) -> None:
         if not math.isfinite(msg.data):
-            self.get_logger().warn(f"ignored speed set-point {msg.data}: not finite")
+            self.get_logger().warning(f"ignored speed set-point {msg.data}: not finite")
             return
         self.speed_setpoint = msg.data
 

@@ -89,7 +89,7 @@ class SimNode(Node):
     def on_drive_command(self, msg: DriveCommand) -> None:
         if not math.isfinite(msg.voltage):
             self.rejected_commands += 1
-            self.get_logger().warn(f"rejected drive command: voltage={msg.voltage} is not finite",
+            self.get_logger().warning(f"rejected drive command: voltage={msg.voltage} is not finite",
                                    throttle_duration_sec=1.0)
             return
         self.sim.command(voltage_drive=msg.voltage)
@@ -98,7 +98,7 @@ class SimNode(Node):
     def on_load_command(self, msg: LoadCommand) -> None:
         if not math.isfinite(msg.torque):
             self.rejected_commands += 1
-            self.get_logger().warn(f"rejected load command: torque={msg.torque} is not finite")
+            self.get_logger().warning(f"rejected load command: torque={msg.torque} is not finite")
             return
         self.sim.command(load_torque=msg.torque)
 
@@ -106,7 +106,7 @@ class SimNode(Node):
         stale = (self.last_drive_command is None
                  or (now - self.last_drive_command).nanoseconds * 1e-9 > self.command_timeout)
         if stale and not self.watchdog_active and self.last_drive_command is not None:
-            self.get_logger().warn(f"no drive command for {self.command_timeout} s: drive motor stopped")
+            self.get_logger().warning(f"no drive command for {self.command_timeout} s: drive motor stopped")
         if stale:
             self.sim.command(voltage_drive=0.0)
         self.watchdog_active = stale
@@ -120,7 +120,7 @@ class SimNode(Node):
         due = int((now - self.start).nanoseconds * 1e-9 / self.sim.sample_period) - self.sim.seq
         if due > MAX_CATCH_UP:
             self.skipped_samples += due - MAX_CATCH_UP
-            self.get_logger().warn(f"sim fell behind by {due} samples; skipping {due - MAX_CATCH_UP}",
+            self.get_logger().warning(f"sim fell behind by {due} samples; skipping {due - MAX_CATCH_UP}",
                                    throttle_duration_sec=1.0)
             self.start += seconds((due - MAX_CATCH_UP) * self.sim.sample_period)
             due = MAX_CATCH_UP
