@@ -25,6 +25,7 @@ setup(
             "model_node = worm_model.model_node:main",
             "worm_calc = worm_model.worm_calc:main",
             "report = worm_model.report:main",
+            "residuals = worm_model.residuals.cli:main",
         ],
     },
 )

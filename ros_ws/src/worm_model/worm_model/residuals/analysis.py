@@ -34,7 +34,7 @@ from worm_model.units import FloatArray
 
 from .effects import EFFECTS, Effect, Shapes, channels_of, mask_shapes, regressors
 from .free import get_value, set_values
-from .model import ALPHA_TIME_CONSTANT, ModelState, Signals, evaluate
+from .model import ALPHA_TIME_CONSTANT, ModelState, Signals, evaluate, sensitivities
 
 
 @dataclass(frozen=True)
@@ -302,15 +302,29 @@ class Candidate:
 
 
 def screen(problem: Problem, current: Fit, progress: Callable[[int], None] | None = None) -> list[Candidate]:
-    """Score every candidate effect not yet in ``current``; best (lowest held-out RMS) first."""
+    """Score every candidate effect not yet in ``current``; best (lowest held-out RMS) first.
+
+    Each candidate's columns are fitted together with the model's own Jacobian (free
+    parameters and effects already in), i.e. one Gauss-Newton step from the current fit,
+    on the training samples.  By Frisch-Waugh-Lovell the candidate's coefficients come
+    from its columns projected off the Jacobian (one QR per round), so a candidate costs
+    a least-squares problem of its own few columns.
+    """
     train, held = problem.split.train, problem.split.held_out
     use = train | held
     specs = [(e.effect, e.grid) for e in current.effects]
     theta = problem.theta0(current, specs)
     state, rig, _, _ = problem.predict(theta, specs)
+    sens = sensitivities(rig, problem.signals, state)
     base = problem.jacobian(theta, specs, use)  # model's own directions, re-adjusted with each candidate
     r = current.residual[use]
     tr = train[use]
+    b_tr, r_tr = base[tr], r[tr]
+    if base.shape[1]:
+        q, _ = np.linalg.qr(b_tr / np.maximum(np.linalg.norm(b_tr, axis=0), 1e-300))
+    else:
+        q = np.zeros((len(r_tr), 0))
+    r_perp = r_tr - q @ (q.T @ r_tr)
     out: list[Candidate] = []
     done = 0
     for name in problem.settings.candidates:
@@ -324,19 +338,21 @@ def screen(problem: Problem, current: Fit, progress: Callable[[int], None] | Non
         best = None
         profile = []
         for grid in effect.grid(rig, problem.signals):
-            shapes = problem.shapes(effect, rig, grid)
-            X = regressors(effect, rig, problem.signals, state, shapes)[use]
-            A = np.column_stack([base, X])
-            norms = np.linalg.norm(A[tr], axis=0)
+            X = regressors(effect, rig, problem.signals, state, problem.shapes(effect, rig, grid), sens)[use]
+            x_tr = X[tr]
+            x_perp = x_tr - q @ (q.T @ x_tr)
+            norms = np.linalg.norm(x_perp, axis=0)
             norms[norms == 0] = 1.0
-            delta, *_ = np.linalg.lstsq(A[tr] / norms, r[tr], rcond=None)
-            delta = delta / norms
-            left = r - A @ delta
-            rss = float(np.sum(left[tr] ** 2))
+            coef, *_ = np.linalg.lstsq(x_perp / norms, r_perp, rcond=1e-10)
+            coef = coef / norms
+            rss = float(np.sum((r_perp - x_perp @ coef) ** 2))
             profile.append((grid, rss))
             if best is None or rss < best[1]:
-                best = (grid, rss, left, delta[base.shape[1]:])
-        grid, rss, left, coef = best
+                best = (grid, rss, X, coef)
+        grid, rss, X, coef = best
+        # the model's own parameters move with the candidate: their step from the training rows
+        delta, *_ = np.linalg.lstsq(b_tr, r_tr - X[tr] @ coef, rcond=None) if base.shape[1] else (np.zeros(0),)
+        left = r - base @ delta - X @ coef
         full = np.zeros(len(problem.current))
         full[use] = left
         n_eff = effective_samples(full, train, problem.signals.run)
@@ -372,6 +388,7 @@ class Round:
     candidates: list[Candidate]
     accepted: str | None
     refit_rms_held_out: float | None = None
+    baseline_rms_held_out: float = math.nan  # held-out RMS of the fit the round started from [A]
 
 
 @dataclass
@@ -421,7 +438,7 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
                 accepted = (cand.name, trial)
                 break
         rounds.append(Round(ranking, accepted[0] if accepted else None,
-                            accepted[1].rms_held_out if accepted else None))
+                            accepted[1].rms_held_out if accepted else None, current.rms_held_out))
         if accepted is None:
             break
         grid_cis = {e.name: e.grid_ci for e in current.effects}

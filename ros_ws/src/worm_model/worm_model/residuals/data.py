@@ -244,4 +244,9 @@ def _load_bag(path: Path) -> MeasuredData:
         raise DataError(str(path), "reading a bag needs worm_rig_driver's bag exporter (worm_rig_driver.rig_csv), "
                                    "which is not installed; export the bag to CSV with `bag export` on a machine "
                                    "that has it, or source a workspace with worm_rig_driver") from None
-    return rig_csv.bag_to_measured(path)  # pragma: no cover - depends on the other package
+    from worm_rig_driver.bag_types import BagRecordingError  # type: ignore[import-not-found]
+
+    try:
+        return rig_csv.bag_to_measured(path)
+    except (ValueError, OSError, BagRecordingError) as err:  # RigCsvError is a ValueError
+        raise DataError(str(path), f"cannot read the bag: {err}") from err

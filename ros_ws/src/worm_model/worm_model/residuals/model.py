@@ -29,7 +29,7 @@ shapes into its regressors.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.signal import filtfilt
@@ -190,7 +190,6 @@ class ModelState:
     current_true: FloatArray  # i_true [A]
     current: FloatArray  # i_measured [A]
     gain: FloatArray  # 1 + g
-    extra: dict = field(default_factory=dict)
 
 
 def evaluate(rig: Rig, signals: Signals, channels: Channels | None = None) -> ModelState:

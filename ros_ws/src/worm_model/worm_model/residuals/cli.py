@@ -1,0 +1,171 @@
+"""``residuals``: close the loop between the gearbox model and measured data.
+
+    residuals <data.csv | bag directory> --out <dir> [--params rig.yaml] [options]
+
+Fits the declared model (paper Eqs 28-30 with the motor; the parameters the rig file's
+``free:`` list names) to part of the data, ranks the candidate effects of physics.md
+section 9 by how much of the residual each explains on held-out data, adds the
+significant ones, and writes <dir>/report.json, <dir>/extended_rig.yaml (the extended
+model: rig file + ``effects:``) and PNG plots.  The last console line is
+``found: <name,name|none> rms_before=<x> rms_after=<y> A``.
+Exit codes: 0 done, 2 bad input (the message names the file, line/field and column).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from worm_model.parameters import ParameterError, default_rig_path, load_rig
+
+from .analysis import Settings, Problem, analyse, make_split
+from .data import DataError, load_data
+from .effects import EFFECTS
+from .extended import ExtendedModel, write_parameter_file
+from .free import FREE_PARAMETERS, check_free, read_free
+from .model import ALPHA_TIME_CONSTANT, prepare_signals
+from .progress import Progress
+from .report import build_report, console_summary, windowed_rms, write_json, write_plots
+
+MIN_SAMPLES = 200  # per set: fewer cannot rank 13 candidates
+
+
+def _names(text: str, known, what: str, parser: argparse.ArgumentParser) -> list[str]:
+    if text.strip().lower() in ("", "none"):
+        return []
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    bad = [n for n in names if n not in known]
+    if bad:
+        parser.error(f"unknown {what} {bad[0]!r} (known: {', '.join(known)})")
+    return names
+
+
+def build_parser() -> argparse.ArgumentParser:
+    d = Settings()
+    p = argparse.ArgumentParser(
+        prog="residuals",
+        description="Fit the declared gearbox + motor model to measured data, rank the effects the model lacks "
+                    "(physics.md section 9) by the held-out residual each explains, add the significant ones and "
+                    "report the error before and after. The fitted signal is the drive current [A].",
+        epilog="CSV schema: header row; required columns t [s], current_drive [A], omega_worm [rad/s], "
+               "theta_worm [rad], tau_load [N m] (+ opposes + rotation); optional voltage_drive [V], "
+               "theta_gear [rad], current_load [A], temperature [degC]. See README.md.",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    p.add_argument("data", help="measured data: a CSV file in the worm_rig_data schema, or a rosbag2 directory "
+                                "(converted with worm_rig_driver's bag exporter, which must be installed)")
+    p.add_argument("--out", required=True, help="output directory (created): report.json, extended_rig.yaml, PNG plots")
+    p.add_argument("--params", default=None,
+                   help=f"rig parameter file (worm_rig_parameters); its optional 'free:' list names the parameters "
+                        f"to fit. Default: the bundled {default_rig_path().name}")
+    p.add_argument("--free", default=None,
+                   help="comma-separated parameters to fit, overriding the file's 'free:' list ('none' for none); "
+                        f"allowed: {', '.join(FREE_PARAMETERS)}")
+    p.add_argument("--candidates", default=",".join(EFFECTS),
+                   help="comma-separated candidate effects to consider")
+    p.add_argument("--holdout-fraction", type=float, default=d.holdout_fraction,
+                   help="share of the time blocks held out (never fitted; used to rank and accept effects)")
+    p.add_argument("--block", type=float, default=d.block_seconds,
+                   help="length of one block of the interleaved train/held-out split [s]")
+    p.add_argument("--guard", type=float, default=d.guard_seconds,
+                   help="samples this close to a block edge [s] are in neither set (no filter crosses sets)")
+    p.add_argument("--min-speed", type=float, default=d.min_speed,
+                   help="samples with |omega_worm| below this [rad/s] are not used (the model is kinetic)")
+    p.add_argument("--min-improvement", type=float, default=d.min_improvement,
+                   help="relative held-out RMS improvement an effect must bring (besides a lower BIC) to be added")
+    p.add_argument("--max-effects", type=int, default=d.max_effects, help="stop after this many effects")
+    p.add_argument("--alpha-filter", type=float, default=ALPHA_TIME_CONSTANT,
+                   help="time constant [s] of the zero-phase low-pass around the derivative of omega_worm "
+                        "that gives the acceleration of the inertia term")
+    p.add_argument("--confidence", type=float, default=d.confidence, help="level of the confidence intervals")
+    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    candidates = tuple(_names(args.candidates, EFFECTS, "effect", parser))
+    if not 0.0 < args.holdout_fraction < 1.0:
+        parser.error("--holdout-fraction must lie in (0, 1)")
+    if args.block <= 0 or args.guard < 0 or 2 * args.guard >= args.block:
+        parser.error("need --block > 0 and 0 <= --guard < block / 2")
+    settings = Settings(holdout_fraction=args.holdout_fraction, block_seconds=args.block, guard_seconds=args.guard,
+                        min_speed=args.min_speed, min_improvement=args.min_improvement, max_effects=args.max_effects,
+                        alpha_time_constant=args.alpha_filter, confidence=args.confidence, candidates=candidates)
+    progress = Progress(enabled=not args.quiet)
+    try:
+        rig = load_rig(args.params)
+        free = check_free(_names(args.free, FREE_PARAMETERS, "free parameter", parser)) if args.free is not None \
+            else read_free(args.params)
+        progress.stage("reading data", 1)
+        data = load_data(args.data)
+        progress.update_to(1)
+    except (DataError, ParameterError) as err:
+        progress.close()
+        print(f"residuals: {err}", file=sys.stderr)
+        return 2
+    signals = prepare_signals(rig, data, settings.alpha_time_constant)
+    split = make_split(signals, settings, np.isfinite(data.current_drive))
+    for name, mask in (("training", split.train), ("held-out", split.held_out)):
+        if mask.sum() < MIN_SAMPLES:
+            progress.close()
+            print(f"residuals: {data.source}: only {int(mask.sum())} {name} samples with |omega_worm| >= "
+                  f"{settings.min_speed} rad/s (need {MIN_SAMPLES}); record longer or lower --block / --min-speed",
+                  file=sys.stderr)
+            return 2
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    print(f"data: {data.source}: {len(data)} samples, {len(np.unique(data.run))} run(s), "
+          f"{data.t[-1] - data.t[0]:.1f} s; training {int(split.train.sum())}, held out {int(split.held_out.sum())}"
+          + (f"; ignored columns {', '.join(data.ignored_columns)}" if data.ignored_columns else ""))
+    print(f"declared model: {rig.name}; free parameters: {', '.join(free) or 'none'}")
+    problem = Problem(rig, free, signals, data.current_drive, split, settings)
+
+    def on_progress(label: str, done: int, total: int) -> None:
+        if progress.name != label:
+            progress.stage(label, total)
+        progress.update_to(done)
+
+    result = analyse(problem, on_progress)
+
+    # tau_d from the current, by the declared and by the extended model, on held-out samples
+    progress.stage("tau_d estimates", 2)
+    before = ExtendedModel(result.declared.rig, [], settings.alpha_time_constant)
+    after = ExtendedModel(result.final.rig, [(e.effect, e.values, e.grid) for e in result.final.effects],
+                          settings.alpha_time_constant)
+    tau_d = {}
+    for k, (key, model) in enumerate((("before", before), ("after", after))):
+        error = model.estimate_load_torque(signals, data.current_drive) - data.tau_load
+        held = error[split.held_out]
+        held = held[np.isfinite(held)]
+        tau_d[key] = float(np.sqrt(np.mean(held**2))) if len(held) else float("nan")
+        window = max(1, int(round(0.02 / data.sample_period)))
+        tau_d[key + "_20ms"] = windowed_rms(error, split.held_out, data.run, window)
+        progress.update_to(k + 1)
+
+    params_out = out / "extended_rig.yaml"
+    write_parameter_file(params_out, args.params or default_rig_path(), after, free, result.final.free_ci,
+                         f"identified by residuals from {Path(data.source).name}",
+                         {"backlash": "angle identified on a grid (see report.json for the interval)"}
+                         if "backlash" in after.names else None)
+    files = {"data": data.source, "report": str(out / "report.json"), "parameters": str(params_out)}
+    plots = []
+    if not args.no_plots:
+        progress.stage("plots", 2 + len(result.final.effects))
+        plots = write_plots(out, problem, result, progress.update_to)
+    files["plots"] = ", ".join(plots)
+    write_json(out / "report.json", build_report(problem, result, tau_d, files))
+    progress.close()
+    lines = console_summary(problem, result, tau_d)
+    print("\n".join(lines[:-1]))
+    print(f"wrote {out / 'report.json'}, {params_out}" + (f", {len(plots)} plots" if plots else ""))
+    print(lines[-1])
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

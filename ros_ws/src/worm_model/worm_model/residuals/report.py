@@ -1,0 +1,277 @@
+"""Report of a residual analysis: report.json, PNG plots (matplotlib Agg) and the console summary.
+
+Units: currents [A]; "as torque" figures are K_t x current [N m] at the drive motor's
+shaft; tau_d errors are load-torque errors [N m] on the gear shaft.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from worm_model.units import FloatArray
+
+from .analysis import Analysis, Problem
+
+UNIT = "A"
+
+
+def order_spectrum(residual: FloatArray, angle: FloatArray, mask: np.ndarray, orders: FloatArray,
+                   max_samples: int = 40000) -> FloatArray:
+    """Angle-domain amplitude spectrum [unit of residual]: 2 |mean(r exp(-j k angle))| per order k.
+
+    A non-uniform DFT in the angle domain: it needs no resampling, works across runs and
+    both directions of rotation, and a ripple a sin(k angle + p) gives amplitude a at k.
+    """
+    idx = np.flatnonzero(mask)
+    if len(idx) > max_samples:  # evenly thinned: the spectrum's noise floor barely moves
+        idx = idx[np.linspace(0, len(idx) - 1, max_samples).astype(int)]
+    r = residual[idx] - residual[idx].mean()
+    th = angle[idx]
+    out = np.empty(len(orders))
+    for start in range(0, len(orders), 200):
+        k = orders[start:start + 200]
+        out[start:start + 200] = 2.0 * np.abs(np.exp(-1j * np.outer(k, th)) @ r) / len(r)
+    return out
+
+
+def windowed_rms(error: FloatArray, mask: np.ndarray, run: np.ndarray, window: int) -> float:
+    """RMS of the means of consecutive `window`-sample stretches of `error` inside `mask` (one run each).
+
+    Averaging over a few tens of ms removes the per-sample sensor noise and keeps the
+    systematic error an estimator that filters its output would still show.
+    """
+    idx = np.flatnonzero(mask & np.isfinite(error))
+    if len(idx) == 0:
+        return math.nan
+    breaks = np.flatnonzero((np.diff(idx) != 1) | (np.diff(run[idx]) != 0)) + 1
+    means = [seg[: len(seg) // window * window].reshape(-1, window).mean(axis=1)
+             for seg in np.split(error[idx], breaks) if len(seg) >= window]
+    means = np.concatenate(means) if means else np.array([])
+    return float(np.sqrt(np.mean(means**2))) if len(means) else math.nan
+
+
+def effect_record(effect_fit, confidence: float) -> dict[str, Any]:
+    e = effect_fit.effect
+    params = {p.name: {"value": effect_fit.values[p.name], "ci_half_width": effect_fit.ci.get(p.name, math.nan),
+                       "unit": p.unit, "description": p.description} for p in e.parameters}
+    grid = {g.name: {"value": effect_fit.grid[g.name], "unit": g.unit,
+                     "interval": list(effect_fit.grid_ci.get(g.name, (math.nan, math.nan)))}
+            for g in e.grid_parameters}
+    return {"name": e.name, "family": e.family, "description": e.description, "parameters": params,
+            "grid_parameters": grid, "confidence": confidence,
+            "simulator_entry": e.simulator_entry(effect_fit.values, effect_fit.grid)}
+
+
+def build_report(problem: Problem, result: Analysis, tau_d: dict[str, float], files: dict[str, str]) -> dict[str, Any]:
+    """The report.json document."""
+    kt = problem.rig0.drive_motor.torque_constant
+    declared, final = result.declared, result.final
+    split = result.split
+    rounds = []
+    for k, rnd in enumerate(result.rounds):
+        rounds.append({
+            "round": k + 1, "accepted": rnd.accepted, "refit_rms_held_out": rnd.refit_rms_held_out,
+            "candidates": [{"name": c.name, "grid": c.grid, "rms_held_out": c.rms_held_out,
+                            "improvement": c.improvement, "delta_bic": c.delta_bic, "significant": c.significant
+                            and c.improvement >= problem.settings.min_improvement, "note": c.note}
+                           for c in rnd.candidates],
+        })
+    s = problem.settings
+    return {
+        "format": "worm_residuals_report", "version": 1,
+        "data": {"source": files.get("data", ""), "samples": int(len(problem.signals)),
+                 "runs": int(len(np.unique(problem.signals.run))),
+                 "train_samples": int(split.train.sum()), "held_out_samples": int(split.held_out.sum())},
+        "settings": {"holdout_fraction": s.holdout_fraction, "block_seconds": s.block_seconds,
+                     "guard_seconds": s.guard_seconds, "min_speed": s.min_speed,
+                     "min_improvement": s.min_improvement, "max_effects": s.max_effects,
+                     "alpha_time_constant": s.alpha_time_constant, "confidence": s.confidence,
+                     "candidates": list(s.candidates)},
+        "fitted_signal": "current_drive",
+        "unit": UNIT,
+        "effects_found": result.found,
+        "rms_before": declared.rms_held_out,
+        "rms_after": final.rms_held_out,
+        "torque_unit": "N m",
+        "rms_before_torque": declared.rms_held_out * kt,
+        "rms_after_torque": final.rms_held_out * kt,
+        "rms_train_before": declared.rms_train,
+        "rms_train_after": final.rms_train,
+        "tau_d_unit": "N m",
+        "tau_d_rms_before": tau_d.get("before", math.nan),
+        "tau_d_rms_after": tau_d.get("after", math.nan),
+        "tau_d_rms_before_20ms": tau_d.get("before_20ms", math.nan),
+        "tau_d_rms_after_20ms": tau_d.get("after_20ms", math.nan),
+        "tau_d_note": "tau_d inverted from each held-out sample's current by the declared (before) and the "
+                      "extended (after) model; the _20ms figures average the error over 20 ms stretches first",
+        "free_parameters": {
+            name: {"declared": declared_value, "value": final.free_values[name],
+                   "ci_half_width": final.free_ci.get(name, math.nan)}
+            for name, declared_value in ((n, _declared(problem, n)) for n in final.free)},
+        "effects": [effect_record(e, s.confidence) for e in final.effects],
+        "pruned": result.pruned,
+        "rounds": rounds,
+        "effective_samples": {"declared": declared.n_eff, "final": final.n_eff, "train": declared.n_train,
+                              "note": "BIC and confidence intervals use n_eff = n (1 - rho) / (1 + rho), rho the "
+                                      "lag-1 autocorrelation of the training residual (AR(1)); intervals are "
+                                      "least-squares intervals inflated by sqrt(n / n_eff)"},
+        "files": files,
+    }
+
+
+def _declared(problem: Problem, name: str) -> float:
+    from .free import get_value  # noqa: PLC0415
+
+    return get_value(problem.rig0, name)
+
+
+# --------------------------------------------------------------------------- plots
+def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callable[[int], None] | None = None
+                ) -> list[str]:
+    """PNG plots; returns the file names written."""
+    import matplotlib  # noqa: PLC0415  (Agg before pyplot)
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt  # noqa: PLC0415
+
+    sig, split = problem.signals, result.split
+    declared, final = result.declared, result.final
+    written = []
+
+    # 1. before and after on held-out data
+    fig, axes = plt.subplots(2, 1, figsize=(10, 6.5))
+    ho = split.held_out
+    t = sig.t[ho]
+    axes[0].plot(t, declared.residual[ho], ".", ms=1, alpha=0.4, label=f"declared model: RMS {declared.rms_held_out:.4f} A")
+    axes[0].plot(t, final.residual[ho], ".", ms=1, alpha=0.4, label=f"with effects: RMS {final.rms_held_out:.4f} A")
+    axes[0].set(xlabel="t [s]", ylabel="residual (measured - model) [A]", title="held-out residual of the drive current")
+    axes[0].legend(markerscale=8, loc="upper right")
+    lim = np.nanpercentile(np.abs(declared.residual[ho]), 99.5) * 1.2 if ho.any() else 1.0
+    bins = np.linspace(-lim, lim, 80)
+    axes[1].hist(declared.residual[ho], bins=bins, alpha=0.5, label="declared model")
+    axes[1].hist(final.residual[ho], bins=bins, alpha=0.5, label="with effects: " + (", ".join(final.names) or "none"))
+    axes[1].set(xlabel="held-out residual [A]", ylabel="samples")
+    axes[1].legend()
+    fig.tight_layout()
+    fig.savefig(out / "before_after.png", dpi=90)
+    plt.close(fig)
+    written.append("before_after.png")
+    if progress:
+        progress(1)
+
+    # 2. angle-domain spectra (worm orders and gear orders), before and after
+    rig = problem.rig0
+    fig, axes = plt.subplots(2, 1, figsize=(10, 6.5))
+    worm_orders = np.arange(0.25, 40.0 + 1e-9, 0.05)
+    gear_orders = np.arange(0.1, 4.0 + 1e-9, 0.02)
+    for ax, angle, orders, label in ((axes[0], sig.theta_worm, worm_orders, "worm (= motor) orders [cycles/worm turn]"),
+                                     (axes[1], sig.theta_gear, gear_orders, "gear orders [cycles/gear turn]")):
+        for fit, name in ((declared, "declared model"), (final, "with effects")):
+            ax.plot(orders, order_spectrum(fit.residual, angle, split.train, orders) * 1e3, lw=0.8, label=name)
+        ax.set(xlabel=label, ylabel="amplitude [mA]")
+        ax.legend(loc="upper right")
+    axes[0].axvline(rig.gearbox.worm_starts, color="grey", ls=":", lw=0.8)
+    axes[0].set_title(f"residual spectrum in the angle domain (training samples); dotted: tooth-pass order "
+                      f"n = {rig.gearbox.worm_starts}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(out / "spectrum.png", dpi=90)
+    plt.close(fig)
+    written.append("spectrum.png")
+    if progress:
+        progress(2)
+
+    # 3. per effect found: the residual it explains against its regressor
+    from .analysis import fit as refit  # noqa: PLC0415
+
+    for k, ef in enumerate(final.effects):
+        others = [(e.effect, e.grid) for e in final.effects if e is not ef]
+        without = refit(problem, others, final) if others else declared
+        x_label, x = ef.effect.signature(problem.rig0, sig, ef.grid)
+        contribution = without.residual - final.residual  # what adding this effect explains
+        fig, ax = plt.subplots(figsize=(8, 5))
+        use = split.train | split.held_out
+        ax.plot(x[use], without.residual[use], ".", ms=1, alpha=0.25, label="residual without it")
+        edges = np.unique(np.quantile(x[use], np.linspace(0, 1, 41)))
+        centre = 0.5 * (edges[1:] + edges[:-1])
+        which = np.clip(np.digitize(x[use], edges) - 1, 0, len(centre) - 1)
+        for values, style, name in ((without.residual[use], "k-", "binned mean of the residual"),
+                                    (contribution[use], "r--", "binned mean of the effect's fitted term")):
+            means = np.array([values[which == b].mean() if np.any(which == b) else np.nan for b in range(len(centre))])
+            ax.plot(centre, means, style, lw=1.5, label=name)
+        ax.set(xlabel=x_label, ylabel="residual [A]", title=f"{ef.name}: residual against its regressor")
+        ax.legend(markerscale=8)
+        fig.tight_layout()
+        name = f"effect_{ef.name}.png"
+        fig.savefig(out / name, dpi=90)
+        plt.close(fig)
+        written.append(name)
+        if progress:
+            progress(3 + k)
+    return written
+
+
+def console_summary(problem: Problem, result: Analysis, tau_d: dict[str, float]) -> list[str]:
+    """Human-readable lines (the last one is the machine-readable ``found:`` line)."""
+    kt = problem.rig0.drive_motor.torque_constant
+    d, f = result.declared, result.final
+    lines = []
+    for name in d.free:
+        lines.append(f"free parameter {name}: declared {_declared(problem, name):.6g} -> "
+                     f"{f.free_values[name]:.6g} +- {f.free_ci.get(name, math.nan):.2g} (95 %)")
+    for k, rnd in enumerate(result.rounds):
+        lines.append(f"round {k + 1}: candidates ranked by held-out RMS (model so far: {rnd.baseline_rms_held_out:.5f} A)")
+        lines.append("    effect               held-out RMS [A]  improvement  dBIC(train)  grid")
+        for c in rnd.candidates:
+            grid = ", ".join(f"{k2}={v:.4g}" for k2, v in c.grid.items() if k2 != "typical_load")
+            mark = "*" if c.name == rnd.accepted else " "
+            note = f"  ({c.note})" if c.note else ""
+            lines.append(f"  {mark} {c.name:<20} {c.rms_held_out:16.5f}  {100 * c.improvement:9.1f} %  "
+                         f"{c.delta_bic:11.1f}  {grid}{note}")
+        lines.append(f"    -> {'added ' + rnd.accepted if rnd.accepted else 'nothing significant left'}")
+    if result.pruned:
+        lines.append(f"dropped as redundant after later additions: {', '.join(result.pruned)}")
+    for ef in f.effects:
+        parts = [f"{p.name} = {ef.values[p.name]:.4g} +- {ef.ci.get(p.name, math.nan):.2g}{_unit(p.unit)}"
+                 for p in ef.effect.parameters]
+        parts += [f"{g.name} = {ef.grid[g.name]:.4g}{_unit(g.unit)}" + (
+            f" [{ef.grid_ci[g.name][0]:.3g}, {ef.grid_ci[g.name][1]:.3g}]" if g.name in ef.grid_ci else "")
+                  for g in ef.effect.grid_parameters]
+        lines.append(f"effect {ef.name}: " + "; ".join(parts))
+    lines.append(f"held-out RMS error of the drive current: before {d.rms_held_out:.5f} A "
+                 f"({d.rms_held_out * kt * 1e3:.3f} mN m), after {f.rms_held_out:.5f} A ({f.rms_held_out * kt * 1e3:.3f} mN m)")
+    lines.append(f"held-out RMS error of tau_d estimated from the current: before {tau_d.get('before', math.nan):.5f} N m, "
+                 f"after {tau_d.get('after', math.nan):.5f} N m per sample; averaged over 20 ms: before "
+                 f"{tau_d.get('before_20ms', math.nan):.5f} N m, after {tau_d.get('after_20ms', math.nan):.5f} N m")
+    lines.append(found_line(result))
+    return lines
+
+
+def _unit(unit: str) -> str:
+    return "" if unit == "1" else f" {unit}"
+
+
+def found_line(result: Analysis) -> str:
+    names = ",".join(result.found) or "none"
+    return f"found: {names} rms_before={result.declared.rms_held_out:.6g} rms_after={result.final.rms_held_out:.6g} {UNIT}"
+
+
+def write_json(path: Path, report: dict[str, Any]) -> None:
+    def clean(x: Any) -> Any:
+        if isinstance(x, float):
+            return x if math.isfinite(x) else None
+        if isinstance(x, dict):
+            return {str(k): clean(v) for k, v in x.items()}
+        if isinstance(x, (list, tuple)):
+            return [clean(v) for v in x]
+        if isinstance(x, (np.floating, np.integer)):
+            return clean(x.item())
+        return x
+
+    path.write_text(json.dumps(clean(report), indent=2), encoding="utf-8")
+
