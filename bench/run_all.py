@@ -16,6 +16,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 GRAPH_METRICS = ("graph_rate: nan Hz", "graph_latency_p99: nan ms", "graph_lost_samples: nan")
+SERIAL_METRICS = ("decoder_throughput: nan frames/s", "driver_cpu_at_1khz: nan %", "driver_reconnect_time: nan s")
 RECORDER_METRICS = ("recorder_published: nan count", "recorder_recorded: nan count",
                     "recorder_lost_messages: nan count")
 CONTROLLER_METRICS = tuple(f"loadstep_{name}_{ff}: nan {unit}" for ff in ("ff_off", "ff_on")
@@ -47,6 +48,7 @@ def main() -> int:
     print(f"[run_all] graph benchmark on ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}", file=sys.stderr, flush=True)
     ok = run("graph_bench.py", env, GRAPH_METRICS, timeout=180)
     ok &= run("core_bench.py", dict(os.environ), ("calibration_grid_time: nan s",), timeout=600)
+    ok &= run("serial_bench.py", dict(os.environ), SERIAL_METRICS, timeout=300)
     # The 5 minutes at 1 kHz is `python bench/recorder_bench.py`; make bench records 60 s.
     ok &= run("recorder_bench.py", env, RECORDER_METRICS, timeout=240, args=("--duration", "60"))
     ok &= run("controller_bench.py", dict(os.environ), CONTROLLER_METRICS, timeout=300)

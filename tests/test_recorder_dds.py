@@ -153,6 +153,8 @@ def assert_bag_holds_stream(recorder: RecorderProcess, n: int) -> None:
     assert f'{TOPIC}: {n}' in recorder.output()
     # The recorder's own end-of-run verdict, from the sequence numbers it saw.
     assert f'{TOPIC}: seq 0..{n - 1}: {n} received, lost 0' in recorder.output()
+    assert f'{TOPIC}: {n} received from 1 publisher(s), 0 missing in their DDS sequence numbers' \
+        in recorder.output()
     assert 'recorder: lost nothing' in recorder.output()
 
 

@@ -26,6 +26,7 @@ setup(
             "recorder = worm_rig_driver.recorder_node:main",
             "bag = worm_rig_driver.bag_cli:main",
             "worm_effects = worm_rig_driver.effects:main",
+            "virtual_rig = worm_rig_driver.virtual_rig:main",
             "driver_node = worm_rig_driver.driver_node:main",
         ],
     },

@@ -166,7 +166,7 @@ def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> 
         raise ReplayError(str(err)) from None
     for node, assignments in parsed.items():
         if node not in params:
-            raise ReplayError(f"--set {node}.*: replay knows only {sorted(params)}")
+            continue  # another node of the graph (the same --set list serves run_graph)
         for assignment in assignments:
             name, _, text = assignment.partition(":=")
             params[node][name] = yaml.safe_load(text) if text else ""
@@ -356,7 +356,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="graph parameter file of the live run (default: the installed sim_graph.yaml)")
     parser.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
                         help="override one parameter of model_node or estimator_node (repeatable), "
-                             "e.g. estimator_node.calibration_file=cal.json")
+                             "e.g. estimator_node.calibration_file=cal.json; other nodes' are ignored, "
+                             "so run_graph's --set list can be passed as is")
     parser.add_argument("--estimators", default=None, metavar="NAME[,NAME...]",
                         help=f"estimators of the registry to run ({', '.join(sorted(ESTIMATORS))}; "
                              "default: estimator_node's method)")

@@ -5,7 +5,7 @@ from __future__ import annotations
 from rclpy.serialization import serialize_message
 from worm_msgs.msg import GearboxForces, RigSample, TorqueEstimate
 from worm_rig_driver.bag_types import MessageTypes
-from worm_rig_driver.seq_check import SequenceTracker, StreamCheck, header_seq
+from worm_rig_driver.seq_check import DeliveryCheck, SequenceTracker, StreamCheck, header_seq
 
 
 def test_header_seq_reads_cdr_of_every_frame_id_length() -> None:
@@ -39,3 +39,16 @@ def test_stream_check_tracks_only_types_with_seq() -> None:
     assert check.lost == 1
     assert check.report() == ['/rig/sample: seq 0..3: 3 received, lost 1, gaps 2',
                               '/rig/sample: 1 messages too short to hold a seq']
+
+
+def test_delivery_check_per_publisher() -> None:
+    """DDS publication numbers are per publisher: two interleaved publishers are no gap."""
+    check = DeliveryCheck()
+    a, b = {'data': b'A'}, {'data': b'B'}
+    for number, gid in [(1, a), (1, b), (2, a), (2, b), (4, a), (3, b)]:
+        check.add('/rig/sample', {'publication_sequence_number': number, 'publisher_gid': gid})
+    check.add('/rig/sample', None)
+    assert check.lost == 1  # a's 3
+    assert check.report() == [
+        '/rig/sample: 6 received from 2 publisher(s), 1 missing in their DDS sequence numbers',
+        '/rig/sample: 1 messages without DDS sequence numbers (not checked)']

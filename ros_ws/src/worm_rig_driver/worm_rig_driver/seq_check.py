@@ -8,6 +8,12 @@ straight out of the CDR bytes, without decoding the message, and counts:
 * lost: the seqs missing between the first and the last one seen (a gap);
 * repeated: a seq not above the previous one (duplicate or reordered).
 
+A gap in ``seq`` of a stream a node derives from samples (estimates,
+forces) may also be a sample that node never got. What the *recorder* lost
+is told by :class:`DeliveryCheck` instead: the DDS publication sequence
+number each publisher (DataWriter) stamps on every message it writes, which
+rclpy hands to a subscription callback taking a message info.
+
 Messages published after the last one received cannot show as a gap; the
 publisher's own count (the bench compares it) closes that hole.
 """
@@ -17,12 +23,13 @@ from __future__ import annotations
 import struct
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Final
+from typing import Final, cast
 
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-__all__ = ['SequenceTracker', 'StreamCheck', 'check_messages', 'header_seq', 'seq_reader']
+__all__ = ['DeliveryCheck', 'SequenceTracker', 'StreamCheck', 'check_messages', 'header_seq',
+           'seq_reader']
 
 SEQ_FIELD: Final = ('seq', (Nodetype.BASE, ('uint64', 0)))
 HEADER_FIELD: Final = ('header', (Nodetype.NAME, 'std_msgs/msg/Header'))
@@ -148,3 +155,43 @@ def check_messages(messages: Iterable[tuple[str, bytes]], types: Mapping[str, tu
     for topic, data in messages:
         check.add(topic, data)
     return check
+
+
+class DeliveryCheck:
+    """Gaps in the DDS publication sequence numbers, per topic and publisher.
+
+    Fed with rclpy's message info (``publication_sequence_number``,
+    ``publisher_gid``); a message without them (an RMW that does not report
+    them) is counted as untracked.
+    """
+
+    def __init__(self) -> None:
+        self.trackers: dict[str, dict[bytes, SequenceTracker]] = {}
+        self.untracked: dict[str, int] = {}
+
+    def add(self, topic: str, info: Mapping[str, object] | None) -> None:
+        """Account for one message of ``topic`` with its message info."""
+        number = info.get('publication_sequence_number') if info else None
+        gid = info.get('publisher_gid') if info else None
+        if not isinstance(number, int) or not isinstance(gid, Mapping):
+            self.untracked[topic] = self.untracked.get(topic, 0) + 1
+            return
+        key = bytes(cast('bytes', gid.get('data', b'')))
+        self.trackers.setdefault(topic, {}).setdefault(key, SequenceTracker()).add(number)
+
+    @property
+    def lost(self) -> int:
+        """Messages missing between the first and last received of every publisher."""
+        return sum(t.lost for per_topic in self.trackers.values() for t in per_topic.values())
+
+    def report(self) -> list[str]:
+        """One line per topic: publishers, received, lost."""
+        lines = []
+        for topic, publishers in sorted(self.trackers.items()):
+            received = sum(t.count for t in publishers.values())
+            lost = sum(t.lost for t in publishers.values())
+            lines.append(f'{topic}: {received} received from {len(publishers)} publisher(s), '
+                         f'{lost} missing in their DDS sequence numbers')
+        lines += [f'{topic}: {n} messages without DDS sequence numbers (not checked)'
+                  for topic, n in sorted(self.untracked.items())]
+        return lines
