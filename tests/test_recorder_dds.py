@@ -26,11 +26,9 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from worm_msgs.msg import RigSample
 
-REPO = Path(__file__).resolve().parents[1]
-PACKAGE_SRC = REPO / 'ros_ws' / 'src' / 'worm_rig_driver'
-sys.path.insert(0, str(PACKAGE_SRC))  # until colcon installs worm_rig_driver
-
-from worm_rig_driver.bag_recording import read_bag_counts, read_messages  # noqa: E402
+from rclpy.experimental import EventsExecutor
+from worm_rig_driver.bag_recording import BagWriter, read_bag_counts, read_messages
+from worm_rig_driver.recorder_node import TopicRecorder
 
 TOPIC = '/rig/sample'
 RATE_HZ = 1000.0
@@ -45,9 +43,7 @@ def ros_env(monkeypatch: pytest.MonkeyPatch) -> dict[str, str]:
     """Environment of this run for both processes (this one and the recorder)."""
     monkeypatch.setenv('ROS_DOMAIN_ID', str(DOMAIN_ID))
     monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    env = dict(os.environ)
-    env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(PACKAGE_SRC), env.get('PYTHONPATH')]))
-    return env
+    return dict(os.environ)
 
 
 @pytest.fixture
@@ -179,3 +175,30 @@ def test_records_discovered_topics_and_stops_on_sigterm(
 
     assert recorder.stop(signal.SIGTERM) == 0, recorder.output()
     assert_bag_holds_stream(recorder, n)
+
+
+def test_topic_recorder_records_under_the_events_executor(publisher_node: Node, tmp_path: Path) -> None:
+    """The demo records with a TopicRecorder spun by rclpy's EventsExecutor, which cannot deliver
+    message info: with message_info=False every message still reaches the bag."""
+    executor = EventsExecutor(context=publisher_node.context)
+    executor.add_node(publisher_node)
+    recorder = TopicRecorder(publisher_node, BagWriter(tmp_path / 'bag', 'mcap'), message_info=False)
+    publisher = publisher_node.create_publisher(RigSample, TOPIC, QoSProfile(
+        history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE))
+    try:
+        recorder.subscribe(TOPIC)
+        deadline = time.monotonic() + DISCOVERY_TIMEOUT_S
+        while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
+            recorder.discover()
+            executor.spin_once(timeout_sec=0.05)
+        assert publisher.get_subscription_count() == 1, 'the recorder did not subscribe'
+        for seq in range(200):
+            publisher.publish(RigSample(seq=seq))
+            executor.spin_once(timeout_sec=0.01)
+        deadline = time.monotonic() + ACK_TIMEOUT_S
+        while recorder.counts.get(TOPIC, 0) < 200 and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+    finally:
+        recorder.close()
+        executor.shutdown()
+    assert [m.seq for _, m in read_messages(tmp_path / 'bag', TOPIC)] == list(range(200))

@@ -32,7 +32,7 @@ def live_run(graph_file: Path, calibration: Path, feedforward: bool, bag: Path, 
         node = rclpy.create_node("demo_scenario")
         executor = EventsExecutor()
         executor.add_node(node)
-        recorder = TopicRecorder(node, BagWriter(bag, "mcap"))
+        recorder = TopicRecorder(node, BagWriter(bag, "mcap"), message_info=False)
         try:
             recorder.subscribe_all()
             recorder.start_discovery(0.5)

@@ -171,6 +171,7 @@ class TopicRecorder:
         writer: BagWriter,
         *,
         queue_depth: int = DEFAULT_QUEUE_DEPTH,
+        message_info: bool = True,
     ) -> None:
         """Bind ``node`` to ``writer``; subscribes to nothing yet.
 
@@ -178,11 +179,18 @@ class TopicRecorder:
             node: Node to create the subscriptions on.
             writer: Open bag to write into; :meth:`close` closes it.
             queue_depth: KEEP_LAST depth of every subscription.
+            message_info: Take each message's info (DDS publication sequence
+                numbers, the loss verdict's evidence). rclpy's experimental
+                EventsExecutor cannot deliver it (its callbacks then raise
+                ``SystemError: null argument to internal routine``): pass False
+                when spinning with it; losses are then judged from ``seq``
+                fields only.
 
         """
         self.node = node
         self.writer = writer
         self.queue_depth = queue_depth
+        self.message_info = message_info
         self.wanted: dict[str, str | None] = {}
         """Topics to record -> type name (None: take it from the graph)."""
         self.record_all = False
@@ -280,7 +288,8 @@ class TopicRecorder:
         self._subscriptions[topic] = self.node.create_subscription(
             message_type,
             topic,
-            functools.partial(self._on_message, handle),
+            (functools.partial(self._on_message, handle) if self.message_info
+             else functools.partial(self._on_message_without_info, handle)),
             subscription_qos(publishers, self.queue_depth),
             raw=True,
         )
@@ -313,6 +322,9 @@ class TopicRecorder:
             return
         self.sequences.add(handle.topic, data)
         self.deliveries.add(handle.topic, info)
+
+    def _on_message_without_info(self, handle: TopicHandle, data: bytes) -> None:
+        self._on_message(handle, data, None)
 
     def loss_report(self) -> tuple[int, list[str]]:
         """Messages the recorder lost (DDS numbers), one line per topic and check, and a verdict."""
