@@ -28,6 +28,7 @@ setup(
             "evaluate = torque_estimator.evaluate:main",
             "run_graph = torque_estimator.run_graph:main",
             "demo = torque_estimator.demo:main",
+            "replay = torque_estimator.replay:main",
         ],
     },
 )

@@ -1,13 +1,14 @@
 """replay: run the model and the estimators over a recorded bag, offline, as the live graph did.
 
-    python -m torque_estimator.replay <bag> [--params-file sim_graph.yaml]
+    ros2 run torque_estimator replay <bag> [--params-file sim_graph.yaml]
         [--set estimator_node.calibration_file=cal.json] [--estimators knn,...] [--follow-live]
 
 No DDS, no rclpy: the bag's /rig/sample stream (worm_msgs/RigSample) is read
 with worm_rig_driver.bag_reader and fed, sample by sample in recorded order,
 
-* to :class:`ModelReplay`, model_node's per-sample computation (the internal
-  forces of worm_model, Eqs 21-23, with model_node's parameters), and
+* to :class:`~worm_model.live_model.LiveModel`, the very class model_node
+  runs (the internal forces of worm_model, Eqs 21-23, with model_node's
+  parameters), and
 * to :class:`~torque_estimator.live_estimator.LiveEstimator`, the very class
   estimator_node runs, once per estimator of the registry asked for
   (``--estimators``; default: the method configured for estimator_node).
@@ -53,12 +54,9 @@ from typing import Any
 import numpy as np
 import yaml
 
-from worm_model.filters import FilteredDerivative
-from worm_model.gear_side import gear_side_load, no_load_switching_torque
-from worm_model.internal_forces import internal_forces
-from worm_model.modes import classify_mode, motion_sign
-from worm_model.motor import shaft_torque
-from worm_model.parameters import Rig, load_rig
+from worm_model.live_model import FIELDS as FORCE_FIELDS
+from worm_model.live_model import LiveModel
+from worm_model.parameters import load_rig
 from worm_rig_driver.bag_reader import BagReader
 from worm_rig_driver.bag_types import BagRecordingError, ament_prefixes
 from worm_rig_driver.rig_csv import RigCsvError, find_sample_topic
@@ -78,56 +76,12 @@ NODE_DEFAULTS: dict[str, dict[str, Any]] = {
 }
 ESTIMATE_TOPIC = "/torque_estimate"
 FORCES_TOPIC = "/gearbox/forces"
-#: GearboxForces flags, as model_node sets them (worm_msgs/msg/GearboxForces.msg)
-FLAG_INVALID_INPUT, FLAG_STANDSTILL, FLAG_MU_OUT_OF_BOUND = 1, 2, 4
-FORCE_FIELDS = ("normal_force", "friction_force", "mu", "mu_max", "switching_torque", "tau_load", "tau_in",
-                "mode", "flank", "flags")
 ESTIMATE_FIELDS = ("torque", "uncertainty", "flags", "omega_worm", "current_drive")
+#: FORCE_FIELDS (imported above): the GearboxForces fields LiveModel returns and model_node publishes
 
 
 class ReplayError(RuntimeError):
     """A bad bag, parameter file or calibration; the message names it."""
-
-
-# --- the model's per-sample core ------------------------------------------------------------------
-
-class ModelReplay:
-    """model_node's per-sample computation as a plain class (its ``on_sample``, without ROS).
-
-    One RigSample in, the GearboxForces fields out: input torque at the worm
-    from the drive motor (Eq. 29), gear-side load from the measured tau_load
-    plus the load motors' drag, worm acceleration from the filtered speed,
-    internal forces (Eqs 21-23), mode, and model_node's flags.
-    """
-
-    def __init__(self, rig: Rig, use_acceleration: bool = True, acceleration_filter: float = 0.01) -> None:
-        self.rig = rig
-        self.use_acceleration = use_acceleration
-        self.derivative = FilteredDerivative(acceleration_filter, 1.0 / rig.sensors.sample_rate_hz)
-
-    def update(self, sample: Any) -> dict[str, float | int]:
-        """Feed one RigSample (any object with its fields); returns the GearboxForces fields."""
-        rig = self.rig
-        omega = sample.omega_worm
-        _omega_f, alpha = self.derivative.update(omega)
-        alpha = alpha if self.use_acceleration else 0.0
-        tau_in = float(shaft_torque(rig.drive_motor, sample.current_drive, omega))
-        gear_load = float(gear_side_load(rig, sample.tau_load, omega))
-        tau_sw = float(no_load_switching_torque(rig, omega))
-        f = internal_forces(rig.gearbox, tau_in, gear_load, omega, alpha,
-                            worm_inertia=rig.total_worm_inertia, gear_inertia=rig.total_gear_inertia)
-        mode = classify_mode(motion_sign(omega) * sample.tau_load, tau_sw)
-        flags = 0
-        if not all(math.isfinite(v) for v in (omega, sample.current_drive, sample.tau_load)):
-            flags |= FLAG_INVALID_INPUT
-        elif not bool(np.all(f.valid)):
-            flags |= FLAG_STANDSTILL
-        if not bool(np.all(f.mu_valid)) and not flags:
-            flags |= FLAG_MU_OUT_OF_BOUND
-        return {"normal_force": float(f.normal_force), "friction_force": float(f.friction_force),
-                "mu": float(f.mu), "mu_max": rig.gearbox.mu_engagement_max, "switching_torque": tau_sw,
-                "tau_load": sample.tau_load, "tau_in": tau_in, "mode": int(mode), "flank": int(f.flank),
-                "flags": flags}
 
 
 # --- configuration ---------------------------------------------------------------------------------
@@ -236,13 +190,16 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
     names = list(estimators) if estimators else [str(est_p["method"])]
     if unknown := [n for n in names if n not in ESTIMATORS]:
         raise ReplayError(f"unknown estimator(s) {unknown}; registry: {sorted(ESTIMATORS)}")
+    if not est_p["calibration_file"]:
+        raise ReplayError("estimator_node.calibration_file is not set: pass --set estimator_node.calibration_file=FILE "
+                          "(or set it in the parameter file)")
     try:
         database = load_database(est_p["calibration_file"])
     except CalibrationError as err:
         raise ReplayError(f"estimator_node.calibration_file: {err}") from None
     start = time.perf_counter()
-    model = ModelReplay(load_rig(model_p["rig_file"] or None), bool(model_p["use_acceleration"]),
-                        float(model_p["acceleration_filter"]))
+    model = LiveModel(load_rig(model_p["rig_file"] or None), bool(model_p["use_acceleration"]),
+                      float(model_p["acceleration_filter"]))
     est_rig = load_rig(est_p["rig_file"] or None)
     period = 1.0 / float(est_p["sample_rate"])
     cores = {name: LiveEstimator(est_rig, make_estimator(name, database, k=int(est_p["k"]),
@@ -268,7 +225,7 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
                     first = stamp if first is None else first
                     last = stamp
                     if model_seqs is None or seq in model_seqs:
-                        model_out.add(seq, model.update(sample))
+                        model_out.add(seq, model.update(sample).as_dict())
                     if est_seqs is None or seq in est_seqs:
                         for name, core in cores.items():
                             e = core.update(sample.omega_worm, sample.current_drive)
@@ -349,10 +306,14 @@ def _print_comparison(c: Comparison, label: str) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="replay", description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        prog="replay", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="prints `replay_<metric>: <value> <unit>` lines: samples, span, wall, speed_factor, and for\n"
+               "the live outputs the bag holds, replay_forces_* and replay_estimates_* (matched, compared,\n"
+               "live_only, replay_only, max_abs_diff; per-field differences on stderr).\n"
+               "exit code 2 on a bad bag, parameter file or calibration (the message names it).")
     parser.add_argument("bag", type=Path, help="bag directory (or .mcap/.db3 file) holding /rig/sample")
-    parser.add_argument("--params-file", type=Path, default=None,
+    parser.add_argument("--params-file", type=Path, default=None, metavar="FILE",
                         help="graph parameter file of the live run (default: the installed sim_graph.yaml)")
     parser.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
                         help="override one parameter of model_node or estimator_node (repeatable), "
