@@ -31,7 +31,7 @@ from worm_model.parameters import load_rig
 from . import protocol_table as table
 from .link import CommandLimits, LinkConfig, LinkCore, LinkState, Sample
 from .scaling import RigScaling
-from .serial_link import BAUD_CONSTANTS, SerialLink
+from .serial_link import SUPPORTED_BAUDS, SerialLink
 
 
 class DriverNode(Node):
@@ -40,7 +40,7 @@ class DriverNode(Node):
         port = declare(self, "port", "/dev/ttyACM0", "Serial device of the rig (a /dev/serial/by-id/... link "
                        "survives re-enumeration); reopened within reconnect_period when it comes back.")
         baud = declare(self, "baud", table.BAUD, f"Line rate [bit/s]; the firmware uses {table.BAUD}.",
-                       low=min(BAUD_CONSTANTS), high=max(BAUD_CONSTANTS))
+                       low=min(SUPPORTED_BAUDS), high=max(SUPPORTED_BAUDS))
         rig_file = declare(self, "rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
         rate = declare(self, "stream_rate_hz", table.SAMPLE_RATE_HZ,
                        f"Telemetry rate [Hz]: 0 or a divisor of {table.SAMPLE_RATE_HZ}.", low=0,

@@ -8,44 +8,45 @@ reconnect_period) never stalls the executor; and at 1 kHz one thread doing
 select/read/decode costs less than waking a timer often enough for the same
 latency. The executor thread only calls command(), which takes the same lock.
 
-Plain Python (os, select, termios); no rclpy. Any OSError on the port (EIO
+Plain Python (pyserial opens and configures the port; select/os.read on its
+descriptor); no rclpy. Any OSError on the port (EIO
 when a USB adapter or a pty master goes away, ENOENT while it is absent) closes
 it and the thread retries every reconnect_period.
 """
 from __future__ import annotations
 
 import errno
-import fcntl
 import os
 import select
-import termios
 import threading
 import time
 import traceback
-import tty
 from collections.abc import Callable
+
+import serial
 
 from .link import LinkCore, Sample
 
-BAUD_CONSTANTS = {115200: termios.B115200, 230400: termios.B230400, 460800: termios.B460800,
-                  500000: termios.B500000, 1000000: termios.B1000000, 2000000: termios.B2000000}
+# Standard rates a 16 MHz AVR reaches with U2X (1 Mbaud exactly: UBRR = 1) and Linux names.
+SUPPORTED_BAUDS = (115200, 230400, 460800, 500000, 1000000, 2000000)
 
 
-def open_port(path: str, baud: int) -> int:
-    """Open a serial device raw (8N1, no flow control), non-blocking and exclusive; returns the fd."""
-    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+def open_port(path: str, baud: int) -> serial.Serial:
+    """Open a serial device with pyserial: raw 8N1, no flow control, non-blocking, exclusive.
+
+    Raises:
+        OSError: the port is missing, busy (another driver holds it) or refuses the settings
+            (pyserial's SerialException is an OSError).
+    """
+    port = serial.Serial(path, baudrate=baud, bytesize=serial.EIGHTBITS, parity=serial.PARITY_NONE,
+                         stopbits=serial.STOPBITS_ONE, xonxoff=False, rtscts=False, dsrdtr=False,
+                         timeout=0, exclusive=True)
     try:
-        fcntl.ioctl(fd, termios.TIOCEXCL)  # a second driver on the same port fails to open it
-        tty.setraw(fd)
-        attrs = termios.tcgetattr(fd)
-        attrs[2] = (attrs[2] & ~(termios.CRTSCTS | termios.CSTOPB | termios.PARENB)) | termios.CLOCAL | termios.CREAD
-        attrs[4] = attrs[5] = BAUD_CONSTANTS[baud]
-        termios.tcsetattr(fd, termios.TCSANOW, attrs)
-        termios.tcflush(fd, termios.TCIOFLUSH)
+        port.reset_input_buffer()  # bytes from before we opened belong to nobody's frame
     except BaseException:
-        os.close(fd)
+        port.close()
         raise
-    return fd
+    return port
 
 
 class SerialLink:
@@ -56,7 +57,7 @@ class SerialLink:
         core: the link logic.
         on_samples: called from the reader thread with each batch of new samples.
         on_log: called (level, message) for the core's log lines, from either thread.
-        baud: a key of BAUD_CONSTANTS.
+        baud: one of SUPPORTED_BAUDS.
         reconnect_period: [s] between attempts to open a missing port.
         poll_period: [s] longest sleep of the reader (timeouts and keep-alives are checked this often).
     """
@@ -64,8 +65,8 @@ class SerialLink:
     def __init__(self, path: str, core: LinkCore, on_samples: Callable[[list[Sample]], None],
                  on_log: Callable[[str, str], None], baud: int = 1_000_000,
                  reconnect_period: float = 0.1, poll_period: float = 0.005) -> None:
-        if baud not in BAUD_CONSTANTS:
-            raise ValueError(f"baud={baud} is not one of {sorted(BAUD_CONSTANTS)}")
+        if baud not in SUPPORTED_BAUDS:
+            raise ValueError(f"baud={baud} is not one of {SUPPORTED_BAUDS}")
         self.path = path
         self.core = core
         self.on_samples = on_samples
@@ -74,7 +75,8 @@ class SerialLink:
         self.reconnect_period = reconnect_period
         self.poll_period = poll_period
         self.lock = threading.Lock()
-        self._fd: int | None = None
+        self._port: serial.Serial | None = None
+        self._fd: int | None = None  # the port's descriptor, read with select/os.read
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="rig-serial", daemon=True)
         self._last_open_error = ""
@@ -143,7 +145,7 @@ class SerialLink:
 
     def _try_open(self) -> bool:
         try:
-            fd = open_port(self.path, self.baud)
+            port = open_port(self.path, self.baud)
         except OSError as err:
             message = f"cannot open {self.path}: {err.strerror or err}"
             if message != self._last_open_error:  # log each kind of failure once, not every 0.1 s
@@ -152,7 +154,7 @@ class SerialLink:
             return False
         self._last_open_error = ""
         with self.lock:
-            self._fd = fd
+            self._port, self._fd = port, port.fileno()
             self.core.on_open(time.monotonic())
             self._flush()
         self.on_log("info", f"opened {self.path} at {self.baud} baud")
@@ -176,12 +178,12 @@ class SerialLink:
 
     def _close(self, reason: str) -> None:
         """Caller holds the lock."""
-        if self._fd is not None:
+        if self._port is not None:
             try:
-                os.close(self._fd)
+                self._port.close()
             except OSError:
                 pass
-            self._fd = None
+            self._port = self._fd = None
             self.core.on_close(time.monotonic(), reason)
 
     def _drain_logs(self) -> None:
