@@ -7,19 +7,20 @@ Prints (stdout):
                                      publishes /rig/sample (+ the decimated channels); 100 % = one core
   driver_reconnect_time: <x> s       from the port reappearing (pty recreated behind the same path)
                                      to driver_node's new handshake reaching the peer
-Progress on stderr. Runs driver_node on its own ROS_DOMAIN_ID (100..230), discovery on this host.
+Progress on stderr. Runs driver_node on its own ROS_DOMAIN_ID (the environment's if set, else a random one
+in 100..230), discovery on this host.
 """
 from __future__ import annotations
 
 import os
 import random
-import signal
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
+from worm_model.nodes.testing import local_domain, stop_process
 from worm_rig_driver.codec import StreamDecoder, encode_frame
 from worm_rig_driver.rig_peer import PtyRigPeer
 
@@ -69,9 +70,7 @@ def wait_for(condition, timeout: float) -> bool:
 
 
 def driver_figures() -> tuple[float, float]:
-    env = dict(os.environ)
-    env["ROS_DOMAIN_ID"] = str(random.randint(100, 230))
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env = dict(os.environ, **local_domain())
     with tempfile.TemporaryDirectory() as tmp:
         peer = PtyRigPeer(str(Path(tmp) / "rig"))
         peer.start()
@@ -99,11 +98,7 @@ def driver_figures() -> tuple[float, float]:
                 raise RuntimeError("driver_node did not reconnect within 10 s")
             reconnect = time.monotonic() - plugged
         finally:
-            driver.send_signal(signal.SIGINT)
-            try:
-                driver.wait(15)
-            except subprocess.TimeoutExpired:
-                driver.kill()
+            stop_process(driver)
             peer.close()
     return cpu, reconnect
 

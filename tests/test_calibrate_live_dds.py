@@ -9,25 +9,19 @@ spread, the points taken before the interruption unchanged, and the same
 map as the in-process batch calibration of the same grid (within noise).
 
 ROS_DOMAIN_ID: the environment's if set, else a random one in 100..230;
-discovery stays on this host.
+discovery stays on this host (the ros_env fixture of tests/conftest.py).
 """
 from __future__ import annotations
 
 import json
-import os
-import random
 import signal
 import subprocess
 import time
-from collections.abc import Iterator
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.node import Node
 from worm_msgs.msg import DriveCommand
 
 from torque_estimator.calibration import CalibrationGrid, calibrate_simulated
@@ -36,6 +30,7 @@ from torque_estimator.calibration_journal import CalibrationJournal, default_jou
 from torque_estimator.graph import Graph, find_executable
 from torque_estimator.operating_points import SteadyStateCriterion
 from worm_model.nodes.qos import STREAM
+from worm_model.nodes.testing import probe_node
 from worm_model.parameters import load_rig
 
 GRAPH = """\
@@ -60,24 +55,9 @@ CLI_GRID = ["--speeds", "2", "--torques", "2", "--speed-min", "100", "--speed-ma
 
 
 @pytest.fixture(scope="module")
-def ros_env() -> Iterator[dict[str, str]]:
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("ROS_DOMAIN_ID", os.environ.get("ROS_DOMAIN_ID") or str(random.randint(100, 230)))
-        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        yield dict(os.environ)
-
-
-@pytest.fixture(scope="module")
-def rig_graph(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> Iterator[Graph]:
-    folder = tmp_path_factory.mktemp("live_graph")
-    params = folder / "rig_and_controller.yaml"
-    params.write_text(GRAPH, encoding="utf-8")
-    graph = Graph(params, {}, log_dir=folder / "logs")
-    try:
-        yield graph.start()
-    finally:
-        codes = graph.stop()
-    assert all(code == 0 for code in codes.values()), f"nodes did not exit cleanly: {codes}"
+def rig_graph(start_graph: Callable[[str, str], Graph]) -> Graph:
+    """sim_node + controller_node (ros_env and start_graph: tests/conftest.py)."""
+    return start_graph(GRAPH, "live_graph")
 
 
 def _points(journal: Path) -> int:
@@ -89,21 +69,12 @@ def _points(journal: Path) -> int:
 
 def _last_drive_command(timeout: float = 10.0) -> DriveCommand | None:
     """The next drive command controller_node publishes (a probe node in this process)."""
-    context = Context()
-    rclpy.init(context=context)
-    node = Node("calibrate_test_probe", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
     got: list[DriveCommand] = []
-    node.create_subscription(DriveCommand, "/rig/drive_command", got.append, STREAM)
-    try:
+    with probe_node("calibrate_test_probe") as (node, executor):
+        node.create_subscription(DriveCommand, "/rig/drive_command", got.append, STREAM)
         deadline = time.monotonic() + timeout
         while len(got) < 20 and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
-    finally:
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
     return got[-1] if got else None
 
 

@@ -9,25 +9,22 @@ wind up while the output was limited (a plain PI would have integrated
 ki x 300 rad/s x 0.3 s = 1.8 N m and still command the full 3 V).
 
 ROS_DOMAIN_ID: the environment's if set, else a random one in 100..230;
-discovery stays on this host.
+discovery stays on this host (the ros_env fixture of tests/conftest.py).
 """
 from __future__ import annotations
 
-import os
-import random
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 
 import pytest
-import rclpy
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
+from rclpy.executors import Executor
 from rclpy.node import Node
 from std_msgs.msg import Float64
 from worm_msgs.msg import DriveCommand, RigSample
 
 from torque_estimator.graph import Graph
 from worm_model.nodes.qos import COMMAND, STREAM
+from worm_model.nodes.testing import probe_node
 
 LIMIT = 3.0  # [V]
 PARAMS = f"""\
@@ -40,28 +37,15 @@ controller_node:
 
 
 @pytest.fixture(scope="module")
-def controller(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Graph]:
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("ROS_DOMAIN_ID", os.environ.get("ROS_DOMAIN_ID") or str(random.randint(100, 230)))
-        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        folder = tmp_path_factory.mktemp("controller")
-        params = folder / "controller.yaml"
-        params.write_text(PARAMS, encoding="utf-8")
-        graph = Graph(params, {}, log_dir=folder / "logs")
-        try:
-            yield graph.start()
-        finally:
-            codes = graph.stop()
-        assert codes == {"controller_node": 0}, codes
+def controller(start_graph: Callable[[str, str], Graph]) -> Graph:
+    """controller_node alone (ros_env and start_graph: tests/conftest.py)."""
+    return start_graph(PARAMS, "controller")
 
 
 class RigProbe:
-    def __init__(self) -> None:
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.node = Node("controller_test_rig", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
+    def __init__(self, node: Node, executor: Executor) -> None:
+        self.node = node
+        self.executor = executor
         self.commands: list[DriveCommand] = []
         self.node.create_subscription(DriveCommand, "/rig/drive_command", self.commands.append, STREAM)
         self.samples = self.node.create_publisher(RigSample, "/rig/sample", STREAM)
@@ -84,15 +68,10 @@ class RigProbe:
             if self.seq % 20 == 0:  # let the commands in; keep the controller's queue short
                 self.spin_until(lambda: False, 0.005)
 
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-
 
 def test_output_limit_and_no_windup_over_dds(controller: Graph) -> None:
-    probe = RigProbe()
-    try:
+    with probe_node("controller_test_rig") as (node, executor):
+        probe = RigProbe(node, executor)
         matched = probe.spin_until(lambda: probe.samples.get_subscription_count() > 0
                                    and probe.setpoint.get_subscription_count() > 0, 30.0)
         assert matched, f"controller_node did not subscribe; logs in {controller.log_dir}"
@@ -115,6 +94,4 @@ def test_output_limit_and_no_windup_over_dds(controller: Graph) -> None:
         after = [c for c in probe.commands if c.speed_setpoint == 0.0]
         assert after and all(abs(c.voltage) < 0.01 for c in after), [c.voltage for c in after]
         assert all(abs(c.voltage) <= LIMIT for c in probe.commands)
-    finally:
-        probe.close()
     assert not controller.failed(), controller.failed()

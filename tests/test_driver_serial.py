@@ -7,15 +7,15 @@ process subscribes to what the driver publishes and sends commands. Faults are
 made by the peer: garbage bytes, broken CRCs, skipped sequence numbers, silence,
 and the port disappearing (pty closed, symlink removed) and coming back.
 
-Own ROS_DOMAIN_ID (100..230), discovery on this host only; the node must exit 0
-on SIGINT and tell the rig to STOP on its way out.
+ROS_DOMAIN_ID: the environment's if set, else a random one in 100..230; discovery on
+this host only (the ros_env fixture of tests/conftest.py). The node must exit 0 on
+SIGINT and tell the rig to STOP on its way out.
 """
 from __future__ import annotations
 
 import math
 import os
 import random
-import signal
 import subprocess
 import sys
 import time
@@ -23,9 +23,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.context import Context
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -34,6 +32,7 @@ from sensor_msgs.msg import JointState
 from worm_msgs.msg import DriveCommand, EncoderCounts, LoadCommand, MotorCurrents, RigSample
 
 from worm_model.nodes.qos import COMMAND, STREAM
+from worm_model.nodes.testing import probe_node, stop_process
 from worm_model.parameters import load_rig
 from worm_rig_driver import link
 from worm_rig_driver import protocol_table as table
@@ -47,10 +46,9 @@ RIG = load_rig()
 
 
 class Probe:
-    def __init__(self, context: Context) -> None:
-        self.node = Node("driver_test_probe", context=context)
-        self.executor = EventsExecutor(context=context)
-        self.executor.add_node(self.node)
+    def __init__(self, node: Node, executor: EventsExecutor) -> None:
+        self.node = node
+        self.executor = executor
         self.samples: list[RigSample] = []
         self.channels: dict[str, int] = {"currents": 0, "joints": 0, "encoders": 0}
         self.encoders: list[EncoderCounts] = []
@@ -92,24 +90,12 @@ class Probe:
     def send_drive(self, voltage: float) -> None:
         self.drive.publish(DriveCommand(voltage=voltage))
 
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.node.destroy_node()
-
 
 @pytest.fixture(scope="module")
-def probe() -> Iterator[Probe]:
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("ROS_DOMAIN_ID", str(random.randint(100, 230)))
-        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        context = Context()
-        rclpy.init(context=context)
-        p = Probe(context)
-        try:
-            yield p
-        finally:
-            p.close()
-            rclpy.try_shutdown(context=context)
+def probe(ros_env: dict[str, str]) -> Iterator[Probe]:
+    """The probe node, in this module's DDS domain (ros_env: tests/conftest.py)."""
+    with probe_node("driver_test_probe", EventsExecutor) as (node, executor):
+        yield Probe(node, executor)
 
 
 @pytest.fixture(scope="module")
@@ -144,12 +130,7 @@ def driver(probe: Probe, peer: PtyRigPeer, tmp_path_factory: pytest.TempPathFact
         yield d
     finally:
         stops_before = sum(1 for f in peer.log.frames if f.name == "STOP")
-        process.send_signal(signal.SIGINT)
-        try:
-            code = process.wait(15)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            code = process.wait()
+        code = stop_process(process)
         time.sleep(0.1)
         stops = sum(1 for f in peer.log.frames if f.name == "STOP") - stops_before
         assert code == 0, f"driver_node exited {code} on SIGINT:\n{d.output()}"
@@ -270,8 +251,7 @@ def test_a_rig_with_another_protocol_is_refused(probe: Probe, tmp_path: Path) ->
         deadline = time.monotonic() + START_TIMEOUT
         while "incompatible firmware" not in log.read_text() and time.monotonic() < deadline:
             time.sleep(0.1)
-        process.send_signal(signal.SIGINT)
-        assert process.wait(15) == 0
+        assert stop_process(process) == 0, log.read_text()
     finally:
         other.close()
     text = log.read_text()

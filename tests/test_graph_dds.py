@@ -7,15 +7,15 @@ with torque_estimator.graph.Graph, on a calibration database written by
 A probe node in this process (EventsExecutor, spun in the main thread only
 while a test measures) subscribes, publishes load commands and bad samples.
 
-Each run has its own ROS_DOMAIN_ID (100..230) and discovery stays on this host
-(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST), so parallel runs never cross-talk.
+Each run has its own ROS_DOMAIN_ID (the environment's if set, else a random one in
+100..230) and discovery stays on this host (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST),
+so parallel runs never cross-talk: the ros_env fixture of tests/conftest.py.
 At teardown every node must exit with code 0 on SIGINT (not SIGABRT/-6, not
 SIGKILL/-9).
 """
 from __future__ import annotations
 
 import math
-import os
 import random
 import subprocess
 import sys
@@ -25,9 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.context import Context
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -40,6 +38,7 @@ from worm_msgs.msg import (DriveCommand, EncoderCounts, GearboxForces, LoadComma
 from torque_estimator.calibration_database import load_database
 from torque_estimator.graph import Graph, parse_overrides
 from worm_model.nodes.qos import COMMAND
+from worm_model.nodes.testing import probe_node
 
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
@@ -90,11 +89,9 @@ class Recording:
 class Probe:
     """This process's node: spins in the main thread only inside spin_for / spin_until."""
 
-    def __init__(self, context: Context) -> None:
-        self.context = context
-        self.node = Node("graph_test_probe", context=context)
-        self.executor = EventsExecutor(context=context)
-        self.executor.add_node(self.node)
+    def __init__(self, node: Node, executor: EventsExecutor) -> None:
+        self.node = node
+        self.executor = executor
 
     def spin_until(self, done: Callable[[], bool], timeout: float, step: float = 0.05) -> bool:
         """Spin until done() (checked every `step` s) or timeout; returns done()."""
@@ -133,10 +130,6 @@ class Probe:
         for sub in subs:
             self.node.destroy_subscription(sub)
 
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.node.destroy_node()
-
 
 def node_logs(log_dir: Path) -> str:
     parts = []
@@ -149,24 +142,10 @@ def node_logs(log_dir: Path) -> str:
 # --- fixtures ------------------------------------------------------------------------------------
 
 @pytest.fixture(scope="module")
-def ros_env(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, str]]:
-    """This run's DDS domain, in os.environ for this process and the nodes it starts."""
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("ROS_DOMAIN_ID", str(random.randint(100, 230)))
-        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        yield dict(os.environ)
-
-
-@pytest.fixture(scope="module")
 def probe(ros_env: dict[str, str]) -> Iterator[Probe]:
-    context = Context()
-    rclpy.init(context=context)
-    p = Probe(context)
-    try:
-        yield p
-    finally:
-        p.close()
-        rclpy.try_shutdown(context=context)
+    """The probe node, in this run's DDS domain (ros_env: tests/conftest.py)."""
+    with probe_node("graph_test_probe", EventsExecutor) as (node, executor):
+        yield Probe(node, executor)
 
 
 @pytest.fixture(scope="module")

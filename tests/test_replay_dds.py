@@ -15,9 +15,6 @@ torque_estimator.replay). After it the replay equals live to round-off.
 """
 from __future__ import annotations
 
-import os
-import random
-import signal
 import subprocess
 import sys
 import time
@@ -29,6 +26,7 @@ import pytest
 from torque_estimator.graph import Graph, parse_overrides
 from torque_estimator.replay import (ESTIMATE_FIELDS, ESTIMATE_TOPIC, FORCE_FIELDS, FORCES_TOPIC, compare,
                                      node_parameters, replay)
+from worm_model.nodes.testing import stop_process
 from worm_rig_driver.bag_reader import BagReader
 from worm_rig_driver.bag_types import ament_prefixes
 
@@ -49,43 +47,39 @@ def executable(package: str, name: str) -> Path:
 
 
 @pytest.fixture(scope="module")
-def recorded(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, list[str], str]]:
-    """Run graph + recorder; yield (bag, graph overrides, recorder output)."""
+def recorded(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
+             ) -> Iterator[tuple[Path, list[str], str]]:
+    """Run graph + recorder; yield (bag, graph overrides, recorder output).
+
+    The DDS domain is this module's own (the ros_env fixture of tests/conftest.py).
+    """
     tmp = tmp_path_factory.mktemp("replay")
     calibration = tmp / "calibration.json"
     done = subprocess.run([sys.executable, "-m", "torque_estimator.calibrate", "--out", str(calibration), "--quiet"],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     overrides = [f"estimator_node.calibration_file={calibration}", "controller_node.speed_setpoint=150.0"]
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("ROS_DOMAIN_ID", str(random.randint(100, 230)))
-        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        bag, log_path = tmp / "bag", tmp / "recorder.log"
-        with log_path.open("wb") as log:
-            recorder = subprocess.Popen(
-                [str(executable("worm_rig_driver", "recorder")), "--ros-args", "-p", f"output:={bag}",
-                 "-p", f"topics:=[{','.join(TOPICS)}]", "-p", "discovery_period:=0.1"],
-                stdout=log, stderr=subprocess.STDOUT, env=dict(os.environ))
-        graph = Graph(GRAPH_FILE, parse_overrides(overrides), tmp / "logs")
-        try:
-            graph.start()
-            deadline = time.monotonic() + START_TIMEOUT
-            while log_path.read_text(errors="replace").count("Recording /") < len(TOPICS):
-                assert not graph.failed() and recorder.poll() is None, log_path.read_text(errors="replace")
-                assert time.monotonic() < deadline, f"not all of {TOPICS} recorded:\n{log_path.read_text()}"
-                time.sleep(0.1)
-            time.sleep(RECORD_S)
-        finally:
-            codes = graph.stop()
-            time.sleep(0.5)  # the last outputs reach the recorder
-            recorder.send_signal(signal.SIGINT)
-            try:
-                recorder.wait(60)
-            except subprocess.TimeoutExpired:
-                recorder.kill()
-                recorder.wait()
+    bag, log_path = tmp / "bag", tmp / "recorder.log"
+    with log_path.open("wb") as log:
+        recorder = subprocess.Popen(
+            [str(executable("worm_rig_driver", "recorder")), "--ros-args", "-p", f"output:={bag}",
+             "-p", f"topics:=[{','.join(TOPICS)}]", "-p", "discovery_period:=0.1"],
+            stdout=log, stderr=subprocess.STDOUT, env=ros_env)
+    graph = Graph(GRAPH_FILE, parse_overrides(overrides), tmp / "logs")
+    try:
+        graph.start()
+        deadline = time.monotonic() + START_TIMEOUT
+        while log_path.read_text(errors="replace").count("Recording /") < len(TOPICS):
+            assert not graph.failed() and recorder.poll() is None, log_path.read_text(errors="replace")
+            assert time.monotonic() < deadline, f"not all of {TOPICS} recorded:\n{log_path.read_text()}"
+            time.sleep(0.1)
+        time.sleep(RECORD_S)
+    finally:
+        codes = graph.stop()
+        time.sleep(0.5)  # the last outputs reach the recorder
+        recorder_code = stop_process(recorder, grace=60.0)
     output = log_path.read_text(errors="replace")
-    assert recorder.returncode == 0, output
+    assert recorder_code == 0, output
     assert all(code == 0 for code in codes.values()), codes
     yield bag, overrides, output
 

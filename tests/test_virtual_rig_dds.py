@@ -6,14 +6,13 @@ the board's /dev/serial/by-id link. A probe node commands a speed and a load
 over DDS and checks that what the driver publishes is the physics: the steady
 speed and current of Eqs 28-30 and the load torque commanded.
 
-Own ROS_DOMAIN_ID (100..230), discovery on this host only. Both processes must
+ROS_DOMAIN_ID: the environment's if set, else a random one in 100..230; discovery
+on this host only (the ros_env fixture of tests/conftest.py). Both processes must
 exit 0 on SIGINT.
 """
 from __future__ import annotations
 
 import os
-import random
-import signal
 import subprocess
 import sys
 import time
@@ -22,20 +21,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import rclpy
-from rclpy.context import Context
 from rclpy.experimental import EventsExecutor
-from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
-from scipy.optimize import brentq
 from worm_msgs.msg import DriveCommand, LoadCommand, RigSample
 
 from worm_model.dynamics import reflected_input_torque
 from worm_model.friction import friction_coefficient
 from worm_model.gear_side import gear_side_load
 from worm_model.nodes.qos import COMMAND, STREAM
+from worm_model.nodes.testing import probe_node, stop_process
 from worm_model.parameters import load_rig
+from worm_model.steady_state import steady_worm_speed
 
 RIG = load_rig()
 MOTOR = RIG.drive_motor
@@ -43,55 +40,35 @@ START_TIMEOUT = 30.0  # [s] processes up and discovery (a functional bound, not 
 PROBE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=4000, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 
-def _stop(process: subprocess.Popen) -> int:
-    process.send_signal(signal.SIGINT)
-    try:
-        return process.wait(15)
-    except subprocess.TimeoutExpired:
-        process.kill()
-        return process.wait()
-
-
 @pytest.fixture(scope="module")
-def graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
+def graph(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict]:
+    """virtual_rig and driver_node as processes, a probe node here (ros_env: tests/conftest.py)."""
     logs = tmp_path_factory.mktemp("virtual_rig")
     link = str(logs / "worm_rig")
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("ROS_DOMAIN_ID", str(random.randint(100, 230)))
-        mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-        env = dict(os.environ)
-        rig_log, driver_log = logs / "virtual_rig.log", logs / "driver_node.log"
-        with open(rig_log, "w") as out:
-            rig = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.virtual_rig", "--link", link, "--seed", "2"],
-                                   stdout=out, stderr=subprocess.STDOUT, env=env)
-        deadline = time.monotonic() + START_TIMEOUT
-        while not os.path.lexists(link) and time.monotonic() < deadline and rig.poll() is None:
-            time.sleep(0.05)
-        with open(driver_log, "w") as out:
-            driver = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.driver_node", "--ros-args",
-                                       "-p", f"port:={link}", "-p", "command_timeout:=5.0"],
-                                      stdout=out, stderr=subprocess.STDOUT, env=env)
-        context = Context()
-        rclpy.init(context=context)
-        node = Node("virtual_rig_probe", context=context)
-        executor = EventsExecutor(context=context)
-        executor.add_node(node)
-        samples: list[RigSample] = []
-        node.create_subscription(RigSample, "/rig/sample", samples.append, PROBE_QOS)
-        parts = {"node": node, "executor": executor, "samples": samples, "rig": rig, "driver": driver,
-                 "rig_log": rig_log, "driver_log": driver_log,
-                 "drive": node.create_publisher(DriveCommand, "/rig/drive_command", STREAM),
-                 "load": node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)}
-        try:
-            yield parts
-        finally:
-            driver_code = _stop(driver)
-            rig_code = _stop(rig)
-            executor.shutdown()
-            node.destroy_node()
-            rclpy.try_shutdown(context=context)
-            assert driver_code == 0, Path(driver_log).read_text()
-            assert rig_code == 0, Path(rig_log).read_text()
+    rig_log, driver_log = logs / "virtual_rig.log", logs / "driver_node.log"
+    with open(rig_log, "w") as out:
+        rig = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.virtual_rig", "--link", link, "--seed", "2"],
+                               stdout=out, stderr=subprocess.STDOUT, env=ros_env)
+    deadline = time.monotonic() + START_TIMEOUT
+    while not os.path.lexists(link) and time.monotonic() < deadline and rig.poll() is None:
+        time.sleep(0.05)
+    with open(driver_log, "w") as out:
+        driver = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.driver_node", "--ros-args",
+                                   "-p", f"port:={link}", "-p", "command_timeout:=5.0"],
+                                  stdout=out, stderr=subprocess.STDOUT, env=ros_env)
+    try:
+        with probe_node("virtual_rig_probe", EventsExecutor) as (node, executor):
+            samples: list[RigSample] = []
+            node.create_subscription(RigSample, "/rig/sample", samples.append, PROBE_QOS)
+            yield {"node": node, "executor": executor, "samples": samples, "rig": rig, "driver": driver,
+                   "rig_log": rig_log, "driver_log": driver_log,
+                   "drive": node.create_publisher(DriveCommand, "/rig/drive_command", STREAM),
+                   "load": node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)}
+    finally:
+        driver_code = stop_process(driver)
+        rig_code = stop_process(rig)
+    assert driver_code == 0, Path(driver_log).read_text()
+    assert rig_code == 0, Path(rig_log).read_text()
 
 
 def _spin(parts: dict, seconds: float, until=None) -> bool:
@@ -101,16 +78,6 @@ def _spin(parts: dict, seconds: float, until=None) -> bool:
             return True
         parts["executor"].spin_until_future_complete(Future(executor=parts["executor"]), timeout_sec=0.05)
     return until is None
-
-
-def _steady_speed(voltage: float, tau_load: float) -> float:
-    def surplus(w):
-        mu = friction_coefficient(RIG.friction, RIG.gearbox, w)
-        need = reflected_input_torque(RIG.gearbox, mu, gear_side_load(RIG, tau_load, w), w)
-        return float(MOTOR.torque_constant * (voltage - MOTOR.back_emf_constant * w) / MOTOR.resistance
-                     - MOTOR.viscous_drag * w - MOTOR.coulomb_drag - need)
-
-    return brentq(surplus, 1e-3, voltage / MOTOR.back_emf_constant)
 
 
 def test_driver_node_runs_the_virtual_rig_like_the_real_one(graph: dict) -> None:
@@ -134,7 +101,7 @@ def test_driver_node_runs_the_virtual_rig_like_the_real_one(graph: dict) -> None
     current = np.mean([s.current_drive for s in window])
     # the physics through the protocol: steady state of Eqs 28-30 at the applied duty and measured load
     assert tau == pytest.approx(torque, abs=0.005)
-    assert omega == pytest.approx(_steady_speed(voltage, tau), abs=1.0)
+    assert omega == pytest.approx(steady_worm_speed(RIG, voltage, tau), abs=1.0)
     mu = friction_coefficient(RIG.friction, RIG.gearbox, omega)
     predicted = (MOTOR.viscous_drag * omega + MOTOR.coulomb_drag
                  + float(reflected_input_torque(RIG.gearbox, mu, gear_side_load(RIG, tau, omega), omega))) \

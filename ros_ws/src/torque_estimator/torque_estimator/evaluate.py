@@ -21,7 +21,9 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from worm_model.parameters import ParameterError, load_rig
 
@@ -34,24 +36,23 @@ from .plots import held_out_deviation, sweeps
 from .progress import ProgressBar
 
 
-def _int_list(text: str) -> list[int]:
-    try:
-        values = [int(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a comma-separated list of integers: {text!r}") from None
-    if not values or min(values) < 1:
-        raise argparse.ArgumentTypeError(f"need integers >= 1: {text!r}")
-    return values
+def _number_list(kind: Callable[[str], float], minimum: float, what: str) -> Callable[[str], list[Any]]:
+    """argparse type: a non-empty comma-separated list of ``kind`` values, each >= ``minimum``."""
+
+    def parse(text: str) -> list[Any]:
+        try:
+            values = [kind(v) for v in text.split(",") if v.strip()]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a comma-separated list of {what}: {text!r}") from None
+        if not values or min(values) < minimum:
+            raise argparse.ArgumentTypeError(f"need {what} >= {minimum}: {text!r}")
+        return values
+
+    return parse
 
 
-def _float_list(text: str) -> list[float]:
-    try:
-        values = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a comma-separated list of numbers: {text!r}") from None
-    if not values or min(values) < 0:
-        raise argparse.ArgumentTypeError(f"need numbers >= 0: {text!r}")
-    return values
+_int_list = _number_list(int, 1, "integers")
+_float_list = _number_list(float, 0, "numbers")
 
 
 def _sizes(text: str) -> list[tuple[int, int]]:

@@ -208,16 +208,23 @@ def _is_int_field(f: dataclasses.Field[Any]) -> bool:
     return f.type in ("int", int)
 
 
-def _numeric(raw: Any, origin: str, where: str) -> float:
-    """A YAML scalar as a finite float (PyYAML reads '1e-5' as a string: accepted)."""
+def finite_number(raw: Any, origin: str, where: str, error: type[ParameterError] = ParameterError) -> float:
+    """A YAML scalar as a finite float (PyYAML reads '1e-5' as a string: accepted).
+
+    Shared with the other YAML files that sit beside the rig file (the simulator's
+    effects file raises its own subclass, passed as ``error``).
+
+    Raises:
+        ParameterError (or ``error``): a bool, a non-scalar, a non-numeric string, inf or nan.
+    """
     if isinstance(raw, bool) or not isinstance(raw, (int, float, str)):
-        raise ParameterError(origin, where, f"value {raw!r} is not numeric")
+        raise error(origin, where, f"value {raw!r} is not numeric")
     try:
         number = float(raw)
     except ValueError:
-        raise ParameterError(origin, where, f"value {raw!r} is not numeric") from None
+        raise error(origin, where, f"value {raw!r} is not numeric") from None
     if not math.isfinite(number):
-        raise ParameterError(origin, where, f"value {raw!r} is not finite")
+        raise error(origin, where, f"value {raw!r} is not finite")
     return number
 
 
@@ -236,7 +243,7 @@ def _read_leaf(node: Any, f: dataclasses.Field[Any], origin: str, where: str) ->
         raise ParameterError(
             origin, where, "needs exactly one non-empty 'source' or 'assumption' (where the number comes from)"
         )
-    number = _numeric(node["value"], origin, where)
+    number = finite_number(node["value"], origin, where)
     try:
         value, dimension = to_si(number, node["unit"])
     except KeyError:
@@ -287,7 +294,7 @@ def _build(cls: type, node: Any, origin: str, prefix: str, leaves: bool) -> Any:
         elif leaves:
             kwargs[f.name] = _read_leaf(raw, f, origin, where)
         else:
-            kwargs[f.name] = _checked(f, _numeric(raw, origin, where), origin, where, repr(raw))
+            kwargs[f.name] = _checked(f, finite_number(raw, origin, where), origin, where, repr(raw))
     extra = set(node) - known - {"format", "version"} - (OPTIONAL_TOP_SECTIONS if not prefix else set())
     if extra:
         raise ParameterError(origin, prefix + sorted(extra)[0], "unknown field")

@@ -12,12 +12,9 @@ import time
 
 import numpy as np
 import pytest
-from scipy.optimize import brentq
 
-from worm_model.dynamics import reflected_input_torque
-from worm_model.friction import friction_coefficient
-from worm_model.gear_side import gear_side_load
 from worm_model.parameters import load_rig
+from worm_model.steady_state import steady_worm_speed
 from worm_rig_driver import protocol_table as table
 from worm_rig_driver.codec import StreamDecoder, encode_frame, encode_raw, pack_frame
 from worm_rig_driver.scaling import RigScaling
@@ -133,18 +130,6 @@ def test_telemetry_carries_the_simulated_measurement_in_raw_units() -> None:
     assert [t.t_us for t in telemetry[:3]] == [1000, 2000, 3000]
 
 
-def _steady_speed(voltage: float, tau_load: float) -> float:
-    motor = RIG.drive_motor
-
-    def surplus(w):
-        mu = friction_coefficient(RIG.friction, RIG.gearbox, w)
-        need = reflected_input_torque(RIG.gearbox, mu, gear_side_load(RIG, tau_load, w), w)
-        return float(motor.torque_constant * (voltage - motor.back_emf_constant * w) / motor.resistance
-                     - motor.viscous_drag * w - motor.coulomb_drag - need)
-
-    return brentq(surplus, 1e-3, voltage / motor.back_emf_constant)
-
-
 def test_the_rig_turns_at_the_model_speed_and_the_load_loops_hold_the_torque() -> None:
     host = Host(seed=1)
     host.up()
@@ -157,7 +142,7 @@ def test_the_rig_turns_at_the_model_speed_and_the_load_loops_hold_the_torque() -
     tau = np.mean([SC.load_torque(SC.current(t.current_load_1), SC.current(t.current_load_2)) for t in late])
     applied_voltage = SC.voltage(motors_set(SC.duty(6.0)))
     true_tau = float(host.fw.sim.truth().tau_load[0])
-    assert omega == pytest.approx(_steady_speed(applied_voltage, true_tau), abs=0.3)
+    assert omega == pytest.approx(steady_worm_speed(RIG, applied_voltage, true_tau), abs=0.3)
     # the firmware's PI loops hold each load current on its target (integral action: zero mean error)
     for name in ("current_load_1", "current_load_2"):
         codes = np.array([getattr(t, name) for t in late]) - table.CURRENT_ZERO_CODE

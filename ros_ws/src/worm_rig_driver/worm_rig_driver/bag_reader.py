@@ -64,8 +64,7 @@ import tempfile
 from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from types import TracebackType
-from typing import Any, Final, Protocol, Self
+from typing import Any, Final, Protocol
 from urllib.parse import quote
 
 import zstandard
@@ -87,6 +86,7 @@ from ruamel.yaml.error import YAMLError
 from worm_rig_driver.bag_types import (
     BagReadError,
     BagRecordingError,
+    ClosesOnExit,
     MessageTypes,
     deserialize_cdr,
     referenced_types,
@@ -655,7 +655,7 @@ def _decompress_message(data: bytes, where: str) -> bytes:
 # --- the reader ----------------------------------------------------------------------------------
 
 
-class BagReader:
+class BagReader(ClosesOnExit):
     """A rosbag2 bag opened for reading (see the module docstring).
 
     Use as a context manager or call :meth:`close`. Nothing is decoded until
@@ -1018,19 +1018,6 @@ class BagReader:
         if self._tmpdir is not None:
             self._tmpdir.cleanup()
             self._tmpdir = None
-
-    def __enter__(self) -> Self:
-        """Return self (the bag is open already)."""
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc_val: BaseException | None,
-        exc_tb: TracebackType | None,
-    ) -> None:
-        """Close the bag."""
-        self.close()
 
 
 def _parse_definition(definition: MessageDefinition, type_name: str) -> dict[str, Any]:

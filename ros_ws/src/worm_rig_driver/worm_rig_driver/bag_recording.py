@@ -28,8 +28,7 @@ import threading
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
-from typing import Final, Literal, Self
+from typing import Final, Literal
 
 from rosbags.interfaces import Connection, Qos
 from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
@@ -41,6 +40,7 @@ from worm_rig_driver.bag_types import (
     BagClosedError,
     BagReadError,
     BagRecordingError,
+    ClosesOnExit,
     MessageTypes,
     TypeDefinitionNotFoundError,
     ament_prefixes,
@@ -85,7 +85,7 @@ class TopicHandle:
     connection: Connection
 
 
-class BagWriter:
+class BagWriter(ClosesOnExit):
     """A rosbag2 bag directory being written with raw CDR messages.
 
     Use as a context manager, or call :meth:`close` (idempotent). :meth:`write`
@@ -239,19 +239,6 @@ class BagWriter:
             msg = f'Bag {self.path} is closed; cannot write topic {topic!r}'
             raise BagClosedError(msg)
         return self._writer
-
-    def __enter__(self) -> Self:
-        """Return self; the bag is open already."""
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc_val: BaseException | None,
-        exc_tb: TracebackType | None,
-    ) -> None:
-        """Close the bag, also on error (what was written stays readable)."""
-        self.close()
 
 
 def read_bag_counts(path: Path | str, types: MessageTypes | None = None) -> dict[str, int]:

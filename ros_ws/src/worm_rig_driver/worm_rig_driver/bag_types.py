@@ -22,7 +22,8 @@ import os
 import struct
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
-from typing import Final, cast
+from types import TracebackType
+from typing import Final, Self, cast
 
 from rosbags.interfaces import Nodetype
 from rosbags.interfaces.typing import FieldDesc, Typesdict
@@ -40,6 +41,7 @@ __all__ = [
     'BagClosedError',
     'BagReadError',
     'BagRecordingError',
+    'ClosesOnExit',
     'MessageTypes',
     'TypeDefinitionNotFoundError',
     'ament_prefixes',
@@ -77,6 +79,31 @@ class BagClosedError(BagRecordingError):
 
 class BagReadError(BagRecordingError):
     """A bag could not be opened or decoded."""
+
+
+class ClosesOnExit:
+    """Context-manager protocol of an open bag (reader or writer): ``with`` gives the bag
+    itself, which is open already, and closes it on leaving, also on error.
+
+    Subclasses implement :meth:`close` (idempotent).
+    """
+
+    def close(self) -> None:
+        """Release the bag's files; subclasses override."""
+        raise NotImplementedError
+
+    def __enter__(self) -> Self:
+        """Return self (the bag is open already)."""
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc_val: BaseException | None,
+        exc_tb: TracebackType | None,
+    ) -> None:
+        """Close the bag, also on error (what a writer wrote stays readable)."""
+        self.close()
 
 
 def ament_prefixes(environ: Mapping[str, str] | None = None) -> list[Path]:

@@ -58,7 +58,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 import numpy as np
 import yaml
 
-from worm_model.parameters import Rig
+from worm_model.parameters import ParameterError, Rig, finite_number
 
 from . import protocol_table
 
@@ -68,19 +68,20 @@ FORMAT_VERSION = 1
 RIG_FORMAT_NAME = "worm_rig_parameters"
 
 
-class EffectsError(ValueError):
+class EffectsError(ParameterError):
     """An effects file (or mapping) is unreadable or wrong; the message names file and key.
+
+    A :class:`worm_model.parameters.ParameterError` (same message form, ``source: key: problem``),
+    so number parsing is shared with the rig file's loader.
 
     Attributes:
         source: the file (or other origin) that was being read.
         key: dotted name of the offending key ("" for the whole file).
     """
 
-    def __init__(self, source: str, key: str, problem: str) -> None:
-        self.source = str(source)
-        self.key = key
-        where = f"{self.source}: {key}" if key else self.source
-        super().__init__(f"{where}: {problem}")
+    @property
+    def key(self) -> str:
+        return self.field
 
 
 # --- parameters and their units ------------------------------------------------------------------
@@ -594,18 +595,6 @@ EFFECTS: dict[str, type[EffectBase]] = {cls.name: cls for cls in (
 
 # --- configuration ---------------------------------------------------------------------------------
 
-def _number(raw: Any, origin: str, where: str) -> float:
-    if isinstance(raw, bool) or not isinstance(raw, (int, float, str)):
-        raise EffectsError(origin, where, f"value {raw!r} is not numeric")
-    try:
-        number = float(raw)
-    except ValueError:
-        raise EffectsError(origin, where, f"value {raw!r} is not numeric") from None
-    if not math.isfinite(number):
-        raise EffectsError(origin, where, f"value {raw!r} is not finite")
-    return number
-
-
 def _parameter_value(raw: Any, declared: Parameter, origin: str, where: str) -> float:
     """A plain number (in the declared unit) or {value, unit[, note|source|assumption]}, checked."""
     if isinstance(raw, Mapping):
@@ -613,7 +602,7 @@ def _parameter_value(raw: Any, declared: Parameter, origin: str, where: str) -> 
         if unknown or "value" not in raw:
             raise EffectsError(origin, where, "expected a number or a mapping {value, unit}"
                                + (f"; unknown keys {sorted(unknown)}" if unknown else ""))
-        number = _number(raw["value"], origin, where)
+        number = finite_number(raw["value"], origin, where, EffectsError)
         unit = str(raw.get("unit", declared.unit))
         if unit not in UNITS:
             raise EffectsError(origin, where, f"unknown unit {unit!r} (known: {', '.join(UNITS)})")
@@ -622,7 +611,7 @@ def _parameter_value(raw: Any, declared: Parameter, origin: str, where: str) -> 
             raise EffectsError(origin, where, f"unit {unit!r} is not a {declared.unit!r}")
         number *= factor
     else:
-        number = _number(raw, origin, where)
+        number = finite_number(raw, origin, where, EffectsError)
     predicate, message = CHECKS[declared.check]
     if not predicate(number):
         raise EffectsError(origin, where, f"value {number:g} {declared.unit}: {message}")

@@ -1,0 +1,74 @@
+"""For the system tests and bench scripts that reach nodes over DDS. The nodes do not use it.
+
+* :func:`local_domain`: environment variables that keep a run's graph to itself.
+  The run gets its own ROS_DOMAIN_ID: the caller's if it set one, so that parallel
+  runs can be given distinct ones, else a random one in 100..230. Discovery stays
+  on this host.
+* :func:`probe_node`: a node in the test's own process, with its own context,
+  taken down in the order rclpy needs (see lifecycle.py).
+* :func:`stop_process`: stops a node's process the way Ctrl-C does, and SIGKILLs
+  it if it hangs.
+"""
+from __future__ import annotations
+
+import os
+import random
+import signal
+import subprocess
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import Executor, SingleThreadedExecutor
+from rclpy.node import Node
+
+#: domains drawn when the caller sets none: clear of 0 (the default) and of small ids people pick
+RANDOM_DOMAINS = (100, 230)
+
+
+def local_domain(environ: Mapping[str, str] | None = None) -> dict[str, str]:
+    """ROS_DOMAIN_ID and ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST for a run of its own.
+
+    Args:
+        environ: where a ROS_DOMAIN_ID set by the caller is looked for; ``os.environ`` when None.
+    """
+    domain = (os.environ if environ is None else environ).get("ROS_DOMAIN_ID") or str(
+        random.randint(*RANDOM_DOMAINS))
+    return {"ROS_DOMAIN_ID": domain, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+
+
+@contextmanager
+def probe_node(name: str, executor_type: Callable[..., Executor] = SingleThreadedExecutor
+               ) -> Iterator[tuple[Node, Executor]]:
+    """A node named ``name`` and an executor that holds it, in a fresh rclpy context.
+
+    The caller spins the executor itself. When the block is left, the executor is
+    shut down, then the node is destroyed, then the context is shut down.
+    """
+    context = Context()
+    rclpy.init(context=context)
+    node = Node(name, context=context)
+    executor = executor_type(context=context)
+    executor.add_node(node)
+    try:
+        yield node, executor
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def stop_process(process: subprocess.Popen, grace: float = 15.0) -> int:
+    """Send SIGINT, as Ctrl-C does. If the process has not exited after ``grace`` [s], SIGKILL it.
+
+    Returns:
+        the exit code. A node that cleans up returns 0. -9 means it had to be killed.
+    """
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+    try:
+        return process.wait(grace)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        return process.wait()

@@ -1,0 +1,54 @@
+"""Fixtures shared by the system tests: the run's DDS domain, and node graphs started from a parameter text.
+
+The helpers without pytest in them (domain, probe node, stopping a process) are in
+worm_model.nodes.testing, so that the bench scripts can use them too.
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterator
+
+import pytest
+
+from torque_estimator.graph import Graph
+from worm_model.nodes.testing import local_domain
+
+
+@pytest.fixture(scope="module")
+def ros_env() -> Iterator[dict[str, str]]:
+    """This module's DDS domain (worm_model.nodes.testing.local_domain), set in os.environ.
+
+    The variables hold for this process's probe nodes and for the processes it
+    starts. The fixture yields the whole environment, to pass to subprocesses.
+    """
+    with pytest.MonkeyPatch.context() as mp:
+        for name, value in local_domain().items():
+            mp.setenv(name, value)
+        yield dict(os.environ)
+
+
+@pytest.fixture(scope="module")
+def start_graph(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
+                ) -> Iterator[Callable[[str, str], Graph]]:
+    """Start a graph, one process per node, from the text of a ROS 2 parameter file.
+
+    The function takes the text and a folder name and returns the started Graph.
+    The parameter file and the node logs go into that folder. At the end of the
+    module every node gets SIGINT and must exit with code 0.
+    """
+    graphs: list[Graph] = []
+
+    def start(params_text: str, name: str = "graph") -> Graph:
+        folder = tmp_path_factory.mktemp(name)
+        params = folder / "graph.yaml"
+        params.write_text(params_text, encoding="utf-8")
+        graph = Graph(params, {}, log_dir=folder / "logs")
+        graphs.append(graph)
+        return graph.start()
+
+    try:
+        yield start
+    finally:
+        codes = {str(graph.log_dir): graph.stop() for graph in graphs}
+    unclean = {logs: c for logs, c in codes.items() if any(code != 0 for code in c.values())}
+    assert not unclean, f"nodes did not exit cleanly (exit codes by log folder): {unclean}"
