@@ -87,7 +87,8 @@ def test_energy_balance_over_a_run_with_transients_mode_changes_and_reversal() -
 
     The mesh loss uses mu from the friction model and N from Eqs 19-21, so a plant
     whose acceleration ignored the friction law would fail the balance (the mesh
-    term is ~4 % of the input; the discretisation error at dt = 1e-4 s is ~0.03 %).
+    term is 2-4 % of the input, ten times the tolerance; the discretisation error at
+    dt = 1e-4 s is ~0.03 %).
     """
     dt, steps = 1e-4, 2500
     plant = RigPlant(RIG, 2)
@@ -121,9 +122,10 @@ def test_energy_balance_over_a_run_with_transients_mode_changes_and_reversal() -
     w_end = plant.state.omega_worm
     kinetic = 0.5 * (RIG.total_worm_inertia + RIG.total_gear_inertia * GB.ratio ** 2) * w_end ** 2
 
-    assert np.all(mesh > 0.02 * electrical_in)  # the friction term matters at this tolerance
+    tolerance = 2e-3
+    assert np.all(mesh > 5 * tolerance * electrical_in)  # leaving the friction term out would fail
     residual = electrical_in - (copper + magnetic + motor_drag + mesh + gear_shaft + kinetic)
-    assert np.all(np.abs(residual) < 2e-3 * electrical_in), residual / electrical_in
+    assert np.all(np.abs(residual) < tolerance * electrical_in), residual / electrical_in
 
 
 # --- stick at standstill ----------------------------------------------------------------------------
