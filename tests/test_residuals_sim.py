@@ -3,29 +3,40 @@
 The simulator (worm_rig_driver.simulated_rig.SimulatedRig with its effect plug-ins)
 produces the data; the analysis (worm_model.residuals) knows only the bundled rig file
 with ``friction.scale`` free.  For each effect family the tool must name the effect and
-at least halve the held-out RMS error of the drive current; with sensor noise only it
-must find nothing; with two effects at once it must find both.  The end-to-end test
-runs the installed ``residuals`` executable on a CSV file and on a bag, and loads the
-extended model it writes into the simulator and the model.
+at least halve the held-out RMS error of the signal the effect acts on (the drive
+current; for backlash the transmission error ratio theta_worm - theta_gear, fitted when
+the data has the gear encoder); with sensor noise only it must find nothing, also on a
+profile full of flank changes; with two effects at once it must find both.  The
+end-to-end tests run the installed ``residuals`` executable on a CSV file and on a bag,
+and load the extended model it writes into the simulator and the model.
 
 Data: n rigs side by side, each an independent run of a few seconds (the simulator is
 vectorised over rigs, so this is a few seconds of wall time), open-loop drive voltage
 with slow sinusoidal modulation and a slowly varying load of both signs.  Effect sizes
 are chosen so that the effect's share of the current clearly exceeds the paper rig's
-current-sensor noise (0.02 A + 10-bit quantisation); the simulator's defaults are used
-where they already do.  Oil temperature is the exception: a drift of mu changes the
-current by ~1-2 % of its load part on this rig, below that noise even when mu drops by
-half, so its case asks for the name and a cut of 20 %, not half.
+current-sensor noise (0.02 A + 10-bit quantisation, 0.0215 A in all): halving a
+held-out RMS needs an effect of at least sqrt(3) x 0.0215 = 0.037 A RMS.  The
+simulator's defaults are used where they already do.  Data sets used by more than one
+test are simulated once per module (fixtures).
 
-Backlash is not among the families tested: with the simulator's dead zone the teeth
-are apart for only a few ms at each flank change, and what that leaves in the drive
-current is of the size of the declared model's own transient error at a load step (its
-filtered acceleration), so a clean detection cannot be demanded (see the report of issue 7).
+Oil temperature (see OIL below for the numbers): self-heating cannot make it visible on
+this rig (at full load and top speed the mesh makes ~1 W, so with the simulator's
+5 K/W the oil warms by ~5 K and mu moves by a few %: ~0.004 A).  The case is a
+climate-chamber test instead: runs at -20, 25 and 70 degC oil with a sump sensor in the
+``temperature`` column, at low speed and full load where the current is most sensitive
+to mu.
+
+Backlash (15 arcmin, the simulator's catalogue default): in the current it leaves only a
+few-ms transient at each flank change, of the size of the declared model's own
+transient error there, so its evidence is the transmission error, which jumps by the gap
+at every flank change.  The case uses load steps through zero and smooth reversals
+(``flank`` profile); the same profile without backlash must give nothing.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 from dataclasses import dataclass
@@ -38,7 +49,7 @@ import yaml
 from worm_model.parameters import default_rig_path, load_rig
 from worm_model.residuals import analysis as an
 from worm_model.residuals.data import MeasuredData, read_csv, write_csv
-from worm_model.residuals.extended import ExtendedModel
+from worm_model.residuals.extended import ExtendedModel, write_parameter_file
 from worm_model.residuals.model import prepare_signals
 from worm_rig_driver.simulated_rig import SimulatedRig
 
@@ -46,15 +57,24 @@ REPO = Path(__file__).resolve().parents[1]
 RIG = load_rig()
 FREE = ["friction.scale"]
 
-#: excitation profiles: drive voltage offsets [V] and load torque offset and swing ranges [N m]
+#: excitation profiles: drive voltage offsets [V] and load torque offset and swing ranges [N m];
+#: "square": the load switches between offset -/+ swing (steps through zero); "reverse": every third
+#: rig (j % 3 == 1, so that some of them land in held-out blocks) reverses its drive smoothly, with
+#: almost no load (a flank change at each reversal)
 PROFILES = {
     "standard": {"volts": (1.5, 20.0), "load": (-0.12, 0.2), "swing": (0.02, 0.15)},
     "low_speed": {"volts": (1.0, 4.0), "load": (0.1, 0.3), "swing": (0.02, 0.08)},
     "wide_load": {"volts": (3.0, 20.0), "load": (-0.05, 0.3), "swing": (0.1, 0.2)},
-    "long_high_load": {"volts": (6.0, 20.0), "load": (0.2, 0.3), "swing": (0.02, 0.05)},
     "high_load": {"volts": (4.0, 20.0), "load": (0.1, 0.3), "swing": (0.02, 0.08)},
     "slow_high_load": {"volts": (2.0, 10.0), "load": (0.12, 0.3), "swing": (0.02, 0.08)},
+    # low speed (8-50 rad/s: mu 0.06-0.09, the current most sensitive to it) at nearly full load
+    "slow_full_load": {"volts": (1.0, 3.0), "load": (0.2, 0.24), "swing": (0.02, 0.03)},
+    "flank": {"volts": (3.0, 16.0), "load": (-0.03, 0.05), "swing": (0.08, 0.2), "square": True, "reverse": True},
 }
+
+#: oil sump sensor of the oil-temperature case: resolution [K] (a MAX31855-class thermocouple amplifier)
+#: and noise [K]
+OIL_SENSOR = (0.25, 0.2)
 
 
 @dataclass(frozen=True)
@@ -66,28 +86,40 @@ class Case:
     free: tuple[str, ...] = tuple(FREE)
     runs: int = 10
     seconds: float = 4.0
-    max_ratio: float = 0.5  # held-out RMS after / before must not exceed this
+    signal: str = "current_drive"  # the fitted signal the effect acts on
+    oil_start: tuple[float, ...] = ()  # [degC] oil temperature of each rig at the start (climate chamber)
 
 
 #: mu effects: a free friction.scale is itself a change of mu and absorbs part of any mu effect, so
 #: these cases declare nothing free (the test below checks the effect is still named with it free)
 MU_FREE: tuple[str, ...] = ()
 
+#: Oil temperature, a climate-chamber test: 4 rigs each at -20, 25 and 70 degC oil (IEC 60068-2-1/-2
+#: cold and dry-heat levels), the oil measured by a sump sensor; the rig file's mu holds at 25 degC.
+#: mu_per_kelvin = -1.2 %/K: mineral gear oil (ISO VG 220) loses 4-6 %/K of its viscosity near room
+#: temperature and the mesh mu follows it weakly (here about a quarter as fast), i.e. mu x1.54 at -20 degC
+#: (a cold start: worm gearboxes are markedly less efficient cold) and x0.46 at 70 degC (efficiency ~0.70
+#: -> ~0.80 hot).  That is at the strong end of plausible, and it has to be: at this rig's 0.0215 A noise,
+#: halving needs >= 0.037 A RMS of effect, i.e. a relative mu change of >= ~0.35 RMS even at low speed and
+#: full load (d current / d(relative mu) = 0.11-0.15 A there); a milder law is still named (its slope is
+#: identified to ~1 %) but cannot halve the error.  Within a 4 s run the oil relaxes towards the lab's 25 degC
+#: by < 0.3 K (thermal time constant 900 s, the simulator's default), which the sensor sees.
+OIL = Case({"mu_per_kelvin": -0.012}, "slow_full_load", MU_FREE, runs=12, oil_start=(-20.0, 25.0, 70.0))
+
 CASES = {
     "bearing_coulomb": Case({"worm_torque": 5e-3, "gear_torque": 0.02}),
     "viscous_drag": Case({"worm_torque": 5e-3}),
     "speed_dependent_mu": Case({"low_speed_gain": 2.0}, "low_speed", MU_FREE),  # only low speeds show it
     "load_dependent_mu": Case({"sensitivity": 2.0}, "wide_load", MU_FREE),  # mu is ~0.04 at speed: a strong trend
-    # a drift over seconds instead of minutes, long runs at high load; its footprint is ~1-2 % of the load
-    # current on this rig, so it is named but the error is not halved (see the module docstring)
-    "oil_temperature": Case({"time_constant": 4.0, "thermal_resistance": 40.0, "mu_per_kelvin": -0.035},
-                            "long_high_load", MU_FREE, runs=6, seconds=12.0, max_ratio=0.8),
+    "oil_temperature": OIL,
     "worm_runout": Case({"amplitude": 8e-3, "load_fraction": 0.05}),
     # a ripple larger than the load would flip the flank at tooth-pass rate (a rectified drag), so a
     # load-proportional (mesh stiffness) ripple, at speeds where the rotor inertia passes most of it
     "tooth_pass": Case({"amplitude": 0.0, "load_fraction": 0.8}, "slow_high_load"),
     "gear_runout": Case({"amplitude": 0.1}),
     "motor_cogging": Case({"amplitude": 0.03, "order": 6}),  # the rotor inertia filters higher orders
+    # the simulator's default clearance, 15 arcmin at the gear shaft (catalogue value for small worm gearboxes)
+    "backlash": Case({}, "flank", signal="transmission_error"),
     "sensor_gain": Case({"drive_current": 0.3}, "high_load"),
     "sensor_offset": Case({}),
     "inertia_error": Case({"worm": 1.0}),
@@ -95,26 +127,54 @@ CASES = {
 
 
 def simulate(effects: dict | None, profile: str = "standard", n: int = 10, seconds: float = 4.0,
-             seed: int = 1) -> MeasuredData:
-    """n runs of `seconds` each (1 s gaps between them in t), sampled like the rig at 1 kHz."""
+             seed: int = 1, oil_start: tuple[float, ...] = ()) -> MeasuredData:
+    """n runs of `seconds` each (1 s gaps between them in t), sampled like the rig at 1 kHz.
+
+    oil_start: oil temperatures [degC] at the start, cycled over the rigs; then the oil temperature
+    is recorded in the ``temperature`` column through OIL_SENSOR.
+    """
     p = PROFILES[profile]
     rng = np.random.default_rng(seed)
     sim = SimulatedRig(RIG, n=n, seed=seed, effects=effects)
+    if oil_start:
+        oil = next(e for e in sim.plant.fx.effects if e.name == "oil_temperature")
+        oil.temperature = np.resize(np.asarray(oil_start, dtype=float), n)  # each rig's conditioned start
     steps = int(round(seconds * RIG.sensors.sample_rate_hz))
     dt = 1.0 / RIG.sensors.sample_rate_hz
     v0 = rng.permutation(np.linspace(*p["volts"], n)) * np.where(np.arange(n) % 2, 1.0, -1.0)
     v1, f1 = rng.uniform(0.1, 0.3, n) * np.abs(v0), rng.uniform(0.5, 3.0, n)
     l0, l1, f2 = rng.uniform(*p["load"], n), rng.uniform(*p["swing"], n), rng.uniform(0.2, 1.0, n)
+    reverse = (np.arange(n) % 3 == 1) if p.get("reverse") else np.zeros(n, dtype=bool)
+    if p.get("square"):  # steps of the load through zero, 0.7-1.5 Hz, and a steady drive
+        v1, f2 = np.zeros(n), rng.uniform(0.7, 1.5, n)
+    l0, l1 = np.where(reverse, rng.uniform(-0.005, 0.005, n), l0), np.where(reverse, 0.0, l1)
+    f_rev = rng.uniform(0.25, 0.5, n)
+    wave = np.sign if p.get("square") else (lambda x: x)
     keys = ("current_drive", "omega_worm", "theta_worm", "theta_gear", "tau_load", "voltage_drive")
     rec = {k: np.empty((steps, n)) for k in keys}
+    oil_temperature = np.empty((steps, n))
     for k in range(steps):
         t = k * dt
-        sim.command(voltage_drive=v0 + v1 * np.sin(2 * np.pi * f1 * t), load_torque=l0 + l1 * np.sin(2 * np.pi * f2 * t))
+        volts = v0 + v1 * np.sin(2 * np.pi * f1 * t)
+        sim.command(voltage_drive=np.where(reverse, v0 * np.sin(2 * np.pi * f_rev * t + 0.3), volts),
+                    load_torque=l0 + l1 * wave(np.sin(2 * np.pi * f2 * t)))
         m = sim.sample()
         for key in keys:
             rec[key][k] = getattr(m, key)
+        if oil_start:
+            oil_temperature[k] = sim.plant.fx.observe()["oil_temperature"]
     t = np.concatenate([np.arange(steps) * dt + j * (seconds + 1.0) for j in range(n)])
-    return MeasuredData(t=t, **{k: v.T.ravel() for k, v in rec.items()}, source=f"sim:{profile}")
+    extra = {}
+    if oil_start:
+        lsb, noise = OIL_SENSOR
+        measured = np.round((oil_temperature + rng.normal(0.0, noise, oil_temperature.shape)) / lsb) * lsb
+        extra["temperature"] = measured.T.ravel()
+    return MeasuredData(t=t, **{k: v.T.ravel() for k, v in rec.items()}, **extra, source=f"sim:{profile}")
+
+
+def simulate_case(name: str) -> MeasuredData:
+    case = CASES[name]
+    return simulate({name: case.params}, case.profile, n=case.runs, seconds=case.seconds, oil_start=case.oil_start)
 
 
 def analyse(data: MeasuredData, free=tuple(FREE)) -> an.Analysis:
@@ -125,36 +185,89 @@ def analyse(data: MeasuredData, free=tuple(FREE)) -> an.Analysis:
 
 
 def _show(name: str, result: an.Analysis) -> str:
+    te = "" if result.final.te is None else (f"; transmission error {result.declared.te.rms_held_out * 1e3:.4f} -> "
+                                             f"{result.final.te.rms_held_out * 1e3:.4f} mrad")
     return (f"{name}: found {result.found}, held-out RMS {result.declared.rms_held_out:.4f} -> "
-            f"{result.final.rms_held_out:.4f} A")
+            f"{result.final.rms_held_out:.4f} A{te}")
 
 
 @pytest.mark.parametrize("name", list(CASES))
-def test_undeclared_effect_is_named_and_cuts_the_held_out_error(name: str) -> None:
+def test_undeclared_effect_is_named_and_cuts_the_held_out_error(name: str, tmp_path: Path) -> None:
     case = CASES[name]
-    data = simulate({name: case.params}, case.profile, n=case.runs, seconds=case.seconds)
+    data = simulate_case(name)
     result = analyse(data, case.free)
     print(_show(name, result))
     assert result.found == [name], _show(name, result)
-    assert result.final.rms_held_out <= case.max_ratio * result.declared.rms_held_out, _show(name, result)
-    if case.free != tuple(FREE) and name != "oil_temperature":
+    before, after = result.declared.rms(case.signal), result.final.rms(case.signal)
+    assert after <= 0.5 * before, _show(name, result)
+    if case.free != tuple(FREE):
         with_scale = analyse(data, FREE)  # a free mu scale takes part of it, but the name stays
         assert with_scale.found == [name], _show(name + " (friction.scale free)", with_scale)
+    effect = result.final.effects[0]
+    # the identified effect, written as the extended model, is one the simulator accepts
+    model = ExtendedModel(result.final.rig, [(e.effect, e.values, e.grid) for e in result.final.effects])
+    params = tmp_path / "extended.yaml"
+    write_parameter_file(params, default_rig_path(), model, list(case.free), result.final.free_ci, "test")
+    assert SimulatedRig(load_rig(params), n=1, effects=yaml.safe_load(params.read_text())["effects"]).effects.names \
+        == (name,)
+    if name == "backlash":
+        # the gap, from the transmission error; the current is neither helped nor harmed
+        true_gap = math.radians(15.0 / 60.0)
+        print(f"backlash: gap {effect.values['angle'] * 1e3:.4f} +- {effect.ci['angle'] * 1e3:.4f} mrad "
+              f"(true {true_gap * 1e3:.4f} mrad)")
+        assert effect.values["angle"] == pytest.approx(true_gap, rel=0.03)
+        assert result.final.rms_held_out <= 1.02 * result.declared.rms_held_out
+    if name == "oil_temperature":
+        slope = effect.values["mu_per_kelvin"]
+        print(f"oil_temperature: mu_per_kelvin {slope:.5f} +- {effect.ci['mu_per_kelvin']:.5f} /K (true -0.012)")
+        assert effect.grid["time_constant"] == 0.0  # the measured temperature was used
+        assert slope == pytest.approx(case.params["mu_per_kelvin"], rel=0.05)
 
 
-def test_sensor_noise_alone_yields_no_effect() -> None:
-    for seed in (1, 2):
-        result = analyse(simulate(None, seed=seed))
-        assert result.found == [], _show("noise", result)
-        # the declared model is the simulator's: what is left is the current channel's noise
-        assert result.declared.rms_held_out == pytest.approx(0.0215, rel=0.1)
+@pytest.fixture(scope="module")
+def noise_standard() -> MeasuredData:
+    return simulate(None, seed=1)
 
 
-def test_two_effects_at_once_are_both_found() -> None:
-    result = analyse(simulate({"sensor_offset": {}, "gear_runout": {"amplitude": 0.1}}))
-    assert sorted(result.found) == ["gear_runout", "sensor_offset"], _show("two", result)
-    offset = next(e for e in result.final.effects if e.name == "sensor_offset")
-    assert offset.values["drive_current"] == pytest.approx(0.05, abs=max(3 * offset.ci["drive_current"], 2e-3))
+@pytest.fixture(scope="module")
+def noise_flank() -> MeasuredData:
+    return simulate(None, "flank", seed=2)
+
+
+def test_sensor_noise_alone_yields_no_effect(noise_standard: MeasuredData) -> None:
+    result = analyse(noise_standard)
+    assert result.found == [], _show("noise", result)
+    # the declared model is the simulator's: what is left is the current channel's noise
+    assert result.declared.rms_held_out == pytest.approx(0.0215, rel=0.1)
+
+
+def test_flank_changes_without_backlash_yield_no_effect(noise_flank: MeasuredData) -> None:
+    """Load steps through zero and reversals, rigid mesh: the model's own transients at the steps
+    must not pass for backlash (or anything else)."""
+    result = analyse(noise_flank)
+    assert result.found == [], _show("flank, no backlash", result)
+    backlash = next(c for c in result.rounds[0].candidates if c.name == "backlash")
+    assert not backlash.note and not backlash.significant  # it was screened, and rejected
+    # a rigid mesh leaves only the gear encoder's quantisation (2000 counts/turn: 2 pi/2000/sqrt(12))
+    assert result.declared.te.rms_held_out == pytest.approx(2 * math.pi / 2000 / math.sqrt(12), rel=0.05)
+
+
+@pytest.fixture(scope="module")
+def two_effects() -> MeasuredData:
+    """Motor cogging (order 6, 0.02 N m) and the bearings' Coulomb drag at the simulator's defaults."""
+    return simulate({"motor_cogging": {"amplitude": 0.02, "order": 6}, "bearing_coulomb": {}})
+
+
+def test_two_effects_at_once_are_both_found(two_effects: MeasuredData) -> None:
+    result = analyse(two_effects)
+    assert sorted(result.found) == ["bearing_coulomb", "motor_cogging"], _show("two", result)
+    assert result.final.rms_held_out <= 0.5 * result.declared.rms_held_out
+    fitted = {e.name: e.effect.simulator_entry(e.values, e.grid) for e in result.final.effects}
+    assert fitted["motor_cogging"]["order"] == 6
+    assert fitted["motor_cogging"]["amplitude"] == pytest.approx(0.02, rel=0.1)
+    # the worm's drag is 3 mN m; the gear's 15 mN m reaches the current through the mesh ((r_w/r_g) K_s ~ 1/20)
+    assert fitted["bearing_coulomb"]["worm_torque"] == pytest.approx(3e-3, abs=1e-3)
+    assert fitted["bearing_coulomb"]["gear_torque"] == pytest.approx(15e-3, abs=6e-3)
 
 
 # --------------------------------------------------------------------------- the executable, end to end
@@ -165,9 +278,9 @@ def _residuals(*args: str) -> subprocess.CompletedProcess[str]:
 
 
 @pytest.fixture(scope="module")
-def cogging_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
+def cogging_csv(tmp_path_factory: pytest.TempPathFactory, two_effects: MeasuredData) -> Path:
     path = tmp_path_factory.mktemp("residuals") / "cogging.csv"
-    write_csv(path, simulate({"motor_cogging": {"amplitude": 0.02, "order": 6}, "bearing_coulomb": {}}))
+    write_csv(path, two_effects)
     return path
 
 
@@ -186,10 +299,16 @@ def test_cli_writes_report_parameter_file_and_plots(cogging_csv: Path, tmp_path:
     assert last == (f"found: {','.join(report['effects_found'])} rms_before={report['rms_before']:.6g} "
                     f"rms_after={report['rms_after']:.6g} A")
     assert report["tau_d_rms_after"] < report["tau_d_rms_before"]
+    # the CSV has theta_gear: the transmission error is fitted too, and stays at the encoder's quantisation
+    assert report["signals"]["current_drive"]["rms_after"] == report["rms_after"]
+    te = report["signals"]["transmission_error"]
+    assert te["unit"] == "rad" and te["rms_after"] == pytest.approx(te["rms_before"], rel=0.02)
+    assert "held-out RMS error of the transmission error" in run.stdout
     cogging = next(e for e in report["effects"] if e["name"] == "motor_cogging")
     assert cogging["grid_parameters"]["order"]["value"] == 6
     assert cogging["simulator_entry"]["amplitude"] == pytest.approx(0.02, rel=0.1)
-    for png in ("before_after.png", "spectrum.png", "effect_motor_cogging.png", "effect_bearing_coulomb.png"):
+    for png in ("before_after.png", "transmission_error.png", "spectrum.png", "effect_motor_cogging.png",
+                "effect_bearing_coulomb.png"):
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
     # the extended model: a rig file model_node loads, with effects the simulator loads
@@ -211,7 +330,8 @@ def test_cli_reads_a_bag(cogging_csv: Path, tmp_path: Path) -> None:
     rig_csv = pytest.importorskip("worm_rig_driver.rig_csv")
     bag = tmp_path / "bag"
     rig_csv.trace_to_bag(rig_csv.read_rig_csv(cogging_csv), bag)
-    run = _residuals(str(bag), "--out", str(tmp_path / "out"), "--free", ",".join(FREE), "--no-plots")
+    run = _residuals(str(bag), "--out", str(tmp_path / "out"), "--free", ",".join(FREE), "--no-plots",
+                     "--candidates", "motor_cogging,bearing_coulomb,backlash")
     assert run.returncode == 0, run.stderr
     assert run.stdout.strip().splitlines()[-1].startswith("found: ")
     assert "motor_cogging" in json.loads((tmp_path / "out" / "report.json").read_text())["effects_found"]

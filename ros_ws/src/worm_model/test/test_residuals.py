@@ -21,7 +21,7 @@ from worm_model.parameters import ParameterError, default_rig_path, load_rig
 from worm_model.residuals import analysis as an
 from worm_model.residuals import cli
 from worm_model.residuals.data import DataError, MeasuredData, read_csv, split_runs, write_csv
-from worm_model.residuals.effects import EFFECTS, channels_of
+from worm_model.residuals.effects import EFFECTS, Backlash, channels_of, gap_crossing
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
 from worm_model.residuals.free import read_free
 from worm_model.residuals.model import Signals, evaluate, prepare_signals, ripple_response
@@ -29,8 +29,12 @@ from worm_model.residuals.model import Signals, evaluate, prepare_signals, rippl
 RIG = load_rig()
 
 
-def synthetic(effects=(), seconds: float = 40.0, noise: float = 0.02, seed: int = 0) -> MeasuredData:
-    """Samples of the declared model (+ effects) along a smooth speed/load profile, 1 kHz, 4 runs."""
+def synthetic(effects=(), seconds: float = 40.0, noise: float = 0.02, seed: int = 0,
+              temperatures: tuple[float, ...] | None = None) -> MeasuredData:
+    """Samples of the declared model (+ effects) along a smooth speed/load profile, 1 kHz, 4 runs.
+
+    temperatures: oil temperature [degC] of each run, then recorded in the ``temperature`` column.
+    """
     rng = np.random.default_rng(seed)
     runs = []
     per_run = seconds / 4
@@ -42,16 +46,19 @@ def synthetic(effects=(), seconds: float = 40.0, noise: float = 0.02, seed: int 
         tau = 0.05 + 0.15 * np.sin(2 * np.pi * 0.23 * t + 2 * r)
         runs.append((t + r * (per_run + 1.0), omega, alpha, theta, tau))
     t, omega, alpha, theta, tau = (np.concatenate(x) for x in zip(*runs))
+    run = split_runs(t)
+    temperature = None if temperatures is None else np.asarray(temperatures, dtype=float)[run]
     sig = Signals(t=t, omega=omega, alpha=alpha, theta_worm=theta, theta_gear=RIG.gearbox.ratio * theta,
-                  tau_load=tau, run=split_runs(t))
+                  tau_load=tau, run=run, temperature=temperature)
     current = evaluate(RIG, sig, channels_of(list(effects), RIG, sig)).current
     current = current + rng.normal(0.0, noise, len(t))
-    return MeasuredData(t=t, current_drive=current, omega_worm=omega, theta_worm=theta, tau_load=tau)
+    return MeasuredData(t=t, current_drive=current, omega_worm=omega, theta_worm=theta, tau_load=tau,
+                        temperature=temperature)
 
 
 def problem_of(data: MeasuredData, free=("friction.scale",), **settings) -> an.Problem:
     s = an.Settings(**settings)
-    sig = prepare_signals(RIG, data, s.alpha_time_constant)
+    sig = prepare_signals(RIG, data, s.alpha_time_constant, s.reference_temperature)
     return an.Problem(RIG, list(free), sig, data.current_drive, an.make_split(sig, s), s)
 
 
@@ -196,6 +203,80 @@ def test_noise_only_finds_nothing_and_a_synthetic_effect_is_found() -> None:
     offset = found.final.effects[0]
     assert offset.values["drive_current"] == pytest.approx(0.06, abs=3 * offset.ci["drive_current"] + 1e-3)
     assert found.final.rms_held_out < 0.5 * found.declared.rms_held_out
+    # no gear encoder in these data: backlash is not screened, and the report says why
+    backlash = next(c for c in none.rounds[0].candidates if c.name == "backlash")
+    assert "theta_gear" in backlash.note and none.final.te is None
+
+
+# --------------------------------------------------------------------------- backlash: the transmission error
+def test_gap_crossing_rests_on_a_flank_crosses_in_the_free_flight_time_and_ignores_a_brief_pull() -> None:
+    t = np.arange(100) * 1e-3
+    run = np.zeros(len(t), dtype=int)
+    gap, a = 4e-3, 100.0  # [rad], [rad/s^2]
+    drive = np.where(np.arange(100) < 20, a, -a)  # samples of a force that turns at t = 19.5 ms
+    p = gap_crossing(t, drive, run, gap)
+    assert np.all(p[:20] == gap / 2)  # resting on the flank the force presses
+    # drive linear between samples: from 0 at 19.5 ms to -a at 20 ms, then -a: p falls from gap/2
+    ramp = 0.5e-3
+    p20, v20 = gap / 2 - a * ramp**2 / 6, -a * ramp / 2
+    s = t - t[20]
+    expected = p20 + v20 * s - 0.5 * a * s**2
+    flying = (s >= 0) & (expected > -gap / 2)
+    np.testing.assert_allclose(p[flying], expected[flying], rtol=1e-9, atol=1e-12)
+    assert np.all(p[~flying & (s > 0)] == -gap / 2)  # then resting on the other flank
+    assert 7 <= flying.sum() <= 10  # the free-flight time sqrt(2 gap / a) = 8.9 ms
+    # a pull of 2 samples (noise on the load near the switching torque) moves p a little and it comes back
+    blip = np.where((np.arange(100) >= 21) & (np.arange(100) <= 22), -a, a)
+    q = gap_crossing(t, blip, run, gap)
+    assert q.min() > 0.0 and q.min() < gap / 2 and q[-1] == gap / 2
+
+
+def test_backlash_is_identified_from_the_transmission_error_and_held_out_te_never_fits() -> None:
+    """theta_gear = ratio theta_worm - (mesh position in a 15 arcmin gap) + an encoder offset per run,
+    quantised to the gear encoder's 2000 counts/turn: the tool names backlash, gets the gap, halves the
+    transmission error's held-out RMS; garbage in the held-out theta_gear changes nothing fitted."""
+    data = synthetic(seed=3)
+    sig = prepare_signals(RIG, data)
+    gap = math.radians(15.0 / 60.0)
+    p = gap_crossing(sig.t, Backlash().mesh_drive(RIG, evaluate(RIG, sig)), sig.run, gap)
+    lsb = 2 * math.pi / 2000
+    theta_gear = np.floor((RIG.gearbox.ratio * data.theta_worm - p + 0.7e-3 * sig.run) / lsb) * lsb
+    data = dataclasses.replace(data, theta_gear=theta_gear)
+    clean = problem_of(data)
+    result = an.analyse(clean)
+    assert result.found == ["backlash"]
+    fitted = result.final.effects[0]
+    assert fitted.values["angle"] == pytest.approx(gap, abs=max(3 * fitted.ci["angle"], 0.02 * gap))
+    assert result.final.te.rms_held_out < 0.5 * result.declared.te.rms_held_out
+    assert result.final.rms_held_out == pytest.approx(result.declared.rms_held_out, rel=1e-6)  # current untouched
+
+    spoiled = dataclasses.replace(data, theta_gear=theta_gear.copy())
+    held = clean.split.held_out
+    spoiled.theta_gear[held] += np.random.default_rng(4).normal(0.0, 0.1, int(held.sum()))
+    dirty = problem_of(spoiled)
+    specs = [(EFFECTS["backlash"], fitted.grid)]
+    a, b = an.fit(clean, specs), an.fit(dirty, specs)
+    assert a.effects[0].values == b.effects[0].values and a.te.offsets == b.te.offsets
+    assert b.te.rms_held_out > 10 * a.te.rms_held_out
+
+
+# --------------------------------------------------------------------------- oil temperature, measured
+def test_measured_oil_temperature_scales_mu_about_the_reference_temperature() -> None:
+    effect = EFFECTS["oil_temperature"]
+    grid = {"time_constant": 0.0, "reference_temperature": 25.0}
+    data = synthetic([(effect, {"mu_per_kelvin": -0.02}, grid)], temperatures=(-20.0, 25.0, 70.0, 0.0), seed=5)
+    result = an.analyse(problem_of(data, free=()))
+    assert result.found == ["oil_temperature"]
+    fitted = result.final.effects[0]
+    assert fitted.grid["time_constant"] == 0.0
+    assert fitted.values["mu_per_kelvin"] == pytest.approx(-0.02, abs=3 * fitted.ci["mu_per_kelvin"] + 1e-4)
+    # the simulator's entry: mu holds at the reference, and a valid (positive) thermal time constant
+    entry = effect.simulator_entry(fitted.values, fitted.grid)
+    assert entry["ambient"] == 25.0 and entry["time_constant"] > 0.0
+    # told a wrong reference, the model is off by a constant relative mu (absorbed by a free mu scale)
+    shifted = an.analyse(problem_of(data, free=("friction.scale",), reference_temperature=35.0))
+    assert shifted.found == ["oil_temperature"]
+    assert shifted.final.free_values["friction.scale"] == pytest.approx(1.0 - 0.02 * 10.0, rel=0.05)
 
 
 # --------------------------------------------------------------------------- free list and the extended model

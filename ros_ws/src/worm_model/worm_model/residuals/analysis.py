@@ -1,6 +1,12 @@
 """Close the loop on measured data: fit, residual, rank candidate effects, add the significant ones.
 
-The fitted signal is the drive current [A].  Procedure (issue 7, physics.md section 9):
+The fitted signal is the drive current [A]; with a gear encoder in the data, also the
+transmission error ratio theta_worm - theta_gear [rad at the gear] (declared model: a
+constant per run, the encoders' zeros; effects with ``fitted_signal = "transmission_error"``,
+i.e. backlash, add to it).  The two are fitted separately (the transmission-error terms
+are linear and do not enter the current; they see the current model through its mesh
+force) and scored each in its own unit; the BIC of a fit is the sum of both signals'.
+Procedure (issue 7, physics.md section 9):
 
 1. Split the samples into interleaved time blocks: a fraction is *held out* and never
    enters a fit (:func:`make_split`); a guard interval at every block edge belongs to
@@ -9,9 +15,10 @@ The fitted signal is the drive current [A].  Procedure (issue 7, physics.md sect
 3. Rank every candidate effect by the held-out RMS error left after adding it
    (:func:`screen`: a Gauss-Newton step from the current fit with the effect's
    regressors and the model's own Jacobian, its grid parameters chosen on training data).
-4. Take the best candidate whose full refit lowers the held-out RMS by at least
-   ``min_improvement`` (relative) *and* lowers the BIC on the training samples; repeat
-   while one is left; finally drop any effect the others made redundant.
+4. Take the best candidate (largest relative held-out improvement of its own signal) whose
+   full refit lowers that signal's held-out RMS by at least ``min_improvement`` (relative),
+   does not raise the other signal's by as much, *and* lowers the BIC on the training
+   samples; repeat while one is left; finally drop any effect the others made redundant.
 
 BIC and confidence intervals use an effective sample size n_eff = n (1 - rho)/(1 + rho),
 rho the lag-1 autocorrelation of the training residual (AR(1) approximation), because
@@ -34,7 +41,7 @@ from worm_model.units import FloatArray
 
 from .effects import EFFECTS, Effect, Shapes, channels_of, mask_shapes, regressors
 from .free import get_value, set_values
-from .model import ALPHA_TIME_CONSTANT, ModelState, Signals, evaluate, sensitivities
+from .model import ALPHA_TIME_CONSTANT, REFERENCE_TEMPERATURE, ModelState, Signals, evaluate, sensitivities
 
 
 @dataclass(frozen=True)
@@ -48,6 +55,7 @@ class Settings:
     min_improvement: float = 0.02  # relative held-out RMS improvement an effect must bring
     max_effects: int = 6
     alpha_time_constant: float = ALPHA_TIME_CONSTANT  # [s]
+    reference_temperature: float = REFERENCE_TEMPERATURE  # [degC] oil temperature at which the declared mu holds
     confidence: float = 0.95
     candidates: tuple[str, ...] = tuple(EFFECTS)
 
@@ -111,8 +119,23 @@ class EffectFit:
 
 
 @dataclass
+class TeFit:
+    """The transmission-error part of a fit [rad at the gear]: per-run offsets plus position effects."""
+
+    offsets: dict[int, float]  # run -> encoder offset [rad]
+    prediction: FloatArray
+    residual: FloatArray  # measured - model [rad], NaN where not measured
+    rms_train: float
+    rms_held_out: float
+    rss_train: float
+    n_train: int
+    n_eff: float
+    n_params: int
+
+
+@dataclass
 class Fit:
-    """A fitted model (declared + effects) and its errors."""
+    """A fitted model (declared + effects) and its errors (current; transmission error in ``te``)."""
 
     rig: Rig
     free: list[str]
@@ -126,11 +149,21 @@ class Fit:
     rss_train: float
     n_train: int
     n_eff: float
-    n_params: int
+    n_params: int  # of the current model (free parameters, current effects' parameters and grids)
+    te: TeFit | None = None
 
     @property
     def bic(self) -> float:
-        return bic(self.rss_train, self.n_train, self.n_eff, self.n_params)
+        total = bic(self.rss_train, self.n_train, self.n_eff, self.n_params)
+        if self.te is not None:
+            total += bic(self.te.rss_train, self.te.n_train, self.te.n_eff, self.te.n_params)
+        return total
+
+    def rms(self, signal: str) -> float:
+        """Held-out RMS of one fitted signal (its own unit)."""
+        if signal == "current_drive":
+            return self.rms_held_out
+        return self.te.rms_held_out if self.te is not None else math.nan
 
     @property
     def names(self) -> list[str]:
@@ -170,6 +203,16 @@ class Problem:
         self.split = split
         self.settings = settings
         self._shapes: dict[tuple, Shapes] = {}
+        te = signals.transmission_error
+        self.te = None if te is None else np.asarray(te, dtype=float)
+        measured = np.zeros(len(signals), dtype=bool) if te is None else np.isfinite(self.te)
+        self.te_train = split.train & measured
+        self.te_held_out = split.held_out & measured
+
+    @property
+    def has_te(self) -> bool:
+        """The data has a gear encoder and enough transmission-error samples in both sets."""
+        return self.te is not None and self.te_train.sum() >= 10 and self.te_held_out.sum() >= 10
 
     def shapes(self, effect: Effect, rig: Rig, grid: Mapping[str, float]) -> Shapes:
         """(n, p) shapes on every sample; cached unless they depend on the fitted rig (thermal proxy)."""
@@ -227,9 +270,96 @@ class Problem:
         return np.asarray(theta, dtype=float)
 
 
+def _by_signal(specs, signal: str) -> list:
+    return [(e, g) for e, g in specs if e.fitted_signal == signal]
+
+
+def _grid_count(problem: Problem, specs) -> int:
+    return sum(1 for e, _g in specs for _ in e.grid_parameters if len(e.grid(problem.rig0, problem.signals)) > 1)
+
+
+@dataclass
+class _TeSolution:
+    coef: FloatArray  # effect coefficients
+    cov: FloatArray  # their covariance (least squares, not yet inflated)
+    offsets: dict[int, float]
+    prediction: FloatArray
+    residual: FloatArray
+    rss: float
+
+
+def te_solve(problem: Problem, columns: FloatArray) -> _TeSolution:
+    """Least squares of the transmission error on per-run offsets plus ``columns`` (n, p), training samples.
+
+    The offsets are taken out by demeaning each run (Frisch-Waugh); a run without training
+    samples gets the median offset of the others.
+    """
+    te, train, run = problem.te, problem.te_train, problem.signals.run
+    y = np.where(np.isfinite(te), te, 0.0)
+    X = np.asarray(columns, dtype=float).reshape(len(y), -1)
+    runs, index = np.unique(run, return_inverse=True)
+    count = np.bincount(index[train], minlength=len(runs)).astype(float)
+    fitted = count > 0
+    safe = np.maximum(count, 1.0)
+
+    def run_means(v: FloatArray) -> FloatArray:  # (len(runs),) mean of v over each run's training samples
+        return np.bincount(index[train], weights=v[train], minlength=len(runs)) / safe
+
+    yc = y[train] - run_means(y)[index[train]]
+    Xc = np.column_stack([X[train, j] - run_means(X[:, j])[index[train]] for j in range(X.shape[1])]) \
+        if X.shape[1] else np.zeros((int(train.sum()), 0))
+    if X.shape[1]:
+        coef, *_ = np.linalg.lstsq(Xc, yc, rcond=None)
+        cov = np.linalg.pinv(Xc.T @ Xc)
+    else:
+        coef, cov = np.zeros(0), np.zeros((0, 0))
+    part = X @ coef
+    offset = run_means(y - part)
+    if fitted.any():
+        offset[~fitted] = float(np.median(offset[fitted]))
+    prediction = offset[index] + part
+    residual = np.where(np.isfinite(te), te - prediction, np.nan)
+    return _TeSolution(coef, cov, {int(r): float(o) for r, o in zip(runs, offset)}, prediction, residual,
+                       float(np.sum(residual[train] ** 2)))
+
+
+def te_columns(problem: Problem, specs, rig: Rig, state: ModelState) -> FloatArray:
+    """Columns of the transmission-error effects in ``specs`` at the model state, (n, p)."""
+    cols = [e.te_columns(rig, problem.signals, state, g) for e, g in specs]
+    return np.column_stack(cols) if cols else np.zeros((len(problem.signals), 0))
+
+
+def fit_te(problem: Problem, specs, rig: Rig, state: ModelState) -> tuple[TeFit, list[dict[str, float]],
+                                                                             list[dict[str, float]]]:
+    """The transmission-error part of a fit: (TeFit, values per TE effect, CI half-widths per TE effect)."""
+    sol = te_solve(problem, te_columns(problem, specs, rig, state))
+    train, held = problem.te_train, problem.te_held_out
+    n_train = int(train.sum())
+    n_eff = effective_samples(np.nan_to_num(sol.residual), train, problem.signals.run)
+    k = len(np.unique(problem.signals.run[train])) + len(sol.coef)
+    values, cis = [], []
+    if len(sol.coef):
+        var = sol.rss / max(n_train - k, 1) * np.diag(sol.cov) * (n_train / n_eff)
+        half = norm.ppf(0.5 + problem.settings.confidence / 2.0) * np.sqrt(np.clip(var, 0.0, None))
+    j = 0
+    for effect, _g in specs:
+        p = len(effect.parameters)
+        values.append({q.name: float(v) for q, v in zip(effect.parameters, sol.coef[j:j + p])})
+        cis.append({q.name: float(h) for q, h in zip(effect.parameters, half[j:j + p])})
+        j += p
+    te = TeFit(offsets=sol.offsets, prediction=sol.prediction, residual=sol.residual,
+               rms_train=_rms(sol.residual[train]), rms_held_out=_rms(sol.residual[held]), rss_train=sol.rss,
+               n_train=n_train, n_eff=n_eff, n_params=k + _grid_count(problem, specs))
+    return te, values, cis
+
+
 def fit(problem: Problem, specs: Sequence[tuple[Effect, dict[str, float]]], previous: Fit | None = None,
         guesses: Mapping[str, Mapping[str, float]] | None = None) -> Fit:
     """Least-squares fit of the free parameters and the effects' parameters on the training samples.
+
+    The current model (free parameters, current effects) by Levenberg-Marquardt; then, with a
+    gear encoder, the transmission error (offsets, position effects) linearly at the fitted
+    model's state.
 
     Args:
         specs: [(effect, grid values), ...] to include.
@@ -237,82 +367,125 @@ def fit(problem: Problem, specs: Sequence[tuple[Effect, dict[str, float]]], prev
         guesses: start values per effect name (e.g. from :func:`screen`).
     """
     train, held = problem.split.train, problem.split.held_out
+    cur = _by_signal(specs, "current_drive")
     y = problem.current[train]
-    shapes = [problem.shapes(e, problem.rig0, g) for e, g in specs]
-    theta = problem.theta0(previous, specs, guesses)
+    shapes = [problem.shapes(e, problem.rig0, g) for e, g in cur]
+    theta = problem.theta0(previous, cur, guesses)
     if len(theta):
         sub_shapes = [mask_shapes(s, train) for s in shapes]
         sig_train = problem.signals.subset(train)
         # shapes are passed already masked: predict on the training signals directly
         def residual(th: FloatArray) -> FloatArray:
-            rig, fitted = problem._unpack(th, specs)
+            rig, fitted = problem._unpack(th, cur)
             return y - evaluate(rig, sig_train, channels_of(fitted, rig, sig_train, sub_shapes)).current
 
         def jac(th: FloatArray) -> FloatArray:
-            return -problem.jacobian(th, specs, train, shapes)
+            return -problem.jacobian(th, cur, train, shapes)
 
         result = least_squares(residual, theta, jac=jac, method="lm", x_scale="jac", max_nfev=200)
         theta = result.x
-    state, rig, _, _ = problem.predict(theta, specs, None, shapes)
+    state, rig, _, _ = problem.predict(theta, cur, None, shapes)
     res = problem.current - state.current
     n_train = int(train.sum())
     rss = float(np.sum(res[train] ** 2))
     n_eff = effective_samples(res, train, problem.signals.run)
     # least-squares covariance, inflated for autocorrelation
     free_ci: dict[str, float] = {}
-    cis: list[dict[str, float]] = [{} for _ in specs]
+    cis: list[dict[str, float]] = [{} for _ in cur]
     if len(theta):
-        J = problem.jacobian(theta, specs, train, shapes)
+        J = problem.jacobian(theta, cur, train, shapes)
         dof = max(n_train - len(theta), 1)
         cov = rss / dof * np.linalg.pinv(J.T @ J) * (n_train / n_eff)
         half = norm.ppf(0.5 + problem.settings.confidence / 2.0) * np.sqrt(np.clip(np.diag(cov), 0.0, None))
         nf = len(problem.free)
         free_ci = dict(zip(problem.free, half[:nf].tolist()))
         k = nf
-        for idx, (effect, _g) in enumerate(specs):
+        for idx, (effect, _g) in enumerate(cur):
             p = len(effect.parameters)
             cis[idx] = {q.name: float(h) for q, h in zip(effect.parameters, half[k:k + p])}
             k += p
-    _, fitted = problem._unpack(theta, specs)
-    effects = [EffectFit(e, dict(g), v, cis[i]) for i, (e, v, g) in enumerate(fitted)]
-    n_grid = sum(1 for e, _g in specs for _ in e.grid_parameters if len(e.grid(problem.rig0, problem.signals)) > 1)
+    _, fitted = problem._unpack(theta, cur)
+    by_name = {e.name: EffectFit(e, dict(g), v, cis[i]) for i, (e, v, g) in enumerate(fitted)}
+    te = None
+    if problem.has_te:
+        te_specs = _by_signal(specs, "transmission_error")
+        te, te_values, te_cis = fit_te(problem, te_specs, rig, state)
+        for (e, g), v, c in zip(te_specs, te_values, te_cis):
+            by_name[e.name] = EffectFit(e, dict(g), v, c)
+    effects = [by_name[e.name] for e, _g in specs if e.name in by_name]
     return Fit(rig=rig, free=list(problem.free), free_values={p: get_value(rig, p) for p in problem.free},
                free_ci=free_ci, effects=effects, prediction=state.current, residual=res,
                rms_train=_rms(res[train]), rms_held_out=_rms(res[held]), rss_train=rss, n_train=n_train,
-               n_eff=n_eff, n_params=len(theta) + n_grid)
+               n_eff=n_eff, n_params=len(theta) + _grid_count(problem, cur), te=te)
 
 
 # --------------------------------------------------------------------------- screening
+#: the fitted signals and their units
+SIGNAL_UNITS = {"current_drive": "A", "transmission_error": "rad"}
+
+
 @dataclass
 class Candidate:
     """One candidate effect's score in one round (linearised from the current fit)."""
 
     name: str
     grid: dict[str, float]
-    rms_held_out: float  # [A] left after adding it
-    improvement: float  # relative held-out improvement over the current fit
+    rms_held_out: float  # held-out RMS of its signal left after adding it [unit of the signal]
+    improvement: float  # relative held-out improvement of its signal over the current fit
     delta_bic: float  # BIC(with) - BIC(without) on training data; < 0 favours the effect
     guess: dict[str, float]  # linear parameter estimates
     note: str = ""
     profile: list[tuple[float, float]] = field(default_factory=list)  # (grid value, training RSS)
+    signal: str = "current_drive"  # the signal it acts on
 
     @property
     def significant(self) -> bool:
         return self.delta_bic < 0.0 and self.improvement >= 0.0
 
+    @property
+    def unit(self) -> str:
+        return SIGNAL_UNITS[self.signal]
+
+
+def _screen_te(problem: Problem, current: Fit, effect: Effect, rig: Rig, state: ModelState) -> Candidate:
+    """A transmission-error candidate: linear least squares with the TE terms already in, per grid value."""
+    base = te_columns(problem, _by_signal([(e.effect, e.grid) for e in current.effects], "transmission_error"),
+                      rig, state)
+    train, held = problem.te_train, problem.te_held_out
+    best, profile = None, []
+    for grid in effect.grid(rig, problem.signals):
+        cols = effect.te_columns(rig, problem.signals, state, grid)
+        sol = te_solve(problem, np.hstack([base, cols]))
+        profile.append((grid, sol.rss))
+        if best is None or sol.rss < best[1].rss:
+            best = (grid, sol)
+    grid, sol = best
+    te0 = current.te
+    n_eff = effective_samples(np.nan_to_num(sol.residual), train, problem.signals.run)
+    k_new = len(effect.parameters) + (len(effect.grid_parameters) if len(profile) > 1 else 0)
+    d_bic = bic(sol.rss, te0.n_train, n_eff, te0.n_params + k_new) - bic(te0.rss_train, te0.n_train, n_eff,
+                                                                         te0.n_params)
+    rms_ho = _rms(sol.residual[held])
+    coef = sol.coef[base.shape[1]:]
+    return Candidate(effect.name, dict(grid), rms_ho, 1.0 - rms_ho / te0.rms_held_out, d_bic,
+                     {p.name: float(c) for p, c in zip(effect.parameters, coef)},
+                     profile=[(next(iter(g.values()), math.nan), r) for g, r in profile], signal="transmission_error")
+
 
 def screen(problem: Problem, current: Fit, progress: Callable[[int], None] | None = None) -> list[Candidate]:
-    """Score every candidate effect not yet in ``current``; best (lowest held-out RMS) first.
+    """Score every candidate effect not yet in ``current``; largest relative improvement first.
 
-    Each candidate's columns are fitted together with the model's own Jacobian (free
+    A current candidate's columns are fitted together with the model's own Jacobian (free
     parameters and effects already in), i.e. one Gauss-Newton step from the current fit,
     on the training samples.  By Frisch-Waugh-Lovell the candidate's coefficients come
     from its columns projected off the Jacobian (one QR per round), so a candidate costs
-    a least-squares problem of its own few columns.
+    a least-squares problem of its own few columns.  A transmission-error candidate is
+    linear: fitted with the offsets and the TE terms already in.  Each is scored on its
+    own signal (relative held-out improvement, BIC change).
     """
     train, held = problem.split.train, problem.split.held_out
     use = train | held
-    specs = [(e.effect, e.grid) for e in current.effects]
+    specs = _by_signal([(e.effect, e.grid) for e in current.effects], "current_drive")
     theta = problem.theta0(current, specs)
     state, rig, _, _ = problem.predict(theta, specs)
     sens = sensitivities(rig, problem.signals, state)
@@ -331,9 +504,19 @@ def screen(problem: Problem, current: Fit, progress: Callable[[int], None] | Non
         effect = EFFECTS[name]
         if name in current.names:
             continue
+        te_effect = effect.fitted_signal == "transmission_error"
         why = effect.unavailable(rig, problem.signals)
+        if not why and te_effect and not problem.has_te:
+            why = "too few transmission-error samples (theta_gear) in the training or held-out set"
         if why:
-            out.append(Candidate(name, {}, current.rms_held_out, 0.0, math.inf, {}, note=why))
+            rms0 = current.rms(effect.fitted_signal)
+            out.append(Candidate(name, {}, rms0, 0.0, math.inf, {}, note=why, signal=effect.fitted_signal))
+            continue
+        if te_effect:
+            out.append(_screen_te(problem, current, effect, rig, state))
+            done += 1
+            if progress:
+                progress(done)
             continue
         best = None
         profile = []
@@ -366,7 +549,7 @@ def screen(problem: Problem, current: Fit, progress: Callable[[int], None] | Non
         done += 1
         if progress:
             progress(done)
-    return sorted(out, key=lambda c: c.rms_held_out)
+    return sorted(out, key=lambda c: -c.improvement)
 
 
 def grid_interval(candidate: Candidate, n_eff: float, n: int, confidence: float) -> tuple[float, float]:
@@ -389,6 +572,7 @@ class Round:
     accepted: str | None
     refit_rms_held_out: float | None = None
     baseline_rms_held_out: float = math.nan  # held-out RMS of the fit the round started from [A]
+    baseline_te_rms_held_out: float = math.nan  # the same for the transmission error [rad] (NaN: none)
 
 
 @dataclass
@@ -404,13 +588,30 @@ class Analysis:
         return self.final.names
 
 
-def accepts(before: Fit, after: Fit, settings: Settings) -> bool:
-    """Significant evidence: held-out RMS down by min_improvement AND a lower training BIC."""
-    n_eff = after.n_eff
-    d_bic = bic(after.rss_train, after.n_train, n_eff, after.n_params) - bic(
-        before.rss_train, before.n_train, n_eff, before.n_params)
-    return (before.rms_held_out - after.rms_held_out) >= settings.min_improvement * before.rms_held_out \
-        and d_bic < 0.0
+def delta_bic(before: Fit, after: Fit) -> float:
+    """BIC(after) - BIC(before) on the training samples, both signals, with after's effective sample sizes."""
+    d = bic(after.rss_train, after.n_train, after.n_eff, after.n_params) - bic(
+        before.rss_train, before.n_train, after.n_eff, before.n_params)
+    if after.te is not None and before.te is not None:
+        a, b = after.te, before.te
+        d += bic(a.rss_train, a.n_train, a.n_eff, a.n_params) - bic(b.rss_train, b.n_train, a.n_eff, b.n_params)
+    return d
+
+
+def accepts(before: Fit, after: Fit, settings: Settings, signal: str = "current_drive") -> bool:
+    """Significant evidence: the held-out RMS of ``signal`` down by min_improvement (relative), the other
+    signal's not up by as much, AND a lower training BIC."""
+    for name in SIGNAL_UNITS:
+        old, new = before.rms(name), after.rms(name)
+        if not (math.isfinite(old) and math.isfinite(new)):
+            if name == signal:
+                return False
+            continue
+        if name == signal and old - new < settings.min_improvement * old:
+            return False
+        if name != signal and new - old > settings.min_improvement * old:
+            return False
+    return delta_bic(before, after) < 0.0
 
 
 def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None = None) -> Analysis:
@@ -430,15 +631,17 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
             effect = EFFECTS[cand.name]
             specs = [(e.effect, e.grid) for e in current.effects] + [(effect, cand.grid)]
             trial = fit(problem, specs, current, {cand.name: cand.guess})
-            if accepts(current, trial, settings):
-                interval = grid_interval(cand, trial.n_eff, trial.n_train, settings.confidence)
+            if accepts(current, trial, settings, effect.fitted_signal):
+                n_eff = trial.te.n_eff if cand.signal == "transmission_error" else trial.n_eff
+                interval = grid_interval(cand, n_eff, trial.n_train, settings.confidence)
                 for g in effect.grid_parameters:
                     if len(cand.profile) > 1:
                         trial.effects[-1].grid_ci[g.name] = interval
                 accepted = (cand.name, trial)
                 break
         rounds.append(Round(ranking, accepted[0] if accepted else None,
-                            accepted[1].rms_held_out if accepted else None, current.rms_held_out))
+                            accepted[1].rms_held_out if accepted else None, current.rms_held_out,
+                            current.te.rms_held_out if current.te is not None else math.nan))
         if accepted is None:
             break
         grid_cis = {e.name: e.grid_ci for e in current.effects}
@@ -453,7 +656,7 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
         for e in list(current.effects):
             rest = [(x.effect, x.grid) for x in current.effects if x is not e]
             without = fit(problem, rest, current)
-            if not accepts(without, current, settings):
+            if not accepts(without, current, settings, e.effect.fitted_signal):
                 grid_cis = {x.name: x.grid_ci for x in current.effects}
                 current = without
                 for x in current.effects:

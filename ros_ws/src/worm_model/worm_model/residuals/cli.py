@@ -49,7 +49,9 @@ def build_parser() -> argparse.ArgumentParser:
         prog="residuals",
         description="Fit the declared gearbox + motor model to measured data, rank the effects the model lacks "
                     "(physics.md section 9) by the held-out residual each explains, add the significant ones and "
-                    "report the error before and after. The fitted signal is the drive current [A].",
+                    "report the error before and after. The fitted signal is the drive current [A]; with a "
+                    "theta_gear column also the transmission error ratio*theta_worm - theta_gear [rad], where "
+                    "backlash shows.",
         epilog="CSV schema: header row; required columns t [s], current_drive [A], omega_worm [rad/s], "
                "theta_worm [rad], tau_load [N m] (+ opposes + rotation); optional voltage_drive [V], "
                "theta_gear [rad], current_load [A], temperature [degC]. See README.md.",
@@ -79,6 +81,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--alpha-filter", type=float, default=ALPHA_TIME_CONSTANT,
                    help="time constant [s] of the zero-phase low-pass around the derivative of omega_worm "
                         "that gives the acceleration of the inertia term")
+    p.add_argument("--reference-temperature", type=float, default=d.reference_temperature,
+                   help="oil temperature [degC] at which the rig file's mu holds: the oil_temperature effect scales "
+                        "mu by 1 + mu_per_kelvin (T - this) when the data has a temperature column")
     p.add_argument("--confidence", type=float, default=d.confidence, help="level of the confidence intervals")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -95,7 +100,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("need --block > 0 and 0 <= --guard < block / 2")
     settings = Settings(holdout_fraction=args.holdout_fraction, block_seconds=args.block, guard_seconds=args.guard,
                         min_speed=args.min_speed, min_improvement=args.min_improvement, max_effects=args.max_effects,
-                        alpha_time_constant=args.alpha_filter, confidence=args.confidence, candidates=candidates)
+                        alpha_time_constant=args.alpha_filter, confidence=args.confidence, candidates=candidates,
+                        reference_temperature=args.reference_temperature)
     progress = Progress(enabled=not args.quiet)
     try:
         rig = load_rig(args.params)
@@ -108,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
         progress.close()
         print(f"residuals: {err}", file=sys.stderr)
         return 2
-    signals = prepare_signals(rig, data, settings.alpha_time_constant)
+    signals = prepare_signals(rig, data, settings.alpha_time_constant, settings.reference_temperature)
     split = make_split(signals, settings, np.isfinite(data.current_drive))
     for name, mask in (("training", split.train), ("held-out", split.held_out)):
         if mask.sum() < MIN_SAMPLES:
@@ -150,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
     params_out = out / "extended_rig.yaml"
     write_parameter_file(params_out, args.params or default_rig_path(), after, free, result.final.free_ci,
                          f"identified by residuals from {Path(data.source).name}",
-                         {"backlash": "angle identified on a grid (see report.json for the interval)"}
+                         {"backlash": "angle identified from the transmission error (theta_gear); see report.json"}
                          if "backlash" in after.names else None)
     files = {"data": data.source, "report": str(out / "report.json"), "parameters": str(params_out)}
     plots = []

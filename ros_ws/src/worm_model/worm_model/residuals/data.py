@@ -14,7 +14,9 @@ Required columns:
 
 Optional columns (empty cells allowed, read as NaN):
 ``voltage_drive`` [V], ``theta_gear`` [rad, unwrapped, + with + worm rotation],
-``current_load`` [A], ``temperature`` [degC, oil or housing].
+``current_load`` [A], ``temperature`` [degC, oil or housing].  With ``theta_gear`` the
+transmission error ratio * theta_worm - theta_gear is fitted too (backlash shows there);
+with ``temperature`` the oil-temperature effect uses it instead of a thermal model.
 
 Columns may come in any order; unknown columns are ignored (and listed in
 :attr:`MeasuredData.ignored_columns`).  A gap in ``t`` longer than

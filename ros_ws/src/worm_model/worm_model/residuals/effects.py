@@ -10,6 +10,11 @@ linear screening.  Parameters an effect is not linear in (a time constant, a har
 order, a Stribeck speed, a drag exponent) are *grid parameters*: the analysis tries
 every grid value with linear least squares inside.
 
+Most effects act on the drive current (``fitted_signal = "current_drive"``); one that shows
+in position (backlash) gives instead the *transmission error* ratio theta_worm - theta_gear
+[rad at the gear] per unit of its parameters (:meth:`Effect.te_columns`), fitted when the
+data has a gear encoder.
+
 Signs: fixed frame; the worm_torque and gear_torque channels are extra torques the drive
 has to overcome (+ opposes + rotation, as tau_load).  Angles: theta_worm, and theta_gear
 worm-referenced (+ with + worm rotation).
@@ -68,6 +73,7 @@ class Effect(Protocol):
 
     name: str  # one of the vocabulary of the issue (EFFECTS keys)
     family: str  # "periodic" (angle spectrum), "regression", "thermal" (first-order drift)
+    fitted_signal: str  # "current_drive" (channels, shapes) or "transmission_error" (te_columns)
     description: str
     parameters: tuple[Parameter, ...]
     grid_parameters: tuple[GridParameter, ...]
@@ -80,6 +86,10 @@ class Effect(Protocol):
 
     def shapes(self, rig: Rig, signals: Signals, grid: Mapping[str, float]) -> Shapes:
         """channel -> (n, len(parameters)): channel contribution per unit of each parameter."""
+
+    def te_columns(self, rig: Rig, signals: Signals, state: ModelState, grid: Mapping[str, float]) -> FloatArray:
+        """(n, len(parameters)) transmission error [rad] per unit of each parameter (fitted_signal
+        "transmission_error" only), at the model state ``state``."""
 
     def signature(self, rig: Rig, signals: Signals, grid: Mapping[str, float]) -> tuple[str, FloatArray]:
         """(axis label, per-sample values) to plot the residual against."""
@@ -111,6 +121,7 @@ class _Base:
 
     name: ClassVar[str]
     family: ClassVar[str] = "regression"
+    fitted_signal: ClassVar[str] = "current_drive"
     description: ClassVar[str] = ""
     parameters: ClassVar[tuple[Parameter, ...]] = ()
     grid_parameters: ClassVar[tuple[GridParameter, ...]] = ()
@@ -120,6 +131,9 @@ class _Base:
 
     def unavailable(self, rig: Rig, signals: Signals) -> str | None:
         return None
+
+    def te_columns(self, rig: Rig, signals: Signals, state: ModelState, grid: Mapping[str, float]) -> FloatArray:
+        raise NotImplementedError(f"{self.name} acts on the current, not on the transmission error")
 
     def signature(self, rig: Rig, signals: Signals, grid: Mapping[str, float]) -> tuple[str, FloatArray]:
         return "omega_worm [rad/s]", signals.omega
@@ -324,30 +338,52 @@ def mesh_heat(rig: Rig, signals: Signals, state: ModelState | None = None) -> Fl
 
 
 class OilTemperature(_Base):
-    """Simulator: C dT/dt = P - (T - T_amb)/R_th, mu *= 1 + mu_per_kelvin (T - T_amb), T(0) = T_amb."""
+    """Simulator: C dT/dt = P - (T - T_amb)/R_th, mu *= 1 + mu_per_kelvin (T - T_amb), T(0) = T_amb.
+
+    Two ways to the oil temperature rise dT over the reference (the temperature at which
+    the declared mu holds, Signals.reference_temperature):
+
+    * measured (a ``temperature`` column, e.g. a sump sensor): dT = T - T_ref, gaps in the
+      column interpolated in time; grid {time_constant: 0};
+    * not measured: the first-order model of the simulator, driven by the mesh friction
+      power the declared model computes, R_th P lagged by the time constant (searched on
+      a grid), starting at T_ref at every run.  Only the product mu_per_kelvin R_th is
+      identifiable: R_th is fixed at the simulator's default.
+    """
 
     name = "oil_temperature"
     family = "thermal"
-    description = ("oil warming with the mesh's friction power (first-order thermal model) and scaling mu: "
-                   "mu *= 1 + mu_per_kelvin dT")
+    description = ("oil temperature (measured, or a first-order thermal model of the mesh's friction power) "
+                   "scaling mu: mu *= 1 + mu_per_kelvin (T - T_ref)")
     thermal_resistance: ClassVar[float] = 5.0  # [K/W] the simulator's default; only the product is identifiable
+    default_time_constant: ClassVar[float] = 900.0  # [s] the simulator's default, written when T was measured
     parameters = (Parameter("mu_per_kelvin", "1/K", "relative change of mu per kelvin of oil warming"),)
     grid_parameters = (GridParameter("time_constant", "s", "thermal time constant (0: measured temperature)"),)
 
     def grid(self, rig, signals):
+        ref = {"reference_temperature": float(signals.reference_temperature)}
         if signals.temperature is not None:
-            return [{"time_constant": 0.0}]
+            return [{"time_constant": 0.0, **ref}]
         span = float(np.max(np.bincount(signals.run, weights=np.gradient(signals.t)))) \
             if len(signals) > 1 else 1.0  # the longest run [s]
-        return [{"time_constant": float(tc)} for tc in np.geomspace(max(span / 30.0, 0.5), 10.0 * span, 12)]
+        return [{"time_constant": float(tc), **ref}
+                for tc in np.geomspace(max(span / 30.0, 0.5), 10.0 * span, 12)]
+
+    def unavailable(self, rig, signals):
+        if signals.temperature is not None and not np.any(np.isfinite(signals.temperature)):
+            return "the temperature column holds no value"
+        return None
 
     def warming(self, rig: Rig, signals: Signals, grid: Mapping[str, float]) -> FloatArray:
-        """Oil temperature rise over ambient [K]: measured, or the first-order model of the mesh heat."""
+        """Oil temperature rise over the reference [K]: measured, or the first-order model of the mesh heat."""
         if signals.temperature is not None:
             temp = signals.temperature
             finite = np.isfinite(temp)
-            ambient = temp[finite][0] if finite.any() else 0.0
-            return np.where(finite, temp - ambient, 0.0)
+            if not finite.any():
+                return np.zeros(len(temp))
+            if not finite.all():  # a slow quantity: interpolate the holes in time
+                temp = np.interp(signals.t, signals.t[finite], temp[finite])
+            return temp - float(grid.get("reference_temperature", signals.reference_temperature))
         heat = mesh_heat(rig, signals)
         return self.thermal_resistance * first_order_lag(signals.t, heat, signals.run, grid["time_constant"])
 
@@ -355,16 +391,22 @@ class OilTemperature(_Base):
         return {"mu_relative": self.warming(rig, signals, grid)[:, None]}
 
     def signature(self, rig, signals, grid):
-        return "modelled oil warming [K]", self.warming(rig, signals, grid)
+        label = "measured oil temperature - reference [K]" if signals.temperature is not None \
+            else "modelled oil warming [K]"
+        return label, self.warming(rig, signals, grid)
 
     def simulator_entry(self, values, grid):
-        return {"mu_per_kelvin": float(values["mu_per_kelvin"]), "time_constant": float(grid["time_constant"]),
-                "thermal_resistance": self.thermal_resistance, "ambient": 25.0, "initial": 25.0}
+        ref = float(grid.get("reference_temperature", 25.0))
+        tc = float(grid["time_constant"])
+        return {"mu_per_kelvin": float(values["mu_per_kelvin"]),
+                "time_constant": tc if tc > 0 else self.default_time_constant,
+                "thermal_resistance": self.thermal_resistance, "ambient": ref, "initial": ref}
 
     def from_simulator_entry(self, entry, rig):
         r_th = float(entry.get("thermal_resistance", self.thermal_resistance))
         return ({"mu_per_kelvin": float(entry.get("mu_per_kelvin", 0.0)) * r_th / self.thermal_resistance},
-                {"time_constant": float(entry.get("time_constant", 900.0))})
+                {"time_constant": float(entry.get("time_constant", self.default_time_constant)),
+                 "reference_temperature": float(entry.get("ambient", 25.0))})
 
 
 # --------------------------------------------------------------------------- periodic effects
@@ -536,60 +578,120 @@ class MotorCogging(_Base):
             {"order": float(entry.get("order", 14))}
 
 
+def gap_crossing(t: FloatArray, drive: FloatArray, run: np.ndarray, gap: float) -> FloatArray:
+    """Mesh position p [rad at the gear] inside a clearance of width ``gap`` [rad], per sample.
+
+    p = ratio theta_worm - theta_gear lies in [-gap/2, +gap/2]; it rests on the flank the
+    mesh force presses (+gap/2 when the worm pushes the gear forward, drive > 0) and, once
+    the force pulls away from that flank, moves freely with p'' = drive [rad/s^2] until it
+    reaches a flank, where it stops (an inelastic impact, as in the simulator's plant).
+    ``drive`` is taken as samples of a continuous signal, linear between samples: the
+    flight starts where it crosses zero, and is integrated exactly for that ramp.  A force
+    that turns back before the gap is crossed brings p back to the flank it left: noise on
+    the measured load near the switching torque does not flip the flank.  Every run
+    starts resting on the flank its first sample presses.
+    """
+    half = 0.5 * gap
+    out = np.empty(len(t))
+    drive = np.where(np.isfinite(drive), drive, 0.0)
+    for r in np.unique(run):
+        idx = np.flatnonzero(run == r)
+        tr, a = t[idx], drive[idx]
+        n = len(idx)
+        p = np.empty(n)
+        pulls = {1.0: np.flatnonzero(a < 0.0), -1.0: np.flatnonzero(a > 0.0)}  # samples pulling off each flank
+        side = 1.0 if a[0] >= 0.0 else -1.0
+        pos, vel, k = side * half, 0.0, 0
+        while k < n:
+            # resting on `side` up to the first sample j > k that pulls off it
+            leave = pulls[side]
+            i = np.searchsorted(leave, k + 1)
+            if i == len(leave):
+                p[k:] = pos
+                break
+            j = int(leave[i])
+            p[k:j] = pos
+            # the force crosses zero inside (t[j-1], t[j]) (or at t[j-1]): fly from there to t[j]
+            a0, a1 = a[j - 1], a[j]
+            frac = a0 / (a0 - a1) if side * a0 > 0.0 else 0.0
+            tau = (tr[j] - tr[j - 1]) * (1.0 - frac)
+            pos, vel, k = pos + a1 * tau * tau / 6.0, a1 * tau / 2.0, j
+            while True:  # free flight, acceleration linear between samples
+                if abs(pos) >= half:  # reached a flank (the other, or back on the one it left)
+                    side = 1.0 if pos > 0.0 else -1.0
+                    pos, vel = side * half, 0.0
+                    break
+                p[k] = pos
+                if k + 1 >= n:
+                    k += 1
+                    break
+                dt = tr[k + 1] - tr[k]
+                pos += vel * dt + dt * dt * (2.0 * a[k] + a[k + 1]) / 6.0
+                vel += dt * (a[k] + a[k + 1]) / 2.0
+                k += 1
+        out[idx] = p
+    return out
+
+
 class Backlash(_Base):
     """Simulator: a dead zone of ``angle`` [rad at the gear] crossed at every flank change.
 
-    While the teeth cross the gap the mesh carries nothing: the drive current lacks the
-    mesh term the declared model puts in.  The gear side crosses it accelerated by its
-    own load (the worm side's share is i (r_w/r_g) K_s J_g / J_w ~ 0.5 % of it on the
-    bundled rig), so a gap of ``angle`` takes d = sqrt(2 angle J_g / |L|), L the gear-side
-    load after the change.  Regressor: -(gear-side load) on the gear_torque channel during
-    d after each flank change; its coefficient (``depth``, 1 for a clean gap) is linear,
-    the angle is searched on a grid.  The impact at the end of the crossing is not modelled.
+    Evidence is in position, not in the current: with a gear encoder the transmission
+    error ratio theta_worm - theta_gear sits on one flank of the clearance while the
+    mesh force G (gear side, fixed frame: + when the worm pushes the gear forward)
+    presses it, and moves to the other when G changes sign (the load crossing the
+    switching torque, or a reversal).  Its regressor is the mesh position
+    :func:`gap_crossing` computes from the model's G (driven by p'' = G / J_eff,
+    1/J_eff = 1/J_g + i (r_w/r_g) K_s / J_w: the gear's own inertia and the small part
+    the freed worm adds) per unit of gap, so the coefficient *is* the gap; the gap that
+    times the crossing is searched on a grid.  The fitted signal is the transmission
+    error (analysis.py: per-run encoder offsets plus this term).  In the drive current
+    backlash leaves only a few-ms transient at each flank change, of the size of the
+    declared model's own transient error there, so no current term is fitted for it.
     """
 
     name = "backlash"
-    description = "backlash: the mesh carries nothing while the teeth cross the gap after each flank change"
-    parameters = (Parameter("depth", "1", "share of the mesh load missing during the crossing (1: clean gap)"),)
-    grid_parameters = (GridParameter("angle", "rad", "circumferential clearance at the gear shaft"),)
+    fitted_signal = "transmission_error"
+    description = "backlash: the transmission error jumps by the gap when the mesh force changes flank"
+    parameters = (Parameter("angle", "rad", "circumferential clearance at the gear shaft"),)
+    grid_parameters = (GridParameter("crossing_angle", "rad", "gap that times the crossing (grid)"),)
 
     def grid(self, rig, signals):
-        return [{"angle": float(math.radians(a))} for a in (0.1, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0)]
-
-    def flank(self, rig: Rig, signals: Signals) -> FloatArray:
-        return np.where(_sigma(signals) * gear_side_load(rig, signals.tau_load, signals.omega) >= 0, 1.0, -1.0)
-
-    def flank_changes(self, rig: Rig, signals: Signals) -> np.ndarray:
-        flank = self.flank(rig, signals)
-        return np.flatnonzero((np.diff(flank) != 0) & (np.diff(signals.run) == 0)) + 1
+        return [{"crossing_angle": float(a)} for a in np.geomspace(math.radians(1.0 / 60.0), math.radians(2.0), 10)]
 
     def unavailable(self, rig, signals):
-        return None if len(self.flank_changes(rig, signals)) else "no flank change in the data"
+        if signals.transmission_error is None:
+            return "needs theta_gear (a gear encoder): without it backlash shows only as ms transients in the current"
+        state = evaluate(rig, signals)
+        side = state.sigma * state.flank
+        if not np.any((np.diff(side) != 0) & (np.diff(signals.run) == 0)):
+            return "the mesh force never changes sign (no flank change in the data)"
+        return None
 
     def shapes(self, rig, signals, grid):
-        load = gear_side_load(rig, signals.tau_load, signals.omega)
-        changes = self.flank_changes(rig, signals)
-        window = np.zeros(len(signals))
-        for k, j in enumerate(changes):
-            # load that drives the gear across: the largest |L| shortly after the change (the load settles)
-            stop = changes[k + 1] if k + 1 < len(changes) else len(signals)
-            ahead = slice(j, min(stop, np.searchsorted(signals.t, signals.t[j] + 0.05)))
-            drive = float(np.max(np.abs(load[ahead]))) if ahead.stop > j else 0.0
-            if drive <= 0.0:
-                continue
-            duration = math.sqrt(2.0 * grid["angle"] * rig.total_gear_inertia / drive)
-            end = min(stop, np.searchsorted(signals.t, signals.t[j] + duration))
-            window[j:max(end, j + 1)] = 1.0
-        return {"gear_torque": (-load * window)[:, None]}
+        return {}  # nothing on the current channels
+
+    def mesh_drive(self, rig: Rig, state: ModelState) -> FloatArray:
+        """p'' [rad/s^2] while the teeth are apart: G (fixed frame) / J_eff."""
+        gb = rig.gearbox
+        inverse = 1.0 / rig.total_gear_inertia + gb.ratio * gb.radius_ratio * np.abs(state.flank_factor) \
+            / rig.total_worm_inertia
+        return state.sigma * state.mesh_demand * inverse
+
+    def te_columns(self, rig, signals, state, grid):
+        gap = grid["crossing_angle"]
+        return (gap_crossing(signals.t, self.mesh_drive(rig, state), signals.run, gap) / gap)[:, None]
 
     def signature(self, rig, signals, grid):
-        return "tau_load [N m]", signals.tau_load
+        state = evaluate(rig, signals)
+        return "modelled mesh position / gap", self.te_columns(rig, signals, state, grid)[:, 0]
 
     def simulator_entry(self, values, grid):
-        return {"angle": float(grid["angle"])}
+        return {"angle": max(0.0, float(values["angle"]))}
 
     def from_simulator_entry(self, entry, rig):
-        return {"depth": 1.0}, {"angle": float(entry.get("angle", 0.0))}
+        angle = float(entry.get("angle", 0.0))
+        return {"angle": angle}, {"crossing_angle": angle}
 
 
 #: effect name -> plug-in instance (the vocabulary of physics.md section 9)

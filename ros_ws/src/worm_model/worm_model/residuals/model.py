@@ -56,6 +56,8 @@ CHANNELS: dict[str, str] = {
 
 #: default time constant [s] of the zero-phase low-pass used for the acceleration
 ALPHA_TIME_CONSTANT = 0.005
+#: default oil temperature [degC] at which the rig file's mu holds (a lab at 25 degC, the simulator's ambient)
+REFERENCE_TEMPERATURE = 25.0
 
 
 @dataclass
@@ -64,6 +66,9 @@ class Signals:
 
     theta_gear is worm-referenced (+ with + worm rotation); when the data has no gear
     encoder it is ratio * theta_worm.  temperature is None when not measured.
+    transmission_error [rad at the gear] = ratio * theta_worm - theta_gear, the gear lagging
+    the rigid-mesh position; None without a gear encoder, NaN where theta_gear is missing.
+    reference_temperature [degC] is the oil temperature at which the declared model's mu holds.
     """
 
     t: FloatArray
@@ -75,6 +80,8 @@ class Signals:
     run: np.ndarray
     temperature: FloatArray | None = None
     alpha_time_constant: float = ALPHA_TIME_CONSTANT  # [s] of the filter that made alpha
+    transmission_error: FloatArray | None = None
+    reference_temperature: float = REFERENCE_TEMPERATURE
 
     def __len__(self) -> int:
         return len(self.t)
@@ -85,7 +92,7 @@ class Signals:
         return float(np.median(np.diff(self.t))) if len(self.t) > 1 else 1e-3
 
     def subset(self, index: np.ndarray) -> "Signals":
-        return Signals(**{k: (v if k == "alpha_time_constant" or v is None else np.asarray(v)[index])
+        return Signals(**{k: (v if v is None or np.ndim(v) == 0 else np.asarray(v)[index])
                           for k, v in vars(self).items()})
 
 
@@ -113,16 +120,25 @@ def zero_phase_derivative(t: FloatArray, x: FloatArray, run: np.ndarray,
     return out
 
 
-def prepare_signals(rig: Rig, data: MeasuredData, alpha_time_constant: float = ALPHA_TIME_CONSTANT) -> Signals:
-    """Signals of a data set: acceleration from a zero-phase filtered derivative of omega_worm."""
-    theta_gear = data.theta_gear if data.theta_gear is not None else rig.gearbox.ratio * data.theta_worm
+def prepare_signals(rig: Rig, data: MeasuredData, alpha_time_constant: float = ALPHA_TIME_CONSTANT,
+                    reference_temperature: float = REFERENCE_TEMPERATURE) -> Signals:
+    """Signals of a data set: acceleration from a zero-phase filtered derivative of omega_worm.
+
+    With a gear encoder (``theta_gear``) the transmission error ratio * theta_worm - theta_gear
+    [rad at the gear] is a second fitted signal (NaN where theta_gear is missing).
+    """
+    rigid = rig.gearbox.ratio * data.theta_worm
+    measured = data.theta_gear
+    theta_gear = measured if measured is not None else rigid
     if np.any(~np.isfinite(theta_gear)):  # optional column with holes: fall back to the worm encoder
-        theta_gear = np.where(np.isfinite(theta_gear), theta_gear, rig.gearbox.ratio * data.theta_worm)
+        theta_gear = np.where(np.isfinite(theta_gear), theta_gear, rigid)
     return Signals(
         t=data.t, omega=data.omega_worm,
         alpha=zero_phase_derivative(data.t, data.omega_worm, data.run, alpha_time_constant),
         theta_worm=data.theta_worm, theta_gear=theta_gear, tau_load=data.tau_load, run=data.run,
         temperature=data.temperature, alpha_time_constant=alpha_time_constant,
+        transmission_error=None if measured is None else rigid - measured,
+        reference_temperature=float(reference_temperature),
     )
 
 

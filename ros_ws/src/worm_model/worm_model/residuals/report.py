@@ -1,7 +1,8 @@
 """Report of a residual analysis: report.json, PNG plots (matplotlib Agg) and the console summary.
 
 Units: currents [A]; "as torque" figures are K_t x current [N m] at the drive motor's
-shaft; tau_d errors are load-torque errors [N m] on the gear shaft.
+shaft; tau_d errors are load-torque errors [N m] on the gear shaft; the transmission error
+(second fitted signal when the data has theta_gear) in rad at the gear shaft.
 """
 
 from __future__ import annotations
@@ -77,12 +78,21 @@ def build_report(problem: Problem, result: Analysis, tau_d: dict[str, float], fi
     for k, rnd in enumerate(result.rounds):
         rounds.append({
             "round": k + 1, "accepted": rnd.accepted, "refit_rms_held_out": rnd.refit_rms_held_out,
-            "candidates": [{"name": c.name, "grid": c.grid, "rms_held_out": c.rms_held_out,
+            "candidates": [{"name": c.name, "signal": c.signal, "unit": c.unit, "grid": c.grid,
+                            "rms_held_out": c.rms_held_out,
                             "improvement": c.improvement, "delta_bic": c.delta_bic, "significant": c.significant
                             and c.improvement >= problem.settings.min_improvement, "note": c.note}
                            for c in rnd.candidates],
         })
     s = problem.settings
+    signals = {"current_drive": {"unit": UNIT, "rms_before": declared.rms_held_out, "rms_after": final.rms_held_out,
+                                 "rms_train_before": declared.rms_train, "rms_train_after": final.rms_train}}
+    if final.te is not None and declared.te is not None:
+        signals["transmission_error"] = {
+            "unit": "rad", "rms_before": declared.te.rms_held_out, "rms_after": final.te.rms_held_out,
+            "rms_train_before": declared.te.rms_train, "rms_train_after": final.te.rms_train,
+            "note": "ratio * theta_worm - theta_gear [rad at the gear shaft]; declared model: a constant per run "
+                    "(encoder zeros); backlash acts here, not on the current"}
     return {
         "format": "worm_residuals_report", "version": 1,
         "data": {"source": files.get("data", ""), "samples": int(len(problem.signals)),
@@ -92,9 +102,11 @@ def build_report(problem: Problem, result: Analysis, tau_d: dict[str, float], fi
                      "guard_seconds": s.guard_seconds, "min_speed": s.min_speed,
                      "min_improvement": s.min_improvement, "max_effects": s.max_effects,
                      "alpha_time_constant": s.alpha_time_constant, "confidence": s.confidence,
+                     "reference_temperature": s.reference_temperature,
                      "candidates": list(s.candidates)},
         "fitted_signal": "current_drive",
         "unit": UNIT,
+        "signals": signals,
         "effects_found": result.found,
         "rms_before": declared.rms_held_out,
         "rms_after": final.rms_held_out,
@@ -118,6 +130,7 @@ def build_report(problem: Problem, result: Analysis, tau_d: dict[str, float], fi
         "pruned": result.pruned,
         "rounds": rounds,
         "effective_samples": {"declared": declared.n_eff, "final": final.n_eff, "train": declared.n_train,
+                              "transmission_error": None if final.te is None else final.te.n_eff,
                               "note": "BIC and confidence intervals use n_eff = n (1 - rho) / (1 + rho), rho the "
                                       "lag-1 autocorrelation of the training residual (AR(1)); intervals are "
                                       "least-squares intervals inflated by sqrt(n / n_eff)"},
@@ -165,6 +178,22 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
     if progress:
         progress(1)
 
+    # 1b. the transmission error, when the data has a gear encoder
+    if declared.te is not None and final.te is not None:
+        held = problem.te_held_out
+        fig, ax = plt.subplots(figsize=(10, 4))
+        ax.plot(sig.t[held], declared.te.residual[held] * 1e3, ".", ms=1, alpha=0.4,
+                label=f"declared model: RMS {declared.te.rms_held_out * 1e3:.3f} mrad")
+        ax.plot(sig.t[held], final.te.residual[held] * 1e3, ".", ms=1, alpha=0.4,
+                label=f"with effects: RMS {final.te.rms_held_out * 1e3:.3f} mrad")
+        ax.set(xlabel="t [s]", ylabel="residual [mrad at the gear]",
+               title="held-out residual of the transmission error ratio theta_worm - theta_gear")
+        ax.legend(markerscale=8, loc="upper right")
+        fig.tight_layout()
+        fig.savefig(out / "transmission_error.png", dpi=90)
+        plt.close(fig)
+        written.append("transmission_error.png")
+
     # 2. angle-domain spectra (worm orders and gear orders), before and after
     rig = problem.rig0
     fig, axes = plt.subplots(2, 1, figsize=(10, 6.5))
@@ -192,20 +221,28 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
     for k, ef in enumerate(final.effects):
         others = [(e.effect, e.grid) for e in final.effects if e is not ef]
         without = refit(problem, others, final) if others else declared
-        x_label, x = ef.effect.signature(problem.rig0, sig, ef.grid)
-        contribution = without.residual - final.residual  # what adding this effect explains
+        x_label, x = ef.effect.signature(final.rig, sig, ef.grid)
+        on_te = ef.effect.fitted_signal == "transmission_error" and final.te is not None and without.te is not None
+        if on_te:  # position effects: the transmission error's residual, in mrad
+            r_without, r_final, unit = without.te.residual * 1e3, final.te.residual * 1e3, "mrad"
+            use = problem.te_train | problem.te_held_out
+        else:
+            r_without, r_final, unit = without.residual, final.residual, "A"
+            use = split.train | split.held_out
+        contribution = r_without - r_final  # what adding this effect explains
         fig, ax = plt.subplots(figsize=(8, 5))
-        use = split.train | split.held_out
-        ax.plot(x[use], without.residual[use], ".", ms=1, alpha=0.25, label="residual without it")
+        ax.plot(x[use], r_without[use], ".", ms=1, alpha=0.25, label="residual without it")
         edges = np.unique(np.quantile(x[use], np.linspace(0, 1, 41)))
+        if len(edges) < 10:  # a regressor with few distinct values (e.g. a flank): equal-width bins
+            edges = np.linspace(x[use].min(), x[use].max(), 41)
         centre = 0.5 * (edges[1:] + edges[:-1])
         which = np.clip(np.digitize(x[use], edges) - 1, 0, len(centre) - 1)
-        for values, style, name in ((without.residual[use], "k-", "binned mean of the residual"),
+        for values, style, name in ((r_without[use], "k-", "binned mean of the residual"),
                                     (contribution[use], "r--", "binned mean of the effect's fitted term")):
             means = np.array([values[which == b].mean() if np.any(which == b) else np.nan for b in range(len(centre))])
             ax.plot(centre, means, style, lw=1.5, label=name)
-        ax.set(xlabel=x_label, ylabel="residual [A]", title=f"{ef.name}: residual against its regressor")
-        ax.legend(markerscale=8)
+        ax.set(xlabel=x_label, ylabel=f"residual [{unit}]", title=f"{ef.name}: residual against its regressor")
+        ax.legend(markerscale=8, loc="upper left")
         fig.tight_layout()
         name = f"effect_{ef.name}.png"
         fig.savefig(out / name, dpi=90)
@@ -225,13 +262,18 @@ def console_summary(problem: Problem, result: Analysis, tau_d: dict[str, float])
         lines.append(f"free parameter {name}: declared {_declared(problem, name):.6g} -> "
                      f"{f.free_values[name]:.6g} +- {f.free_ci.get(name, math.nan):.2g} (95 %)")
     for k, rnd in enumerate(result.rounds):
-        lines.append(f"round {k + 1}: candidates ranked by held-out RMS (model so far: {rnd.baseline_rms_held_out:.5f} A)")
-        lines.append("    effect               held-out RMS [A]  improvement  dBIC(train)  grid")
+        te_note = "" if not math.isfinite(rnd.baseline_te_rms_held_out) else \
+            f", transmission error {rnd.baseline_te_rms_held_out * 1e3:.4f} mrad"
+        lines.append(f"round {k + 1}: candidates ranked by the held-out improvement of their signal (model so far: "
+                     f"{rnd.baseline_rms_held_out:.5f} A{te_note})")
+        lines.append("    effect                 held-out RMS  improvement  dBIC(train)  grid")
         for c in rnd.candidates:
-            grid = ", ".join(f"{k2}={v:.4g}" for k2, v in c.grid.items() if k2 != "typical_load")
+            grid = ", ".join(f"{k2}={v:.4g}" for k2, v in c.grid.items()
+                             if k2 not in ("typical_load", "reference_temperature"))
             mark = "*" if c.name == rnd.accepted else " "
             note = f"  ({c.note})" if c.note else ""
-            lines.append(f"  {mark} {c.name:<20} {c.rms_held_out:16.5f}  {100 * c.improvement:9.1f} %  "
+            rms = f"{c.rms_held_out:9.5f} A   " if c.unit == "A" else f"{c.rms_held_out * 1e3:9.5f} mrad"
+            lines.append(f"  {mark} {c.name:<20} {rms}  {100 * c.improvement:9.1f} %  "
                          f"{c.delta_bic:11.1f}  {grid}{note}")
         lines.append(f"    -> {'added ' + rnd.accepted if rnd.accepted else 'nothing significant left'}")
     if result.pruned:
@@ -245,6 +287,9 @@ def console_summary(problem: Problem, result: Analysis, tau_d: dict[str, float])
         lines.append(f"effect {ef.name}: " + "; ".join(parts))
     lines.append(f"held-out RMS error of the drive current: before {d.rms_held_out:.5f} A "
                  f"({d.rms_held_out * kt * 1e3:.3f} mN m), after {f.rms_held_out:.5f} A ({f.rms_held_out * kt * 1e3:.3f} mN m)")
+    if d.te is not None and f.te is not None:
+        lines.append(f"held-out RMS error of the transmission error (theta_gear fitted too): before "
+                     f"{d.te.rms_held_out * 1e3:.4f} mrad, after {f.te.rms_held_out * 1e3:.4f} mrad")
     lines.append(f"held-out RMS error of tau_d estimated from the current: before {tau_d.get('before', math.nan):.5f} N m, "
                  f"after {tau_d.get('after', math.nan):.5f} N m per sample; averaged over 20 ms: before "
                  f"{tau_d.get('before_20ms', math.nan):.5f} N m, after {tau_d.get('after_20ms', math.nan):.5f} N m")
