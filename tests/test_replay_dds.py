@@ -23,12 +23,11 @@ from pathlib import Path
 
 import pytest
 
-from torque_estimator.graph import Graph, parse_overrides
+from torque_estimator.graph import Graph, find_executable, parse_overrides
 from torque_estimator.replay import (ESTIMATE_FIELDS, ESTIMATE_TOPIC, FORCE_FIELDS, FORCES_TOPIC, compare,
                                      node_parameters, replay)
 from worm_model.nodes.testing import stop_process
 from worm_rig_driver.bag_reader import BagReader
-from worm_rig_driver.bag_types import ament_prefixes
 
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
@@ -37,13 +36,6 @@ RECORD_S = 7.0  # [s] of recording once all three topics are recorded
 WARMUP_S = 3.0  # [s] filter start-up left out of the comparison (60 time constants of the estimator)
 START_TIMEOUT = 60.0  # [s]
 ROUND_OFF = 1e-9  # largest |replay - live| accepted, in the field's unit (N, N m, rad/s, A; flags exact)
-
-
-def executable(package: str, name: str) -> Path:
-    for prefix in ament_prefixes():
-        if (path := prefix / "lib" / package / name).is_file():
-            return path
-    pytest.fail(f"{name} is not installed (make setup)")
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +54,7 @@ def recorded(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
     bag, log_path = tmp / "bag", tmp / "recorder.log"
     with log_path.open("wb") as log:
         recorder = subprocess.Popen(
-            [str(executable("worm_rig_driver", "recorder")), "--ros-args", "-p", f"output:={bag}",
+            [str(find_executable("recorder")), "--ros-args", "-p", f"output:={bag}",
              "-p", f"topics:=[{','.join(TOPICS)}]", "-p", "discovery_period:=0.1"],
             stdout=log, stderr=subprocess.STDOUT, env=ros_env)
     graph = Graph(GRAPH_FILE, parse_overrides(overrides), tmp / "logs")

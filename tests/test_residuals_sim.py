@@ -48,9 +48,9 @@ import yaml
 
 from worm_model.parameters import default_rig_path, load_rig
 from worm_model.residuals import analysis as an
-from worm_model.residuals.data import MeasuredData, read_csv, write_csv
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
 from worm_model.residuals.model import prepare_signals
+from worm_model.rig_data import MeasuredData, read_rig_csv, write_rig_csv
 from worm_rig_driver.simulated_rig import SimulatedRig
 
 REPO = Path(__file__).resolve().parents[1]
@@ -280,7 +280,7 @@ def _residuals(*args: str) -> subprocess.CompletedProcess[str]:
 @pytest.fixture(scope="module")
 def cogging_csv(tmp_path_factory: pytest.TempPathFactory, two_effects: MeasuredData) -> Path:
     path = tmp_path_factory.mktemp("residuals") / "cogging.csv"
-    write_csv(path, two_effects)
+    write_rig_csv(path, two_effects)
     return path
 
 
@@ -319,7 +319,7 @@ def test_cli_writes_report_parameter_file_and_plots(cogging_csv: Path, tmp_path:
     assert set(sim.effects.names) == {"bearing_coulomb", "motor_cogging"}
     # and its current reproduces the analysis' held-out figure on the same data
     model = ExtendedModel.load(extended)
-    data = read_csv(cogging_csv)
+    data = read_rig_csv(cogging_csv)
     signals = prepare_signals(model.rig, data)
     split = an.make_split(signals, an.Settings())
     rms = float(np.sqrt(np.mean((data.current_drive - model.current(signals))[split.held_out] ** 2)))
@@ -329,7 +329,7 @@ def test_cli_writes_report_parameter_file_and_plots(cogging_csv: Path, tmp_path:
 def test_cli_reads_a_bag(cogging_csv: Path, tmp_path: Path) -> None:
     rig_csv = pytest.importorskip("worm_rig_driver.rig_csv")
     bag = tmp_path / "bag"
-    rig_csv.trace_to_bag(rig_csv.read_rig_csv(cogging_csv), bag)
+    rig_csv.csv_to_bag(cogging_csv, bag)
     run = _residuals(str(bag), "--out", str(tmp_path / "out"), "--free", ",".join(FREE), "--no-plots",
                      "--candidates", "motor_cogging,bearing_coulomb,backlash")
     assert run.returncode == 0, run.stderr

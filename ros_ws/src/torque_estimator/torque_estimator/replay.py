@@ -57,9 +57,10 @@ import yaml
 from worm_model.live_model import FIELDS as FORCE_FIELDS
 from worm_model.live_model import LiveModel
 from worm_model.parameters import load_rig
+from worm_model.rig_data import RigDataError
 from worm_rig_driver.bag_reader import BagReader
 from worm_rig_driver.bag_types import BagRecordingError, ament_prefixes
-from worm_rig_driver.rig_csv import RigCsvError, find_sample_topic
+from worm_rig_driver.rig_csv import find_sample_topic
 
 from .calibration_database import CalibrationError, load_database
 from .estimator import ESTIMATORS, make_estimator
@@ -234,7 +235,7 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
                                                     "current_drive": e.current_drive})
                     if n % 1000 == 0:
                         bar.update_to(n)
-    except (BagRecordingError, RigCsvError) as err:
+    except (BagRecordingError, RigDataError) as err:
         raise ReplayError(str(err)) from None
     wall = time.perf_counter() - start
     return ReplayResult(n, (last - first) if first is not None else 0.0, wall, model_out, est_out,

@@ -20,11 +20,12 @@ from worm_model.gear_side import gear_side_load
 from worm_model.parameters import ParameterError, default_rig_path, load_rig
 from worm_model.residuals import analysis as an
 from worm_model.residuals import cli
-from worm_model.residuals.data import DataError, MeasuredData, read_csv, split_runs, write_csv
+from worm_model.residuals.data import load_data
 from worm_model.residuals.effects import EFFECTS, Backlash, channels_of, gap_crossing
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
 from worm_model.residuals.free import read_free
 from worm_model.residuals.model import Signals, evaluate, prepare_signals, ripple_response
+from worm_model.rig_data import MeasuredData, RigDataError, read_rig_csv, split_runs, write_rig_csv
 
 RIG = load_rig()
 
@@ -62,51 +63,29 @@ def problem_of(data: MeasuredData, free=("friction.scale",), **settings) -> an.P
     return an.Problem(RIG, list(free), sig, data.current_drive, an.make_split(sig, s), s)
 
 
-# --------------------------------------------------------------------------- CSV schema
-def test_csv_round_trip_keeps_values_and_optional_columns(tmp_path: Path) -> None:
+# --------------------------------------------------------------------------- input (schema: test_rig_data.py)
+def test_csv_round_trip_keeps_values_optional_columns_and_runs(tmp_path: Path) -> None:
     data = synthetic(seconds=4.0)
     data.temperature = np.linspace(25, 30, len(data))
     path = tmp_path / "run.csv"
-    write_csv(path, data)
-    back = read_csv(path)
+    write_rig_csv(path, data)
+    back = load_data(path)
     for name in ("t", "current_drive", "omega_worm", "theta_worm", "tau_load", "temperature"):
-        np.testing.assert_allclose(getattr(back, name), getattr(data, name), rtol=1e-9, atol=1e-12)
+        np.testing.assert_array_equal(getattr(back, name), getattr(data, name))
     assert back.voltage_drive is None and back.theta_gear is None
     assert list(np.unique(back.run)) == [0, 1, 2, 3]  # the 1 s gaps between runs
-
-
-def test_csv_columns_in_any_order_unknown_ignored_empty_optional_is_nan(tmp_path: Path) -> None:
-    path = tmp_path / "x.csv"
-    path.write_text("tau_load,extra,t,omega_worm,theta_worm,current_drive,temperature\n"
-                    "0.1,a,0.000,10,0.00,0.5,\n0.1,b,0.001,10,0.01,0.5,25.5\n0.1,c,0.002,10,0.02,0.5,26\n")
-    data = read_csv(path)
-    assert data.ignored_columns == ("extra",)
-    assert np.isnan(data.temperature[0]) and data.temperature[2] == 26.0
-    np.testing.assert_allclose(data.theta_worm, [0.0, 0.01, 0.02])
 
 
 HEADER = "t,current_drive,omega_worm,theta_worm,tau_load\n"
 
 
-@pytest.mark.parametrize("text, line, column, words", [
-    ("t,current_drive,omega_worm,tau_load\n0,1,1,1\n", 1, "theta_worm", "missing required column"),
-    (HEADER + "0,1,1,0,0.1\n0.001,1,abc,0,0.1\n", 3, "omega_worm", "'abc' is not a number"),
-    (HEADER + "0,1,1,0,0.1\n0.001,,1,0,0.1\n", 3, "current_drive", "empty cell"),
-    (HEADER + "0,1,1,0,0.1\n0.001,1,1,0,nan\n", 3, "tau_load", "not finite"),
-    (HEADER + "0,1,1,0,0.1\n0.002,1,1,0,0.1\n0.001,1,1,0,0.1\n", 4, "t", "increase strictly"),
-    (HEADER + "0,1,1,0,0.1\n0.001,1,1,0\n", 3, "", "4 cells, the header has 5"),
-    ("t,t,current_drive,omega_worm,theta_worm,tau_load\n", 1, "t", "duplicate column"),
-    ("", 1, "", "empty file"),
-])
-def test_bad_csv_names_line_and_column(tmp_path: Path, text: str, line: int, column: str, words: str) -> None:
-    path = tmp_path / "bad.csv"
-    path.write_text(text)
-    with pytest.raises(DataError) as err:
-        read_csv(path)
-    assert (err.value.line, err.value.column) == (line, column)
-    assert words in str(err.value) and str(path) in str(err.value)
-    if column:
-        assert f"line {line}, column '{column}'" in str(err.value)
+def test_one_sample_is_no_data_set_for_the_analysis(tmp_path: Path) -> None:
+    path = tmp_path / "one.csv"
+    path.write_text(HEADER + "0,1,1,0,0.1\n")
+    assert len(read_rig_csv(path)) == 1  # valid rig data (bag import takes it) ...
+    with pytest.raises(RigDataError, match="1 sample.s.; the residual analysis needs at least 2") as err:
+        load_data(path)  # ... but not enough to analyse
+    assert err.value.source == str(path)
 
 
 def test_cli_bad_csv_exits_2_with_the_place(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

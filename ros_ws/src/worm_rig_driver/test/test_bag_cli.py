@@ -16,9 +16,9 @@ from pathlib import Path
 import pytest
 import yaml
 from rclpy.serialization import serialize_message
+from worm_model.rig_data import read_rig_csv
 from worm_msgs.msg import RigSample
 from worm_rig_driver.bag_types import ament_prefixes
-from worm_rig_driver.rig_csv import read_rig_csv
 from worm_rig_driver.rosbag2_layouts import FixtureTopic, write_rosbag2_bag
 
 T0 = 1_700_000_000_000_000_000
@@ -93,13 +93,13 @@ def test_export_import_export_round_trip(rig_bag: Path, tmp_path: Path) -> None:
     done = run_bag('export', rig_bag, '--out', first_csv)
     assert done.returncode == 0, done.stderr
     assert '1 non-finite' in done.stderr
-    trace = read_rig_csv(first_csv)
-    assert len(trace) == N
-    assert trace.names == ['t', 'current_drive', 'omega_worm', 'theta_worm', 'tau_load',
-                           'voltage_drive', 'theta_gear', 'current_load']
-    assert trace['t'][7] == pytest.approx(7e-3, abs=1e-15)
-    assert trace['current_load'][4] == sample(4).current_load_1 + sample(4).current_load_2
-    assert trace['tau_load'][9] == sample(9).tau_load
+    data = read_rig_csv(first_csv)
+    assert len(data) == N
+    assert data.names == ['t', 'current_drive', 'omega_worm', 'theta_worm', 'tau_load',
+                          'voltage_drive', 'theta_gear', 'current_load']
+    assert data.t[7] == pytest.approx(7e-3, abs=1e-15)
+    assert data.current_load[4] == sample(4).current_load_1 + sample(4).current_load_2
+    assert data.tau_load[9] == sample(9).tau_load
 
     for storage in ('mcap', 'sqlite3'):
         bag = tmp_path / f'imported_{storage}'

@@ -24,19 +24,11 @@ from typing import Final, TextIO
 
 from tqdm import tqdm
 
+from worm_model.rig_data import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, RigDataError
 from worm_rig_driver.bag_reader import BagMessage, BagReader
-from worm_rig_driver.bag_types import BagRecordingError, MessageTypes
+from worm_rig_driver.bag_types import BagRecordingError
 from worm_rig_driver.message_yaml import message_to_yaml
-from worm_rig_driver.rig_csv import (
-    DEFAULT_TOPIC,
-    OPTIONAL_COLUMNS,
-    REQUIRED_COLUMNS,
-    RigCsvError,
-    bag_to_trace,
-    read_rig_csv,
-    trace_to_bag,
-    write_rig_csv,
-)
+from worm_rig_driver.rig_csv import DEFAULT_TOPIC, bag_to_csv, csv_to_bag
 from worm_rig_driver.seq_check import StreamCheck
 
 EXIT_BAD_INPUT: Final[int] = 2
@@ -139,19 +131,17 @@ def echo(path: Path, topic: str, count: int | None, out: TextIO) -> int:
 
 def export(path: Path, csv_path: Path, topic: str | None, err: TextIO) -> int:
     """``bag export``: the RigSample stream as a ``worm_rig_data`` CSV."""
-    trace = bag_to_trace(path, topic)
-    write_rig_csv(csv_path, trace)
-    skipped = ', '.join(f'{n} {why}' for why, n in trace.skipped.items()) or 'none'
-    err.write(f'bag export: {len(trace)} rows from {trace.source} to {csv_path} '
-              f'(columns {", ".join(trace.names)}; samples left out: {skipped})\n')
+    data = bag_to_csv(path, csv_path, topic)
+    skipped = ', '.join(f'{n} {why}' for why, n in data.skipped.items()) or 'none'
+    err.write(f'bag export: {len(data)} rows from {data.source} to {csv_path} '
+              f'(columns {", ".join(data.names)}; samples left out: {skipped})\n')
     return 0
 
 
 def import_csv(csv_path: Path, bag: Path, storage: str, topic: str, start: float,
                err: TextIO) -> int:
     """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample."""
-    trace = read_rig_csv(csv_path)
-    n = trace_to_bag(trace, bag, storage, topic, round(start * 1e9), MessageTypes())
+    n = csv_to_bag(csv_path, bag, storage, topic, round(start * 1e9))
     err.write(f'bag import: {n} RigSample messages on {topic} from {csv_path} to {bag} ({storage})\n')
     return 0
 
@@ -225,7 +215,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == 'export':
             return export(args.bag, args.out, args.topic, err)
         return import_csv(args.csv, args.out, args.storage, args.topic, args.start, err)
-    except (BagRecordingError, RigCsvError) as error:
+    except (BagRecordingError, RigDataError) as error:
         err.write(f'bag {args.command}: {error}\n')
         return EXIT_BAD_INPUT
     except BrokenPipeError:  # e.g. `bag echo ... | head`

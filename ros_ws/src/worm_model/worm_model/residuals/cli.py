@@ -20,9 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from worm_model.parameters import ParameterError, default_rig_path, load_rig
+from worm_model.rig_data import RigDataError
 
 from .analysis import Settings, Problem, analyse, make_split
-from .data import DataError, load_data
+from .data import load_data
 from .effects import EFFECTS
 from .extended import ExtendedModel, write_parameter_file
 from .free import FREE_PARAMETERS, check_free, read_free
@@ -110,7 +111,7 @@ def main(argv: list[str] | None = None) -> int:
         progress.stage("reading data", 1)
         data = load_data(args.data)
         progress.update_to(1)
-    except (DataError, ParameterError) as err:
+    except (RigDataError, ParameterError) as err:
         progress.close()
         print(f"residuals: {err}", file=sys.stderr)
         return 2

@@ -245,51 +245,66 @@ class LoadDependentMu(_Base):
         return {"sensitivity": float(entry.get("sensitivity", 0.0)) * self.reference_torque / ref}, {}
 
 
-class SensorGain(_Base):
+class _SensorError(_Base):
+    """Current-sensor errors: the drive sensor's (parameter 0) and the load sensors' (parameter 1).
+
+    The drive term enters the channel :attr:`drive_channel`.  The load term makes the measured
+    tau_load wrong by :meth:`load_torque_error` per unit of the parameter; the true load is the
+    measured one minus that, so the gear shaft's channel gets -error (to first order).
+    """
+
+    drive_channel: ClassVar[str]
+
+    def load_torque_error(self, rig: Rig, signals: Signals) -> FloatArray:
+        """Error of the measured tau_load [N m] per unit of the load-current parameter."""
+        raise NotImplementedError
+
+    def shapes(self, rig, signals, grid):
+        n = len(signals)
+        return {self.drive_channel: _column(n, 2, 0, np.ones(n)),
+                "gear_torque": _column(n, 2, 1, -self.load_torque_error(rig, signals))}
+
+    def simulator_entry(self, values, grid):
+        # tacho gains/offsets scale alpha like an inertia error: not separable from the drive current, written as 0
+        return {"drive_current": float(values["drive_current"]), "load_current": float(values["load_current"]),
+                "drive_tacho": 0.0, "load_tacho": 0.0}
+
+
+class SensorGain(_SensorError):
     """Simulator: reading = (1 + gain) x true, per sensor (drive current, load currents, tachos)."""
 
     name = "sensor_gain"
     description = "current-sensor gain errors: drive current x (1 + g_d); measured tau_load x (1 + g_l)"
+    drive_channel = "current_gain"
     parameters = (
         Parameter("drive_current", "1", "relative gain error of the drive current sensor"),
         Parameter("load_current", "1", "relative gain error of the load current sensors (tau_load)"),
     )
 
-    def shapes(self, rig, signals, grid):
-        n = len(signals)
-        # true load = measured / (1 + g_l) ~ measured (1 - g_l): linear in g_l to first order
-        return {"current_gain": _column(n, 2, 0, np.ones(n)), "gear_torque": _column(n, 2, 1, -signals.tau_load)}
+    def load_torque_error(self, rig, signals):
+        return signals.tau_load  # measured = (1 + g_l) true: error g_l tau_load to first order
 
     def signature(self, rig, signals, grid):
         return "tau_load [N m]", signals.tau_load
 
-    def simulator_entry(self, values, grid):
-        # tacho gains scale alpha like an inertia error: not separable from the drive current, written as 0
-        return {"drive_current": float(values["drive_current"]), "load_current": float(values["load_current"]),
-                "drive_tacho": 0.0, "load_tacho": 0.0}
 
-
-class SensorOffset(_Base):
+class SensorOffset(_SensorError):
     """Simulator: reading = true + offset, per sensor."""
 
     name = "sensor_offset"
     description = "current-sensor offsets: drive current + o_d; each load current + o_l (tau_load)"
+    drive_channel = "current"
     parameters = (
         Parameter("drive_current", "A", "offset of the drive current sensor"),
         Parameter("load_current", "A", "offset of each load current sensor"),
     )
 
-    def shapes(self, rig, signals, grid):
-        n = len(signals)
-        per_amp = rig.load_motor.torque_constant * rig.load_motor_count  # tau_load per A of offset on each sensor
-        return {"current": _column(n, 2, 0, np.ones(n)), "gear_torque": _column(n, 2, 1, -per_amp * np.ones(n))}
+    def load_torque_error(self, rig, signals):
+        # tau_load per A of offset on each sensor
+        return np.full(len(signals), rig.load_motor.torque_constant * rig.load_motor_count)
 
     def signature(self, rig, signals, grid):
         return "t [s]", signals.t
-
-    def simulator_entry(self, values, grid):
-        return {"drive_current": float(values["drive_current"]), "load_current": float(values["load_current"]),
-                "drive_tacho": 0.0, "load_tacho": 0.0}
 
 
 class InertiaError(_Base):
@@ -423,6 +438,11 @@ def seen_ripple(rig: Rig, signals: Signals, phase: FloatArray, frequency: FloatA
     return d.real * s + d.imag * c, d.real * c - d.imag * s
 
 
+def _angle_in_period(name: str, angle: FloatArray, order: float) -> tuple[str, FloatArray]:
+    """(axis label, angle [rad] modulo one period of the order): where in its cycle a ripple is."""
+    return f"{name} modulo 2 pi / {order:g} [rad]", np.mod(angle, 2.0 * math.pi / order)
+
+
 def _phase(sin_part: float, cos_part: float) -> tuple[float, float]:
     """(amplitude, phase) of s sin(x) + c cos(x) = A sin(x + phase)."""
     return math.hypot(sin_part, cos_part), math.atan2(cos_part, sin_part)
@@ -456,7 +476,9 @@ class _Ripple(_Base):
         return getattr(signals, self.angle)
 
     def grid(self, rig, signals):
-        return [{"order": float(k)} for k in self.orders(rig)]
+        # typical_load: the load at which simulator_entry picks the phase of the larger part
+        typical = float(np.median(self.load(rig, signals)))
+        return [{"order": float(k), "typical_load": typical} for k in self.orders(rig)]
 
     def unavailable(self, rig, signals):
         theta = self.angle_of(rig, signals)
@@ -476,8 +498,7 @@ class _Ripple(_Base):
         return {self.channel: np.column_stack([sin_col, cos_col, L * sin_col, L * cos_col])}
 
     def signature(self, rig, signals, grid):
-        period = 2.0 * math.pi / grid["order"]
-        return f"{self.angle} modulo 2 pi / {grid['order']:g} [rad]", np.mod(self.angle_of(rig, signals), period)
+        return _angle_in_period(self.angle, self.angle_of(rig, signals), grid["order"])
 
     def simulator_entry(self, values, grid):
         # one phase in the simulator: that of the larger part; the other part is projected on it
@@ -505,9 +526,6 @@ class WormRunout(_Ripple):
     def load(self, rig, signals):
         return rig.gearbox.ratio * mesh_load(rig, signals)  # the mesh torque at the worm
 
-    def grid(self, rig, signals):
-        return [{"order": 1.0, "typical_load": float(np.median(self.load(rig, signals)))}]
-
 
 class ToothPass(_Ripple):
     """Simulator: gear torque (A + f mesh_load) sin(Z_g theta_gear + phase)."""
@@ -525,9 +543,6 @@ class ToothPass(_Ripple):
         # order the gear encoder's steps (Z_g x 2 pi / counts per turn) would blur the phase 30-fold more
         return rig.gearbox.ratio * signals.theta_worm
 
-    def grid(self, rig, signals):
-        return [{"order": float(rig.gearbox.gear_teeth), "typical_load": float(np.median(self.load(rig, signals)))}]
-
 
 class GearRunout(_Ripple):
     """Simulator: gear torque (A + f mesh_load) sin(theta_gear + phase)."""
@@ -536,9 +551,6 @@ class GearRunout(_Ripple):
     description = "gear runout: torque ripple on the gear shaft once per gear turn"
     angle = "theta_gear"
     channel = "gear_torque"
-
-    def grid(self, rig, signals):
-        return [{"order": 1.0, "typical_load": float(np.median(self.load(rig, signals)))}]
 
 
 class MotorCogging(_Base):
@@ -565,8 +577,7 @@ class MotorCogging(_Base):
         return {"worm_torque": np.column_stack([sin_col, cos_col])}
 
     def signature(self, rig, signals, grid):
-        period = 2.0 * math.pi / grid["order"]
-        return f"theta_worm modulo 2 pi / {grid['order']:g} [rad]", np.mod(signals.theta_worm, period)
+        return _angle_in_period("theta_worm", signals.theta_worm, grid["order"])
 
     def simulator_entry(self, values, grid):
         amplitude, phase = _phase(values["amplitude_sin"], values["amplitude_cos"])

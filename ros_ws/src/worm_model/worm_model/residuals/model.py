@@ -38,9 +38,8 @@ from worm_model.efficiency import flank_factor
 from worm_model.friction import friction_coefficient
 from worm_model.gear_side import gear_side_drag
 from worm_model.parameters import Rig
+from worm_model.rig_data import MeasuredData
 from worm_model.units import FloatArray
-
-from .data import MeasuredData
 
 #: the channels an effect can add to: name -> unit
 CHANNELS: dict[str, str] = {

@@ -155,7 +155,16 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
 
     sig, split = problem.signals, result.split
     declared, final = result.declared, result.final
-    written = []
+    written: list[str] = []
+
+    def save(fig, name: str, step: int | None) -> None:
+        """Write ``fig`` as ``out/name`` and close it; ``step``: the progress count reached (None: no tick)."""
+        fig.tight_layout()
+        fig.savefig(out / name, dpi=90)
+        plt.close(fig)
+        written.append(name)
+        if progress and step is not None:
+            progress(step)
 
     # 1. before and after on held-out data
     fig, axes = plt.subplots(2, 1, figsize=(10, 6.5))
@@ -171,12 +180,7 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
     axes[1].hist(final.residual[ho], bins=bins, alpha=0.5, label="with effects: " + (", ".join(final.names) or "none"))
     axes[1].set(xlabel="held-out residual [A]", ylabel="samples")
     axes[1].legend()
-    fig.tight_layout()
-    fig.savefig(out / "before_after.png", dpi=90)
-    plt.close(fig)
-    written.append("before_after.png")
-    if progress:
-        progress(1)
+    save(fig, "before_after.png", 1)
 
     # 1b. the transmission error, when the data has a gear encoder
     if declared.te is not None and final.te is not None:
@@ -189,10 +193,7 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
         ax.set(xlabel="t [s]", ylabel="residual [mrad at the gear]",
                title="held-out residual of the transmission error ratio theta_worm - theta_gear")
         ax.legend(markerscale=8, loc="upper right")
-        fig.tight_layout()
-        fig.savefig(out / "transmission_error.png", dpi=90)
-        plt.close(fig)
-        written.append("transmission_error.png")
+        save(fig, "transmission_error.png", None)  # not among the 2 + effects steps the caller counts
 
     # 2. angle-domain spectra (worm orders and gear orders), before and after
     rig = problem.rig0
@@ -208,12 +209,7 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
     axes[0].axvline(rig.gearbox.worm_starts, color="grey", ls=":", lw=0.8)
     axes[0].set_title(f"residual spectrum in the angle domain (training samples); dotted: tooth-pass order "
                       f"n = {rig.gearbox.worm_starts}", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(out / "spectrum.png", dpi=90)
-    plt.close(fig)
-    written.append("spectrum.png")
-    if progress:
-        progress(2)
+    save(fig, "spectrum.png", 2)
 
     # 3. per effect found: the residual it explains against its regressor
     from .analysis import fit as refit  # noqa: PLC0415
@@ -243,13 +239,7 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
             ax.plot(centre, means, style, lw=1.5, label=name)
         ax.set(xlabel=x_label, ylabel=f"residual [{unit}]", title=f"{ef.name}: residual against its regressor")
         ax.legend(markerscale=8, loc="upper left")
-        fig.tight_layout()
-        name = f"effect_{ef.name}.png"
-        fig.savefig(out / name, dpi=90)
-        plt.close(fig)
-        written.append(name)
-        if progress:
-            progress(3 + k)
+        save(fig, f"effect_{ef.name}.png", 3 + k)
     return written
 
 
