@@ -19,7 +19,8 @@ GRAPH_METRICS = ("graph_rate: nan Hz", "graph_latency_p99: nan ms", "graph_lost_
 SERIAL_METRICS = ("decoder_throughput: nan frames/s", "driver_cpu_at_1khz: nan %", "driver_reconnect_time: nan s")
 RECORDER_METRICS = ("recorder_published: nan count", "recorder_recorded: nan count",
                     "recorder_lost_messages: nan count")
-CONTROLLER_METRICS = tuple(f"loadstep_{name}_{ff}: nan {unit}" for ff in ("ff_off", "ff_on")
+CONTROLLER_METRICS = tuple(f"loadstep_{name}_{ff}{timing}: nan {unit}" for timing in ("", "_graph")
+                           for ff in ("ff_off", "ff_on")
                            for name, unit in (("peak_dip", "rad/s"), ("settling_time", "s"), ("iae", "rad")))
 
 

@@ -13,7 +13,7 @@ from torque_estimator.closed_loop import run_scenario
 from torque_estimator.estimator import EstimateFlags
 from torque_estimator.knn_estimator import KnnEstimator
 from torque_estimator.live_estimator import LiveEstimator
-from torque_estimator.run_analysis import load_step_responses, load_steps
+from torque_estimator.run_analysis import load_step_responses, load_steps, recorded_load_steps
 from torque_estimator.scenario import Segment
 
 RIG = load_rig()
@@ -47,10 +47,16 @@ def test_load_step_figures_of_a_known_response() -> None:
 def test_feedforward_of_the_estimate_rejects_load_steps_better_than_none(estimator) -> None:
     runs = run_scenario(RIG, STEP, ("off", "estimate", "truth"), estimator=estimator, seed=2)
     figures = {mode: load_step_responses(STEP, r.t, r.omega_true, r.setpoint) for mode, r in runs.items()}
+    # Measured over seeds 0-7: IAE on/off 0.24-0.28 (first step) and 0.16-0.18 (second), peak dip
+    # on/off 0.85-0.95 and 0.77-0.86; the estimator's own delay (~10 ms, bounded below by the tacho
+    # noise it must filter) leaves the dip far above the ideal's, which comes one sample late.
     for i in range(2):
         off, on, ideal = (figures[m][i] for m in ("off", "estimate", "truth"))
-        assert ideal.iae < on.iae < 0.8 * off.iae
-        assert ideal.peak_dip < on.peak_dip <= 1.05 * off.peak_dip
+        assert ideal.iae < on.iae < 0.4 * off.iae
+        assert ideal.peak_dip < on.peak_dip < off.peak_dip
+        assert on.settling_time < 0.25 * off.settling_time
+    worst = {m: max(r.peak_dip for r in figures[m]) for m in figures}
+    assert worst["estimate"] < 0.9 * worst["off"]
     # the estimate the controller used follows the applied load once settled
     on = runs["estimate"]
     steady = (on.t > 1.3) & (on.t < 1.5)
@@ -65,6 +71,34 @@ def test_feedforward_of_the_estimate_rejects_load_steps_better_than_none(estimat
     np.testing.assert_array_equal(first.omega_true, second.omega_true)
 
 
+def test_the_estimate_holds_the_load_through_a_speed_reversal(estimator) -> None:
+    # Same load, set-point +150 -> -150 rad/s: the worm reverses within ~5 ms at full voltage
+    # (|alpha| ~ 6e4 rad/s^2), so nearly all the current accelerates the inertia. With speed and
+    # current filtered alike the estimate is back on the load 0.1 s later (error ~0.004 N m); the
+    # former single 50 ms filter (acceleration filtered twice) read ~0.4 N m of it as load for 0.2 s.
+    reversal = (Segment(0.8, 150.0, -0.2, "assistive"), Segment(0.6, -150.0, -0.2, "reverse, resistive"))
+    run = run_scenario(RIG, reversal, ("estimate",), estimator=estimator, seed=1)["estimate"]
+    assert run.omega_true[-1] < -140.0
+    error = np.abs(run.tau_estimated - run.tau_true)
+    assert error[(run.t >= 0.9) & (run.t < 1.4)].max() < 0.02
+
+
+def test_recorded_load_steps_are_found_in_the_record() -> None:
+    # truth at 100 Hz: load 0 -> 0.1 at 1 s, -> 0.2 at 2 s, -> 0.3 at 3 s with a new set-point (not pure)
+    t_load = np.arange(0.0, 4.0, 0.01)
+    load = np.select([t_load < 1.0 - 1e-9, t_load < 2.0 - 1e-9, t_load < 3.0 - 1e-9], [0.0, 0.1, 0.2], 0.3)
+    t = np.arange(0.0, 4.0, 1e-3)
+    setpoint = np.where(t < 3.0, 100.0, 50.0)
+    dip = np.clip(4.0 - 40.0 * np.abs(t - 1.1), 0.0, None)  # triangle, peak 4 rad/s at 1.1 s
+    steps = recorded_load_steps(t_load, load, t, setpoint - dip, setpoint)
+    assert len(steps) == 2
+    first, second = steps
+    assert first.time == pytest.approx(0.99) and first.end == pytest.approx(1.99)
+    assert (first.load_before, first.load_after) == (pytest.approx(0.0), pytest.approx(0.1))
+    assert first.peak_dip == pytest.approx(4.0, abs=0.05) and first.iae == pytest.approx(0.4, rel=0.01)
+    assert second.end == pytest.approx(2.99, abs=0.002) and second.peak_dip == 0.0 and second.iae == 0.0
+
+
 def test_run_scenario_checks_its_options(estimator) -> None:
     with pytest.raises(ValueError):
         run_scenario(RIG, STEP, ("estimate",))  # no estimator
@@ -72,6 +106,19 @@ def test_run_scenario_checks_its_options(estimator) -> None:
         run_scenario(RIG, STEP, ("sometimes",), estimator=estimator)
     with pytest.raises(ValueError):
         run_scenario(RIG, STEP, ("off",), estimate_delay=0)
+    with pytest.raises(ValueError):
+        run_scenario(RIG, STEP, ("off",), command_period=0)
+
+
+def test_graph_timing_delays_the_commands() -> None:
+    # commands every 5 samples, 5 samples late (the node graph's timing): the loop still holds the
+    # speed, but it rejects a load step worse than with each command taken at the next sample
+    short = STEP[:2]
+    prompt = run_scenario(RIG, short, ("off",), seed=1)["off"]
+    late = run_scenario(RIG, short, ("off",), seed=1, command_period=5, command_delay=5)["off"]
+    (r_prompt,), (r_late,) = (load_step_responses(short, r.t, r.omega_true, r.setpoint) for r in (prompt, late))
+    assert r_late.iae > 1.15 * r_prompt.iae  # 1.27 for this seed
+    assert abs(np.mean(late.omega_true[late.t > 1.2]) - 150.0) < 0.5
 
 
 def test_live_estimator_flags_and_skips_bad_samples(estimator) -> None:

@@ -11,6 +11,13 @@ Per sample, what sim_node, estimator_node and controller_node do over DDS:
      estimator and controller both react to a sample at once, so the
      controller uses the previous sample's estimate at best).
 
+By default the rig takes each command at the next sample (the firmware's
+timing). ``command_period`` and ``command_delay`` imitate the node graph
+instead: sim_node simulates publish_period worth of samples at a time with
+the last command it received, so a command waits for the next tick and,
+when the processes are busy, for a few more (a recorded demo run showed 1 to
+~40 samples between a sample and the command that acted on it, median ~10).
+
 Feedforward modes: "off" (PI only), "estimate" (the estimator's τ_d),
 "truth" (the load the rig actually applied, one sample late: the best any
 estimator could do). Several modes run side by side, one rig each.
@@ -19,7 +26,9 @@ Deterministic for a seed. Plain numpy; no ROS.
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +60,8 @@ class LoopRun:
 def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...] = ("off",), *,
                  estimator: TorqueEstimator | None = None, seed: int = 0, gains: PiGains = DEFAULT_GAINS,
                  estimate_delay: int = 1, estimate_timeout: float = 0.05,
-                 input_filter: float = 0.05) -> dict[str, LoopRun]:
+                 live_options: Mapping[str, Any] | None = None, command_period: int = 1,
+                 command_delay: int = 0) -> dict[str, LoopRun]:
     """Play a scenario (speed set-points and load torques over time) on the closed loop.
 
     One rig per feedforward mode, all side by side in one vectorised
@@ -61,7 +71,11 @@ def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...]
         modes: feedforward modes, each one of FEEDFORWARD_MODES.
         estimator: the τ_d map lookup, needed for mode "estimate" (only that rig runs it).
         estimate_delay: samples between a sample and its estimate reaching the controller (>= 1).
-        estimate_timeout, input_filter: as the controller_node / estimator_node parameters [s].
+        estimate_timeout: as the controller_node parameter [s].
+        live_options: keyword arguments of LiveEstimator (the estimator_node parameters
+            input_filter, estimate_filter, change_threshold, ...); None: its defaults.
+        command_period: the rig takes a new drive command only every this many samples (>= 1).
+        command_delay: samples between a control period and its command reaching the rig (>= 0).
 
     Returns:
         mode -> its run.
@@ -75,14 +89,17 @@ def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...]
         raise ValueError("feedforward mode 'estimate' needs an estimator")
     if estimate_delay < 1:
         raise ValueError(f"estimate_delay must be >= 1, got {estimate_delay}")
+    if command_period < 1 or command_delay < 0:
+        raise ValueError(f"need command_period >= 1 and command_delay >= 0, got {command_period}, {command_delay}")
     n = len(modes)
     sim = SimulatedRig(rig, n=n, seed=seed)
     dt = sim.sample_period
     controller = SpeedController(rig, gains, n=n)
     gates = [FeedforwardGate(estimate_timeout, enabled=mode != "off") for mode in modes]
-    live = {i: LiveEstimator(rig, estimator, dt, input_filter=input_filter)
+    live = {i: LiveEstimator(rig, estimator, dt, **(live_options or {}))
             for i, mode in enumerate(modes) if mode == "estimate"}
     in_flight: dict[int, deque] = {i: deque() for i in live}  # estimates on their way to the controller
+    commands: deque = deque()  # drive voltages on their way to the rig
 
     steps = int(round(sum(s.duration for s in scenario) / dt))
     rec = {name: np.full((steps, n), np.nan) for name in LoopRun.__dataclass_fields__}
@@ -102,7 +119,11 @@ def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...]
             tau_d = gates[i].load(stamp)
             tau_ff[i] = 0.0 if tau_d is None else float(feedforward_torque(rig, tau_d, setpoint))
         out = controller.update(dt, setpoint, m.omega_worm, tau_ff)
-        sim.command(voltage_drive=out.voltage)
+        commands.append(out.voltage)
+        if len(commands) > command_delay:
+            voltage = commands.popleft()
+            if (k + 1) % command_period == 0:  # the rig's next tick takes the latest command
+                sim.command(voltage_drive=voltage)
         for i, estimate in live.items():
             est = estimate.update(float(m.omega_worm[i]), float(m.current_drive[i]))
             rec["tau_estimated"][k, i] = est.torque

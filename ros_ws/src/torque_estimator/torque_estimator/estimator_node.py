@@ -2,12 +2,14 @@
 
 Subscribes /rig/sample (worm_msgs/RigSample), publishes /torque_estimate
 (worm_msgs/TorqueEstimate) for every sample, sensor-data QoS. The per-sample
-work is live_estimator.LiveEstimator: the speed and current are low-passed
-(the calibration map is quasi-static, so is its input), the current that
-accelerates the inertia is removed (quasi_static.py), then the configured
-estimator (k-NN over the calibration database, paper Eqs 33-34) maps
-(omega, i) to tau_d with an uncertainty and flags. A sample taken while the
-worm accelerates faster than transient_acceleration is flagged TRANSIENT.
+work is live_estimator.LiveEstimator, a disturbance observer: speed and
+current pass through the same low-pass (input_filter), the current that
+accelerates the inertia is removed (quasi_static.py), the result is smoothed
+(estimate_filter) except while a change is detected (change_threshold), then
+the configured estimator (k-NN over the calibration database, paper Eqs
+33-34) maps (omega, i) to tau_d with an uncertainty and flags. A sample taken
+while the worm accelerates faster than transient_acceleration is flagged
+TRANSIENT.
 
 A missing or broken calibration file is reported (log + /diagnostics ERROR)
 and the node keeps running without publishing estimates, so the rest of the
@@ -42,8 +44,16 @@ class EstimatorNode(Node):
         k = declare(self, "k", 4, "Neighbours averaged by the k-NN estimator.", low=1, high=64)
         weighting = declare(self, "weighting", "inverse_distance", "k-NN weighting of the neighbours.",
                             choices=("inverse_distance", "uniform"))
-        tau = declare(self, "input_filter", 0.05, "Time constant [s] of the low-pass on speed and current.",
+        tau = declare(self, "input_filter", 0.003,
+                      "Time constant [s] of each of the 3 low-pass stages speed and current pass alike.",
                       low=0.0, high=5.0)
+        estimate_filter = declare(self, "estimate_filter", 0.05,
+                                  "Time constant [s] of the smoothing of the compensated current (0: none).",
+                                  low=0.0, high=5.0)
+        change_threshold = declare(
+            self, "change_threshold", 4.0,
+            "Departure of the compensated current from its smoothed value, in running noise sigma, taken for a "
+            "change and followed at once (0: never).", low=0.0, high=100.0)
         self.transient_acceleration = declare(
             self, "transient_acceleration", 200.0,
             "Worm acceleration [rad/s^2] above which an estimate is flagged TRANSIENT.", low=0.0, high=1e6)
@@ -57,7 +67,8 @@ class EstimatorNode(Node):
             self.estimator = LiveEstimator(self.rig, make_estimator(self.method, database, k=k, weighting=weighting),
                                            period, input_filter=tau,
                                            inertia_compensation=self.inertia_compensation,
-                                           transient_acceleration=self.transient_acceleration)
+                                           transient_acceleration=self.transient_acceleration,
+                                           estimate_filter=estimate_filter, change_threshold=change_threshold)
             self.get_logger().info(f"{self.method} estimator on {len(database)} calibration points "
                                    f"from {self.calibration_file}")
         except CalibrationError as err:

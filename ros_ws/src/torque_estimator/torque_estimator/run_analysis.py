@@ -77,6 +77,64 @@ def load_step_responses(scenario, t, omega, setpoint, band_fraction: float = 0.0
     return responses
 
 
+@dataclass
+class RecordedLoadStep:
+    """One load step as a live run recorded it (times [s] on the run's own clock)."""
+
+    time: float  # [s] when the applied load changed
+    load_before: float  # [N m]
+    load_after: float  # [N m]
+    end: float  # [s] next change of load or set-point (or the end of the record)
+    peak_dip: float  # [rad/s] largest |omega - set-point| in the first `settle` s after the step
+    iae: float  # [rad] integral of |omega - set-point| from the step to `end`
+
+
+def recorded_load_steps(t_load, load, t_speed, omega, setpoint, *, settle: float = 0.8,
+                        tolerance: float = 1e-4) -> list[RecordedLoadStep]:
+    """Pure load steps of a recorded run, found in the record itself rather than in the schedule.
+
+    On the live graph the rig's clock and the scenario's wall clock drift apart
+    (a starved sim_node dilates the rig's time), so a scheduled segment can hold
+    the transient of the set-point change after it. Here a load step is where
+    the applied load (e.g. /sim/truth tau_load) changes by more than
+    ``tolerance`` [N m] while the set-point holds; its window runs to the next
+    change of either (changes closer than 50 ms are one).
+
+    Args:
+        t_load, load: applied load [N m] over time [s].
+        t_speed, omega, setpoint: worm speed [rad/s] (the true one where known) and the
+            set-point in force at each of its samples [rad/s].
+    """
+    t_load, load = np.asarray(t_load, float), np.asarray(load, float)
+    t_speed, error = np.asarray(t_speed, float), np.abs(np.asarray(omega, float) - np.asarray(setpoint, float))
+    if len(t_load) < 2 or len(t_speed) < 2:
+        return []
+    dt = np.diff(t_speed, append=t_speed[-1])
+
+    def events(t, x, tol):
+        changes = t[:-1][np.abs(np.diff(x)) > tol]
+        keep = np.concatenate(([True], np.diff(changes) > 0.05)) if changes.size else changes.astype(bool)
+        return changes[keep]
+
+    load_changes = events(t_load, load, tolerance)
+    setpoint_changes = events(t_speed, np.asarray(setpoint, float), 1e-9)
+    ends = np.sort(np.concatenate((load_changes, setpoint_changes, [t_speed[-1]])))
+    steps = []
+    for t0 in load_changes:
+        if np.any(np.abs(setpoint_changes - t0) < 0.05):
+            continue  # the set-point changed with it: not a pure load step
+        end = float(ends[ends > t0][0])
+        window = (t_speed >= t0) & (t_speed < end)
+        if not window.any():
+            continue
+        first = window & (t_speed < t0 + settle)
+        steps.append(RecordedLoadStep(
+            time=float(t0), load_before=float(np.interp(t0 - 0.02, t_load, load)),
+            load_after=float(np.interp(min(t0 + 0.05, end), t_load, load)), end=end,
+            peak_dip=float(error[first].max()), iae=float(np.sum(error[window] * dt[window]))))
+    return steps
+
+
 def _steady_mask(t: np.ndarray, scenario, settle: float) -> np.ndarray:
     starts = segment_starts(scenario)
     ends = starts + np.array([s.duration for s in scenario])
