@@ -134,3 +134,27 @@ def test_replay_cli_reports_speed_factor(recorded: tuple[Path, list[str], str]) 
                           "estimator_node.calibration_file=/no/such.json", "--quiet"],
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "/no/such.json" in bad.stderr
+
+
+def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str]) -> None:
+    """replay fills what the parameter file leaves out with NODE_DEFAULTS: they must be what the
+    nodes declare, or replay silently differs from a live graph run without a parameter file."""
+    import rclpy
+
+    from torque_estimator.estimator_node import EstimatorNode
+    from torque_estimator.replay import NODE_DEFAULTS
+    from worm_model.model_node import ModelNode
+
+    rclpy.init()  # the nodes take the default context
+    try:
+        for name, node_class in (("model_node", ModelNode), ("estimator_node", EstimatorNode)):
+            node = node_class()
+            try:
+                declared = {p: node.get_parameter(p).value for p in NODE_DEFAULTS[name]}
+                assert declared == NODE_DEFAULTS[name], name
+                undeclared = set(node._parameters) - set(NODE_DEFAULTS[name]) - {"use_sim_time", "start_type_description_service"}
+                assert not undeclared, f"{name} declares {sorted(undeclared)} that replay does not know"
+            finally:
+                node.destroy_node()
+    finally:
+        rclpy.try_shutdown()

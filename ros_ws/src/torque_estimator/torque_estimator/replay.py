@@ -72,7 +72,8 @@ from .progress import ProgressBar
 NODE_DEFAULTS: dict[str, dict[str, Any]] = {
     "model_node": {"rig_file": "", "use_acceleration": True, "acceleration_filter": 0.01},
     "estimator_node": {"rig_file": "", "inertia_compensation": True, "calibration_file": "",
-                       "method": "knn", "k": 4, "weighting": "inverse_distance", "input_filter": 0.05,
+                       "method": "knn", "k": 4, "weighting": "inverse_distance", "input_filter": 0.003,
+                       "estimate_filter": 0.05, "change_threshold": 4.0,
                        "transient_acceleration": 200.0, "sample_rate": 1000.0},
 }
 ESTIMATE_TOPIC = "/torque_estimate"
@@ -207,7 +208,9 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
                                                          weighting=str(est_p["weighting"])),
                                  period, input_filter=float(est_p["input_filter"]),
                                  inertia_compensation=bool(est_p["inertia_compensation"]),
-                                 transient_acceleration=float(est_p["transient_acceleration"]))
+                                 transient_acceleration=float(est_p["transient_acceleration"]),
+                                 estimate_filter=float(est_p["estimate_filter"]),
+                                 change_threshold=float(est_p["change_threshold"]))
              for name in names}
     model_out, est_out = Outputs(), {name: Outputs() for name in names}
     first = last = None
