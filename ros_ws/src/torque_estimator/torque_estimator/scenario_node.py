@@ -23,6 +23,9 @@ from .graph import Graph
 from .scenario import DEMO_SCENARIO, segment_at
 
 
+ANALYSED_TOPICS = ("/rig/sample", "/sim/truth", "/torque_estimate", "/rig/drive_command")
+
+
 def live_run(graph_file: Path, calibration: Path, feedforward: bool, bag: Path, log_dir: Path) -> float:
     """Run the scenario on the live graph, recording every topic to `bag`; returns the start stamp [s]."""
     overrides = {"estimator_node": [f"calibration_file:={calibration}"],
@@ -39,7 +42,10 @@ def live_run(graph_file: Path, calibration: Path, feedforward: bool, bag: Path, 
             speed_pub = node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND)
             load_pub = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
             deadline = time.monotonic() + 60.0
-            while min(recorder.counts.get(t, 0) for t in ("/torque_estimate", "/rig/drive_command")) < 200:
+            # Start the scenario only once every stream the analysis reads is being recorded: topics
+            # are subscribed as discovery finds them, and a late /rig/sample or /sim/truth would
+            # leave the first seconds of the run out of the bag.
+            while min(recorder.counts.get(t, 0) for t in ANALYSED_TOPICS) < 200:
                 if graph.failed() or time.monotonic() > deadline:
                     raise RuntimeError(f"graph did not start (exited: {graph.failed()}); see {log_dir}")
                 executor.spin_once(timeout_sec=0.05)
