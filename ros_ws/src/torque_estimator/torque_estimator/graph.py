@@ -105,7 +105,8 @@ class Graph:
         return {n: p.returncode for n, p in self.processes.items() if p.poll() is not None}
 
     def stop(self, grace: float = 10.0) -> dict[str, int]:
-        """SIGINT every node, wait up to grace [s], SIGKILL what is left; returns exit codes."""
+        """SIGINT every node, wait up to grace [s], SIGKILL what is left (after SIGUSR1, which makes a
+        node print its threads' stacks to its log); returns exit codes."""
         for proc in self.processes.values():
             if proc.poll() is None:
                 proc.send_signal(signal.SIGINT)
@@ -114,6 +115,11 @@ class Graph:
             try:
                 proc.wait(max(0.0, deadline - time.monotonic()))
             except subprocess.TimeoutExpired:
+                proc.send_signal(signal.SIGUSR1)  # run_node prints where it is stuck into its log
+                try:
+                    proc.wait(1.0)
+                except subprocess.TimeoutExpired:
+                    pass
                 proc.kill()
                 proc.wait()
         return {n: p.returncode for n, p in self.processes.items()}

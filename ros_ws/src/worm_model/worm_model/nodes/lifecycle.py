@@ -8,6 +8,7 @@ spins until the flag is set.
 """
 from __future__ import annotations
 
+import faulthandler
 import signal
 import sys
 import threading
@@ -27,6 +28,9 @@ except ImportError:  # Humble
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
     """rclpy.init, build the node, spin until SIGINT/SIGTERM, clean up; returns an exit code."""
     stop = threading.Event()
+    # A node that does not exit after SIGINT can be asked where it is stuck: SIGUSR1 prints every
+    # thread's Python stack to stderr (run_graph and the tests do this before SIGKILL).
+    faulthandler.register(signal.SIGUSR1, all_threads=True)
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
