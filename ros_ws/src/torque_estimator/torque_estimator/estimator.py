@@ -11,6 +11,7 @@ row in :data:`ESTIMATORS`, so the benchmark and the node treat them alike.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 from enum import IntFlag
 from typing import Any, Callable, Protocol, runtime_checkable
@@ -73,10 +74,28 @@ def _make_knn(database: CalibrationDatabase, **options: Any) -> TorqueEstimator:
     return KnnEstimator(database, **options)
 
 
+def _make_extended_model(database: CalibrationDatabase, **options: Any) -> TorqueEstimator:
+    from .model_estimator import ExtendedModelEstimator  # deferred: it imports this module
+
+    return ExtendedModelEstimator(database, **options)
+
+
 #: Estimator name → factory ``(database, **options) -> TorqueEstimator``.
 ESTIMATORS: dict[str, Callable[..., TorqueEstimator]] = {
     "knn": _make_knn,
+    "extended_model": _make_extended_model,
 }
+
+#: Estimator name → the estimator_node parameters passed to its factory as options.
+NODE_OPTIONS: dict[str, tuple[str, ...]] = {
+    "knn": ("k", "weighting"),
+    "extended_model": ("model_file", "rig_file"),
+}
+
+
+def node_options(name: str, parameters: Mapping[str, Any]) -> dict[str, Any]:
+    """The options of estimator ``name`` taken from estimator_node's parameters (node and replay alike)."""
+    return {option: parameters[option] for option in NODE_OPTIONS.get(name, ())}
 
 
 def make_estimator(name: str, database: CalibrationDatabase, **options: Any) -> TorqueEstimator:
@@ -99,4 +118,6 @@ __all__ = [
     "TorqueEstimator",
     "ESTIMATORS",
     "make_estimator",
+    "NODE_OPTIONS",
+    "node_options",
 ]

@@ -24,10 +24,10 @@ from worm_model.nodes.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.nodes.lifecycle import run_node
 from worm_model.nodes.parameters import declare
 from worm_model.nodes.qos import STREAM
-from worm_model.parameters import load_rig
+from worm_model.parameters import ParameterError, load_rig
 
 from .calibration_database import CalibrationError, load_database
-from .estimator import ESTIMATORS, EstimateFlags, make_estimator
+from .estimator import ESTIMATORS, EstimateFlags, make_estimator, node_options
 from .live_estimator import LiveEstimator
 
 
@@ -44,6 +44,10 @@ class EstimatorNode(Node):
         k = declare(self, "k", 4, "Neighbours averaged by the k-NN estimator.", low=1, high=64)
         weighting = declare(self, "weighting", "inverse_distance", "k-NN weighting of the neighbours.",
                             choices=("inverse_distance", "uniform"))
+        model_file = declare(self, "model_file", "",
+                             "Extended model parameter file (rig + effects, written by `residuals`) inverted by the "
+                             "extended_model estimator; empty = rig_file (or the bundled rig) with no effects, "
+                             "the paper's model.")
         tau = declare(self, "input_filter", 0.003,
                       "Time constant [s] of each of the 3 low-pass stages speed and current pass alike.",
                       low=0.0, high=5.0)
@@ -64,14 +68,16 @@ class EstimatorNode(Node):
         self.problem = ""
         try:
             database = load_database(self.calibration_file)
-            self.estimator = LiveEstimator(self.rig, make_estimator(self.method, database, k=k, weighting=weighting),
+            options = node_options(self.method, {"k": k, "weighting": weighting, "model_file": model_file,
+                                                 "rig_file": rig_file})
+            self.estimator = LiveEstimator(self.rig, make_estimator(self.method, database, **options),
                                            period, input_filter=tau,
                                            inertia_compensation=self.inertia_compensation,
                                            transient_acceleration=self.transient_acceleration,
                                            estimate_filter=estimate_filter, change_threshold=change_threshold)
             self.get_logger().info(f"{self.method} estimator on {len(database)} calibration points "
                                    f"from {self.calibration_file}")
-        except CalibrationError as err:
+        except (CalibrationError, ParameterError) as err:
             self.problem = str(err)
             self.get_logger().error(f"no estimates: {err}")
 

@@ -63,7 +63,7 @@ from worm_rig_driver.bag_types import BagRecordingError, ament_prefixes
 from worm_rig_driver.rig_csv import find_sample_topic
 
 from .calibration_database import CalibrationError, load_database
-from .estimator import ESTIMATORS, make_estimator
+from .estimator import ESTIMATORS, make_estimator, node_options
 from .graph import GraphError, parse_overrides
 from .live_estimator import LiveEstimator
 from .progress import ProgressBar
@@ -72,7 +72,8 @@ from .progress import ProgressBar
 NODE_DEFAULTS: dict[str, dict[str, Any]] = {
     "model_node": {"rig_file": "", "use_acceleration": True, "acceleration_filter": 0.01},
     "estimator_node": {"rig_file": "", "inertia_compensation": True, "calibration_file": "",
-                       "method": "knn", "k": 4, "weighting": "inverse_distance", "input_filter": 0.003,
+                       "method": "knn", "k": 4, "weighting": "inverse_distance", "model_file": "",
+                       "input_filter": 0.003,
                        "estimate_filter": 0.05, "change_threshold": 4.0,
                        "transient_acceleration": 200.0, "sample_rate": 1000.0},
 }
@@ -204,8 +205,13 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
                       float(model_p["acceleration_filter"]))
     est_rig = load_rig(est_p["rig_file"] or None)
     period = 1.0 / float(est_p["sample_rate"])
-    cores = {name: LiveEstimator(est_rig, make_estimator(name, database, k=int(est_p["k"]),
-                                                         weighting=str(est_p["weighting"])),
+    options = {**est_p, "k": int(est_p["k"]), "weighting": str(est_p["weighting"]),
+               "model_file": str(est_p["model_file"]), "rig_file": str(est_p["rig_file"])}
+    try:
+        estimators_built = {name: make_estimator(name, database, **node_options(name, options)) for name in names}
+    except ValueError as err:  # worm_model's ParameterError is a ValueError: a bad model_file
+        raise ReplayError(f"estimator_node: {err}") from None
+    cores = {name: LiveEstimator(est_rig, estimators_built[name],
                                  period, input_filter=float(est_p["input_filter"]),
                                  inertia_compensation=bool(est_p["inertia_compensation"]),
                                  transient_acceleration=float(est_p["transient_acceleration"]),
