@@ -41,19 +41,12 @@ from worm_msgs.msg import RigSample
 
 from worm_model.nodes.qos import STREAM
 from worm_rig_driver.bag_reader import BagReader
-from worm_rig_driver.bag_types import ament_prefixes
+from worm_model.nodes.ament import find_executable
 from worm_rig_driver.seq_check import StreamCheck
 
 TOPIC = "/rig/sample"
 DISCOVERY_TIMEOUT = 30.0  # [s]
 EXIT_TIMEOUT = 60.0  # [s] for the recorder to drain and close after SIGINT
-
-
-def recorder_executable() -> Path:
-    for prefix in ament_prefixes():
-        if (path := prefix / "lib" / "worm_rig_driver" / "recorder").is_file():
-            return path
-    raise SystemExit("recorder_bench: `recorder` not installed (make setup)")
 
 
 def publish(node: Node, recorder: subprocess.Popen, args: argparse.Namespace) -> tuple[int, float]:
@@ -112,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
         log_path = Path(tmp) / "recorder.log"
         with log_path.open("wb") as log:
             recorder = subprocess.Popen(
-                [str(recorder_executable()), "--ros-args", "-p", f"output:={bag}",
+                [str(find_executable("recorder")), "--ros-args", "-p", f"output:={bag}",
                  "-p", f"storage:={args.storage}", "-p", f"topics:=[{TOPIC}]", "-p", "discovery_period:=0.2"],
                 env=env, stdout=log, stderr=subprocess.STDOUT)
         rclpy.init()

@@ -27,7 +27,8 @@ from worm_msgs.msg import DriveCommand
 from torque_estimator.calibration import CalibrationGrid, calibrate_simulated
 from torque_estimator.calibration_database import load_database
 from torque_estimator.calibration_journal import CalibrationJournal, default_journal_path
-from torque_estimator.graph import Graph, find_executable
+from torque_estimator.graph import Graph
+from worm_model.nodes.ament import find_executable
 from torque_estimator.operating_points import SteadyStateCriterion
 from worm_model.nodes.qos import STREAM
 from worm_model.nodes.testing import probe_node

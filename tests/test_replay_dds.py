@@ -23,7 +23,8 @@ from pathlib import Path
 
 import pytest
 
-from torque_estimator.graph import Graph, find_executable, parse_overrides
+from torque_estimator.graph import Graph, parse_overrides
+from worm_model.nodes.ament import find_executable
 from torque_estimator.replay import (ESTIMATE_FIELDS, ESTIMATE_TOPIC, FORCE_FIELDS, FORCES_TOPIC, compare,
                                      node_parameters, replay)
 from worm_model.nodes.testing import stop_process

@@ -14,7 +14,7 @@ from torque_estimator.calibration_database import save_database
 from torque_estimator.estimator import EstimateFlags
 from torque_estimator.evaluation import (Evaluation, format_table, held_out_setpoints, measure_held_out, score,
                                          sweep_k, with_noise)
-from torque_estimator.graph import find_executable
+from worm_model.nodes.ament import find_executable
 from torque_estimator.knn_estimator import KnnEstimator
 
 RIG = load_rig()

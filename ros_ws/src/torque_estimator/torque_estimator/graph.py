@@ -9,7 +9,6 @@ for every prefix of AMENT_PREFIX_PATH.
 """
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import time
@@ -18,7 +17,7 @@ from pathlib import Path
 
 import yaml
 
-from worm_rig_driver.bag_recording import ament_prefixes
+from worm_model.nodes.ament import ament_prefixes, find_executable
 
 
 class GraphError(RuntimeError):
@@ -48,17 +47,6 @@ def graph_nodes(params_file: Path) -> list[str]:
     return [name for name in data if name != "/**"]
 
 
-def find_executable(name: str, prefixes: list[str] | None = None) -> Path:
-    """<prefix>/lib/<pkg>/<name> for the first AMENT_PREFIX_PATH prefix that has it."""
-    if prefixes is None:
-        prefixes = [str(p) for p in ament_prefixes()]
-    for prefix in prefixes:
-        for candidate in sorted(Path(prefix, "lib").glob(f"*/{name}")):
-            if os.access(candidate, os.X_OK):
-                return candidate
-    raise GraphError(f"no executable '{name}' under lib/<pkg>/ of AMENT_PREFIX_PATH={':'.join(prefixes)}")
-
-
 def parse_overrides(items: list[str]) -> dict[str, list[str]]:
     """'node.param=value' strings -> {node: ['param:=value', ...]} for --ros-args -p."""
     overrides: dict[str, list[str]] = {}
@@ -81,7 +69,11 @@ class Graph:
     processes: dict[str, subprocess.Popen] = field(default_factory=dict)
 
     def command(self, node: str) -> list[str]:
-        cmd = [str(find_executable(node)), "--ros-args", "--params-file", str(self.params_file)]
+        try:
+            executable = find_executable(node)
+        except FileNotFoundError as err:
+            raise GraphError(str(err)) from None
+        cmd = [str(executable), "--ros-args", "--params-file", str(self.params_file)]
         for assignment in self.overrides.get(node, []):
             cmd += ["-p", assignment]
         return cmd

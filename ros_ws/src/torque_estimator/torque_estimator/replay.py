@@ -59,12 +59,12 @@ from worm_model.live_model import LiveModel
 from worm_model.parameters import load_rig
 from worm_model.rig_data import RigDataError
 from worm_rig_driver.bag_reader import BagReader
-from worm_rig_driver.bag_types import BagRecordingError, ament_prefixes
+from worm_rig_driver.bag_types import BagRecordingError
 from worm_rig_driver.rig_csv import find_sample_topic
 
 from .calibration_database import CalibrationError, load_database
 from .estimator import ESTIMATORS, make_estimator, node_options
-from .graph import GraphError, parse_overrides
+from .graph import GraphError, default_graph_file, parse_overrides
 from .live_estimator import LiveEstimator
 from .progress import ProgressBar
 
@@ -88,14 +88,6 @@ class ReplayError(RuntimeError):
 
 
 # --- configuration ---------------------------------------------------------------------------------
-
-def default_params_file() -> Path | None:
-    """The installed graph parameter file (share/torque_estimator/config/sim_graph.yaml)."""
-    for prefix in ament_prefixes():
-        if (path := prefix / "share" / "torque_estimator" / "config" / "sim_graph.yaml").is_file():
-            return path
-    return None
-
 
 def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> dict[str, dict[str, Any]]:
     """model_node's and estimator_node's parameters: defaults < file < ``node.param=value`` overrides.
@@ -341,7 +333,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     try:
-        params = node_parameters(args.params_file or default_params_file(), args.set)
+        params = node_parameters(args.params_file or default_graph_file(), args.set)
         names = args.estimators.split(",") if args.estimators else None
         result = replay(args.bag, params, names, follow_live=args.follow_live, sample_topic=args.topic,
                         progress=not args.quiet)

@@ -18,23 +18,15 @@ import yaml
 from rclpy.serialization import serialize_message
 from worm_model.rig_data import read_rig_csv
 from worm_msgs.msg import RigSample
-from worm_rig_driver.bag_types import ament_prefixes
+from worm_model.nodes.ament import find_executable
 from worm_rig_driver.rosbag2_layouts import FixtureTopic, write_rosbag2_bag
 
 T0 = 1_700_000_000_000_000_000
 N = 50
 
 
-def bag_executable() -> Path:
-    """Where `ros2 run worm_rig_driver bag` finds it."""
-    for prefix in ament_prefixes():
-        if (path := prefix / 'lib' / 'worm_rig_driver' / 'bag').is_file():
-            return path
-    pytest.fail('bag is not installed (make setup)')
-
-
 def run_bag(*args: str | Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([str(bag_executable()), *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([str(find_executable("bag")), *map(str, args)], capture_output=True, text=True,
                           timeout=120, env=dict(os.environ))
 
 

@@ -36,6 +36,8 @@ from rosbags.typesys import (
 )
 from rosbags.typesys.store import Typestore
 
+from worm_model.nodes.ament import ament_prefixes
+
 __all__ = [
     'STOCK_STORE',
     'BagClosedError',
@@ -104,17 +106,6 @@ class ClosesOnExit:
     ) -> None:
         """Close the bag, also on error (what a writer wrote stays readable)."""
         self.close()
-
-
-def ament_prefixes(environ: Mapping[str, str] | None = None) -> list[Path]:
-    """Return the ament prefixes of ``AMENT_PREFIX_PATH``, in search order.
-
-    Args:
-        environ: Environment to read; ``os.environ`` when None.
-
-    """
-    value = (os.environ if environ is None else environ).get('AMENT_PREFIX_PATH', '')
-    return [Path(entry) for entry in value.split(os.pathsep) if entry]
 
 
 def normalize_type_name(type_name: str) -> str:
