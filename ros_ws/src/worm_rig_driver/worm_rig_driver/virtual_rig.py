@@ -45,11 +45,10 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from worm_model.parameters import ParameterError, load_rig
+from worm_model.parameters import load_rig
 
 from . import protocol_table as table
 from .codec import Frame, StreamDecoder, encode_frame
-from .effects import EffectsError
 from .scaling import RigScaling
 from .simulated_rig import SimulatedRig
 
@@ -393,7 +392,7 @@ def main(argv: list[str] | None = None) -> int:
         rig = load_rig(args.rig)
         sim = SimulatedRig(rig, n=1, seed=args.seed, substeps=args.substeps, effects=args.effects)
         firmware = VirtualFirmware(sim)
-    except (ParameterError, EffectsError, ValueError) as err:
+    except ValueError as err:  # ParameterError and EffectsError are ValueErrors
         print(f"virtual_rig: {err}", file=sys.stderr)
         return 2
     link = Path(args.link)
