@@ -9,7 +9,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from scipy.optimize import brentq
 
 from worm_model.dynamics import reflected_input_torque
 from worm_model.efficiency import flank_factor
@@ -17,6 +16,7 @@ from worm_model.friction import friction_coefficient, sliding_velocity
 from worm_model.gear_side import gear_side_load
 from worm_model.internal_forces import internal_forces
 from worm_model.parameters import load_rig
+from worm_model.steady_state import steady_worm_speed
 from worm_rig_driver.plant import STANDSTILL_SPEED, RigPlant
 
 RIG = load_rig()
@@ -37,21 +37,6 @@ def _run(plant: RigPlant, steps: int, voltage, load, dt: float = DT) -> np.ndarr
 
 # --- steady state: Eq. 28 (a_w = 0) + Eq. 29 (di/dt = 0) --------------------------------------------
 
-def _steady_speed(voltage: float, tau_load: float) -> float:
-    """Root of K_t (V - K_e w)/R = b w + c sign(w) + reflected(gear_side_load(tau, w), w)."""
-
-    def torque_surplus(w: float) -> float:
-        mu = friction_coefficient(RIG.friction, GB, w)
-        need = reflected_input_torque(GB, mu, gear_side_load(RIG, tau_load, w), w)
-        current = (voltage - DRIVE.back_emf_constant * w) / DRIVE.resistance
-        return float(DRIVE.torque_constant * current - DRIVE.viscous_drag * w
-                     - DRIVE.coulomb_drag * np.sign(w) - need)
-
-    no_load_speed = abs(voltage) / DRIVE.back_emf_constant
-    lo, hi = (1e-3, no_load_speed * 1.5) if voltage > 0 else (-no_load_speed * 1.5, -1e-3)
-    return brentq(torque_surplus, lo, hi, xtol=1e-12, rtol=1e-13)
-
-
 # (V, tau_load): resistive and assistive loads, both directions of rotation.
 STEADY_CASES = [(12.0, 0.2), (12.0, -0.2), (-12.0, -0.2), (-12.0, 0.2), (20.0, 0.1), (-18.0, 0.05)]
 
@@ -67,7 +52,7 @@ def test_steady_state_matches_quasi_static_model() -> None:
     D = np.sign(w) * gear_side_load(RIG, loads, w)
     assert set(np.sign(w)) == {1.0, -1.0} and (D > 0).sum() == 3 and (D < 0).sum() == 3
 
-    expected_w = np.array([_steady_speed(v, t) for v, t in STEADY_CASES])
+    expected_w = np.array([steady_worm_speed(RIG, v, t) for v, t in STEADY_CASES])
     np.testing.assert_allclose(w, expected_w, rtol=1e-7)
     # Eq. 29 with di/dt = 0 and Eq. 28 with a_w = 0, as residuals [V] and [N m].
     np.testing.assert_allclose(volts, DRIVE.resistance * i + DRIVE.back_emf_constant * w, atol=1e-9)
