@@ -6,10 +6,10 @@ setup:
 	@bash tools/setup.sh
 
 demo: setup
-	@$(RUN) python -m torque_estimator.demo --out out/demo
+	@$(RUN) python -m torque_estimator.experiment.demo --out out/demo
 
 evaluate: setup
-	@$(RUN) python -m torque_estimator.evaluate --out out/evaluate
+	@$(RUN) python -m torque_estimator.experiment.evaluate --out out/evaluate
 
 test: setup
 	@$(RUN) python -m pytest
@@ -21,7 +21,7 @@ bench: setup
 FIRMWARE := ros_ws/src/worm_rig_driver/firmware
 fil: setup
 	@$(MAKE) -s -C $(FIRMWARE) all fil
-	@$(RUN) python -m worm_rig_driver.fil_run --elf $(FIRMWARE)/build/rig.elf --harness $(FIRMWARE)/build/libwormfil.so
+	@$(RUN) python -m worm_rig_driver.fil.run --elf $(FIRMWARE)/build/rig.elf --harness $(FIRMWARE)/build/libwormfil.so
 
 clean:
 	rm -rf ros_ws/build ros_ws/install ros_ws/log out

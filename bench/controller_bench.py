@@ -2,9 +2,9 @@
 
     python bench/controller_bench.py [--seed N] [--graph FILE] [--set NODE.PARAM=VALUE ...]
 
-Runs the demo's scenario (torque_estimator.scenario.DEMO_SCENARIO: load steps
+Runs the demo's scenario (torque_estimator.experiment.scenario.DEMO_SCENARIO: load steps
 into all three modes at +-150 rad/s) on the live graph's control loop in one
-process (torque_estimator.closed_loop: SimulatedRig + LiveEstimator +
+process (torque_estimator.experiment.closed_loop: SimulatedRig + LiveEstimator +
 FeedforwardGate + SpeedController, the cores sim_node, estimator_node and
 controller_node run), with the PI gains, estimator options and timeouts of
 the installed sim_graph.yaml, on a calibration of the paper's grid.
@@ -49,14 +49,14 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from torque_estimator.calibration import CalibrationGrid, calibrate_simulated
-from torque_estimator.closed_loop import run_scenario
-from torque_estimator.graph import default_graph_file
-from torque_estimator.estimator import make_estimator
-from torque_estimator.run_analysis import load_step_responses
-from torque_estimator.scenario import DEMO_SCENARIO, segment_starts
-from torque_estimator.speed_controller import PiGains
-from worm_model.parameters import load_rig
+from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
+from torque_estimator.experiment.closed_loop import run_scenario
+from torque_estimator.graph.runner import default_graph_file
+from torque_estimator.estimation.registry import make_estimator
+from torque_estimator.experiment.run_analysis import load_step_responses
+from torque_estimator.experiment.scenario import DEMO_SCENARIO, segment_starts
+from torque_estimator.control.speed_controller import PiGains
+from worm_model.physics.parameters import load_rig
 
 MODES = {"off": "ff_off", "estimate": "ff_on", "truth": "ff_ideal"}
 LABELS = {"off": "off", "estimate": "on (k-NN)", "truth": "ideal (true load)"}

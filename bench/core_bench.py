@@ -19,12 +19,12 @@ import time
 
 import numpy as np
 
-from torque_estimator.calibration import CalibrationGrid, calibrate_simulated
-from torque_estimator.knn_estimator import KnnEstimator
-from worm_model.internal_forces import internal_forces
-from worm_model.parameters import load_rig
-from worm_rig_driver.effects import EFFECTS, EffectsConfig
-from worm_rig_driver.simulated_rig import SimulatedRig
+from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
+from torque_estimator.estimation.knn import KnnEstimator
+from worm_model.physics.internal_forces import internal_forces
+from worm_model.physics.parameters import load_rig
+from worm_rig_driver.sim.effects import EFFECTS, EffectsConfig
+from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 
 def info(text: str) -> None:

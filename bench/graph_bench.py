@@ -53,14 +53,14 @@ def main() -> int:
     from rclpy.task import Future
     from worm_msgs.msg import DriveCommand, LoadCommand, RigSample
 
-    from torque_estimator.graph import Graph, parse_overrides
-    from worm_model.nodes.qos import COMMAND
+    from torque_estimator.graph.runner import Graph, parse_overrides
+    from worm_model.ros.qos import COMMAND
 
     probe_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=500, reliability=ReliabilityPolicy.BEST_EFFORT)
     work = Path(tempfile.mkdtemp(prefix="graph_bench_"))
     calibration = work / "calibration.json"
     info(f"domain {os.environ['ROS_DOMAIN_ID']}, work dir {work}")
-    subprocess.run([sys.executable, "-m", "torque_estimator.calibrate", "--out", str(calibration), "--quiet"],
+    subprocess.run([sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(calibration), "--quiet"],
                    check=True, stdout=sys.stderr)
 
     context = Context()

@@ -27,10 +27,10 @@ import numpy as np
 import rclpy
 from worm_msgs.msg import RigSample
 
-from worm_model.dynamics import reflected_input_torque
-from worm_model.friction import friction_coefficient
-from worm_model.gear_side import gear_side_load
-from worm_model.model_node import ModelNode
+from worm_model.physics.dynamics import reflected_input_torque
+from worm_model.physics.friction import friction_coefficient
+from worm_model.physics.gear_side import gear_side_load
+from worm_model.nodes.model_node import ModelNode
 
 N = 10000  # calls per round
 ROUNDS = 3

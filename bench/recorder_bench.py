@@ -39,10 +39,10 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from worm_msgs.msg import RigSample
 
-from worm_model.nodes.qos import STREAM
-from worm_rig_driver.bag_reader import BagReader
-from worm_model.nodes.ament import find_executable
-from worm_rig_driver.seq_check import StreamCheck
+from worm_model.ros.qos import STREAM
+from worm_model.bags.reader import BagReader
+from worm_model.ros.ament import find_executable
+from worm_model.bags.seq_check import StreamCheck
 
 TOPIC = "/rig/sample"
 DISCOVERY_TIMEOUT = 30.0  # [s]

@@ -20,9 +20,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from worm_model.nodes.testing import local_domain, stop_process
-from worm_rig_driver.codec import StreamDecoder, encode_frame
-from worm_rig_driver.rig_peer import PtyRigPeer
+from worm_model.ros.testing import local_domain, stop_process
+from worm_rig_driver.protocol.codec import StreamDecoder, encode_frame
+from worm_rig_driver.link.rig_peer import PtyRigPeer
 
 FRAMES = 200_000
 CPU_WINDOW = 5.0  # [s]
@@ -76,7 +76,7 @@ def driver_figures() -> tuple[float, float]:
         peer.start()
         driver_log = Path(tmp) / "driver.log"
         with open(driver_log, "w") as out:
-            driver = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.driver_node", "--ros-args",
+            driver = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.nodes.driver_node", "--ros-args",
                                        "-p", f"port:={peer.link}"], stdout=out, stderr=subprocess.STDOUT, env=env)
         try:
             if not wait_for(lambda: peer.streaming, 60.0):

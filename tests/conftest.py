@@ -1,7 +1,7 @@
 """Fixtures shared by the system tests: the run's DDS domain, and node graphs started from a parameter text.
 
 The helpers without pytest in them (domain, probe node, stopping a process) are in
-worm_model.nodes.testing, so that the bench scripts can use them too.
+worm_model.ros.testing, so that the bench scripts can use them too.
 """
 from __future__ import annotations
 
@@ -10,13 +10,13 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from torque_estimator.graph import Graph
-from worm_model.nodes.testing import local_domain
+from torque_estimator.graph.runner import Graph
+from worm_model.ros.testing import local_domain
 
 
 @pytest.fixture(scope="module")
 def ros_env() -> Iterator[dict[str, str]]:
-    """This module's DDS domain (worm_model.nodes.testing.local_domain), set in os.environ.
+    """This module's DDS domain (worm_model.ros.testing.local_domain), set in os.environ.
 
     The variables hold for this process's probe nodes and for the processes it
     starts. The fixture yields the whole environment, to pass to subprocesses.

@@ -24,15 +24,15 @@ import numpy as np
 import pytest
 from worm_msgs.msg import DriveCommand
 
-from torque_estimator.calibration import CalibrationGrid, calibrate_simulated
-from torque_estimator.calibration_database import load_database
-from torque_estimator.calibration_journal import CalibrationJournal, default_journal_path
-from torque_estimator.graph import Graph
-from worm_model.nodes.ament import find_executable
-from torque_estimator.operating_points import SteadyStateCriterion
-from worm_model.nodes.qos import STREAM
-from worm_model.nodes.testing import probe_node
-from worm_model.parameters import load_rig
+from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
+from torque_estimator.estimation.database import load_database
+from torque_estimator.calibration.journal import CalibrationJournal, default_journal_path
+from torque_estimator.graph.runner import Graph
+from worm_model.ros.ament import find_executable
+from torque_estimator.calibration.operating_points import SteadyStateCriterion
+from worm_model.ros.qos import STREAM
+from worm_model.ros.testing import probe_node
+from worm_model.physics.parameters import load_rig
 
 GRAPH = """\
 sim_node:

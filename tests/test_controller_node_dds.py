@@ -22,9 +22,9 @@ from rclpy.node import Node
 from std_msgs.msg import Float64
 from worm_msgs.msg import DriveCommand, RigSample
 
-from torque_estimator.graph import Graph
-from worm_model.nodes.qos import COMMAND, STREAM
-from worm_model.nodes.testing import probe_node
+from torque_estimator.graph.runner import Graph
+from worm_model.ros.qos import COMMAND, STREAM
+from worm_model.ros.testing import probe_node
 
 LIMIT = 3.0  # [V]
 PARAMS = f"""\

@@ -1,7 +1,7 @@
 """System test of driver_node over a real pseudo-terminal, with a Python peer speaking the rig's protocol.
 
 driver_node runs in its own process (as `ros2 run` starts it) on the slave end of
-a pty that worm_rig_driver.rig_peer.PtyRigPeer serves, through a symlink, the way
+a pty that worm_rig_driver.link.rig_peer.PtyRigPeer serves, through a symlink, the way
 a udev /dev/serial/by-id link points at a USB serial device. A probe node in this
 process subscribes to what the driver publishes and sends commands. Faults are
 made by the peer: garbage bytes, broken CRCs, skipped sequence numbers, silence,
@@ -31,12 +31,12 @@ from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from worm_msgs.msg import DriveCommand, EncoderCounts, LoadCommand, MotorCurrents, RigSample
 
-from worm_model.nodes.qos import COMMAND, STREAM
-from worm_model.nodes.testing import probe_node, stop_process
-from worm_model.parameters import load_rig
-from worm_rig_driver import link
-from worm_rig_driver import protocol_table as table
-from worm_rig_driver.rig_peer import PtyRigPeer
+from worm_model.ros.qos import COMMAND, STREAM
+from worm_model.ros.testing import probe_node, stop_process
+from worm_model.physics.parameters import load_rig
+import worm_rig_driver.link.core as link
+import worm_rig_driver.protocol.table as table
+from worm_rig_driver.link.rig_peer import PtyRigPeer
 
 MAX_DRIVE_VOLTAGE = 12.0
 START_TIMEOUT = 30.0  # [s] node start-up and discovery
@@ -120,7 +120,7 @@ def driver(probe: Probe, peer: PtyRigPeer, tmp_path_factory: pytest.TempPathFact
     log = tmp_path_factory.mktemp("driver") / "driver_node.log"
     with open(log, "w") as out:
         process = subprocess.Popen(
-            [sys.executable, "-m", "worm_rig_driver.driver_node", "--ros-args", "-p", f"port:={peer.link}",
+            [sys.executable, "-m", "worm_rig_driver.nodes.driver_node", "--ros-args", "-p", f"port:={peer.link}",
              "-p", f"max_drive_voltage:={MAX_DRIVE_VOLTAGE}", "-p", "command_timeout:=5.0"],
             stdout=out, stderr=subprocess.STDOUT, env=dict(os.environ))
     d = Driver(process, log)
@@ -245,7 +245,7 @@ def test_a_rig_with_another_protocol_is_refused(probe: Probe, tmp_path: Path) ->
     log = tmp_path / "driver.log"
     try:
         with open(log, "w") as out:
-            process = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.driver_node", "--ros-args",
+            process = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.nodes.driver_node", "--ros-args",
                                         "-r", "__node:=driver_node_old", "-p", f"port:={other.link}"],
                                        stdout=out, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + START_TIMEOUT

@@ -20,8 +20,8 @@ import yaml
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from worm_msgs.msg import RigSample, TorqueEstimate
 
-from worm_model.nodes.testing import probe_node
-from worm_model.parameters import default_rig_path
+from worm_model.ros.testing import probe_node
+from worm_model.physics.parameters import default_rig_path
 from worm_model.residuals.extended import ExtendedModel
 
 EFFECTS = {"bearing_coulomb": {"worm_torque": 0.004, "gear_torque": 0.03},
@@ -38,7 +38,7 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     model = folder / "extended_rig.yaml"
     model.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
     calibration = folder / "calibration.json"
-    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibrate", "--out", str(calibration), "--quiet"],
+    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(calibration), "--quiet"],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     return model, calibration

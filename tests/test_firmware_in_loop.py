@@ -1,7 +1,7 @@
 """System test over the firmware in the loop: the real rig.elf in simavr, driver_node on its pty.
 
 Builds the firmware and the simavr harness (`make -C firmware all fil`), then runs
-`python -m worm_rig_driver.fil_run` for 6 s of rig time: driver_node connects to the
+`python -m worm_rig_driver.fil.run` for 6 s of rig time: driver_node connects to the
 pty exactly as to /dev/ttyACM0, fil_commander drives 0 V, then 8 V, then 10 V
 against 0.1 N m of load, and the host -> rig line is cut at the end. Checked: the
 run's `fil:` line (every frame through, no CRC error, no gap, the watchdog stops
@@ -30,7 +30,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> tuple[subprocess.CompletedP
     assert built.returncode == 0, f"firmware/harness build failed:\n{built.stdout}\n{built.stderr}"
     log_dir = tmp_path_factory.mktemp("fil")
     done = subprocess.run(
-        [sys.executable, "-m", "worm_rig_driver.fil_run", "--elf", str(FIRMWARE / "build" / "rig.elf"),
+        [sys.executable, "-m", "worm_rig_driver.fil.run", "--elf", str(FIRMWARE / "build" / "rig.elf"),
          "--harness", str(FIRMWARE / "build" / "libwormfil.so"), "--duration", str(DURATION),
          "--log-dir", str(log_dir)], capture_output=True, text=True, timeout=300)
     return done, log_dir

@@ -2,8 +2,8 @@
 
 The graph of ros_ws/src/torque_estimator/config/sim_graph.yaml (sim_node,
 model_node, estimator_node, controller_node) is started once for this module
-with torque_estimator.graph.Graph, on a calibration database written by
-`python -m torque_estimator.calibrate`, with the speed set-point at 150 rad/s.
+with torque_estimator.graph.runner.Graph, on a calibration database written by
+`python -m torque_estimator.calibration.calibrate`, with the speed set-point at 150 rad/s.
 A probe node in this process (EventsExecutor, spun in the main thread only
 while a test measures) subscribes, publishes load commands and bad samples.
 
@@ -35,10 +35,10 @@ from std_msgs.msg import Float64
 from worm_msgs.msg import (DriveCommand, EncoderCounts, GearboxForces, LoadCommand, MotorCurrents, RigSample,
                            SimTruth, TorqueEstimate)
 
-from torque_estimator.calibration_database import load_database
-from torque_estimator.graph import Graph, parse_overrides
-from worm_model.nodes.qos import COMMAND
-from worm_model.nodes.testing import probe_node
+from torque_estimator.estimation.database import load_database
+from torque_estimator.graph.runner import Graph, parse_overrides
+from worm_model.ros.qos import COMMAND
+from worm_model.ros.testing import probe_node
 
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
@@ -151,7 +151,7 @@ def probe(ros_env: dict[str, str]) -> Iterator[Probe]:
 @pytest.fixture(scope="module")
 def calibration_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("calibration") / "calibration.json"
-    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibrate", "--out", str(out), "--quiet"],
+    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(out), "--quiet"],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and out.exists(), f"calibrate failed:\n{done.stdout}\n{done.stderr}"
     return out

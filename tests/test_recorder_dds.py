@@ -27,8 +27,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from worm_msgs.msg import RigSample
 
 from rclpy.experimental import EventsExecutor
-from worm_rig_driver.bag_recording import BagWriter, read_bag_counts, read_messages
-from worm_rig_driver.recorder_node import TopicRecorder
+from worm_model.bags.writer import BagWriter, read_bag_counts, read_messages
+from worm_rig_driver.nodes.recorder_node import TopicRecorder
 
 TOPIC = '/rig/sample'
 RATE_HZ = 1000.0
@@ -60,7 +60,7 @@ def publisher_node(ros_env: dict[str, str]) -> Iterator[Node]:
 
 
 class RecorderProcess:
-    """``python -m worm_rig_driver.recorder_node`` with its output in files."""
+    """``python -m worm_rig_driver.nodes.recorder_node`` with its output in files."""
 
     def __init__(self, tmp_path: Path, env: dict[str, str], *ros_params: str) -> None:
         self.bag = tmp_path / 'bag'
@@ -69,7 +69,7 @@ class RecorderProcess:
                   for arg in ('-p', p)]
         with self.log.open('wb') as log:
             self.process = subprocess.Popen(
-                [sys.executable, '-m', 'worm_rig_driver.recorder_node', '--ros-args', *params],
+                [sys.executable, '-m', 'worm_rig_driver.nodes.recorder_node', '--ros-args', *params],
                 env=env, stdout=log, stderr=subprocess.STDOUT,
             )
 

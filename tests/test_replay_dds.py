@@ -3,7 +3,7 @@
 The graph of sim_graph.yaml (sim_node, model_node, estimator_node,
 controller_node at 150 rad/s) runs as processes; the `recorder` executable
 records /rig/sample, /torque_estimate and /gearbox/forces; then
-torque_estimator.replay feeds the recorded samples to model_node's and
+torque_estimator.graph.replay feeds the recorded samples to model_node's and
 estimator_node's cores, with no DDS, and the outputs are compared by seq with
 what the live nodes published.
 
@@ -11,7 +11,7 @@ what the live nodes published.
 a node may miss one the recorder got). The first WARMUP seconds are not
 compared: the live nodes started before the recorder and carry filter state
 from samples the bag lacks; that difference decays to round-off (see
-torque_estimator.replay). After it the replay equals live to round-off.
+torque_estimator.graph.replay). After it the replay equals live to round-off.
 """
 from __future__ import annotations
 
@@ -23,12 +23,12 @@ from pathlib import Path
 
 import pytest
 
-from torque_estimator.graph import Graph, parse_overrides
-from worm_model.nodes.ament import find_executable
-from torque_estimator.replay import (ESTIMATE_FIELDS, ESTIMATE_TOPIC, FORCE_FIELDS, FORCES_TOPIC, compare,
+from torque_estimator.graph.runner import Graph, parse_overrides
+from worm_model.ros.ament import find_executable
+from torque_estimator.graph.replay import (ESTIMATE_FIELDS, ESTIMATE_TOPIC, FORCE_FIELDS, FORCES_TOPIC, compare,
                                      node_parameters, replay)
-from worm_model.nodes.testing import stop_process
-from worm_rig_driver.bag_reader import BagReader
+from worm_model.ros.testing import stop_process
+from worm_model.bags.reader import BagReader
 
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
@@ -48,7 +48,7 @@ def recorded(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
     """
     tmp = tmp_path_factory.mktemp("replay")
     calibration = tmp / "calibration.json"
-    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibrate", "--out", str(calibration), "--quiet"],
+    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(calibration), "--quiet"],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     overrides = [f"estimator_node.calibration_file={calibration}", "controller_node.speed_setpoint=150.0"]
@@ -121,7 +121,7 @@ def test_live_drops_are_the_nondeterminism(recorded: tuple[Path, list[str], str]
 
 def test_replay_cli_reports_speed_factor(recorded: tuple[Path, list[str], str]) -> None:
     bag, overrides, _output = recorded
-    args = [sys.executable, "-m", "torque_estimator.replay", str(bag), "--params-file", str(GRAPH_FILE),
+    args = [sys.executable, "-m", "torque_estimator.graph.replay", str(bag), "--params-file", str(GRAPH_FILE),
             "--follow-live", "--warmup", str(WARMUP_S), "--quiet"]
     for override in overrides:
         args += ["--set", override]
@@ -131,7 +131,7 @@ def test_replay_cli_reports_speed_factor(recorded: tuple[Path, list[str], str]) 
     print(done.stdout)
     assert float(lines["replay_speed_factor"].split()[0]) > 0
     assert float(lines["replay_estimates_max_abs_diff"].split()[0]) <= ROUND_OFF
-    bad = subprocess.run([sys.executable, "-m", "torque_estimator.replay", str(bag), "--set",
+    bad = subprocess.run([sys.executable, "-m", "torque_estimator.graph.replay", str(bag), "--set",
                           "estimator_node.calibration_file=/no/such.json", "--quiet"],
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "/no/such.json" in bad.stderr
@@ -142,9 +142,9 @@ def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str]
     nodes declare, or replay silently differs from a live graph run without a parameter file."""
     import rclpy
 
-    from torque_estimator.estimator_node import EstimatorNode
-    from torque_estimator.replay import NODE_DEFAULTS
-    from worm_model.model_node import ModelNode
+    from torque_estimator.nodes.estimator_node import EstimatorNode
+    from torque_estimator.graph.replay import NODE_DEFAULTS
+    from worm_model.nodes.model_node import ModelNode
 
     rclpy.init()  # the nodes take the default context
     try:

@@ -1,6 +1,6 @@
 """`residuals` on simulator data with effects the model is not told about (issue 7).
 
-The simulator (worm_rig_driver.simulated_rig.SimulatedRig with its effect plug-ins)
+The simulator (worm_rig_driver.sim.simulated_rig.SimulatedRig with its effect plug-ins)
 produces the data; the analysis (worm_model.residuals) knows only the bundled rig file
 with ``friction.scale`` free.  For each effect family the tool must name the effect and
 at least halve the held-out RMS error of the signal the effect acts on (the drive
@@ -46,12 +46,12 @@ import numpy as np
 import pytest
 import yaml
 
-from worm_model.parameters import default_rig_path, load_rig
-from worm_model.residuals import analysis as an
+from worm_model.physics.parameters import default_rig_path, load_rig
+import worm_model.residuals.analysis as an
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
 from worm_model.residuals.model import prepare_signals
-from worm_model.rig_data import MeasuredData, read_rig_csv, write_rig_csv
-from worm_rig_driver.simulated_rig import SimulatedRig
+from worm_model.rig_data.schema import MeasuredData, read_rig_csv, write_rig_csv
+from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 REPO = Path(__file__).resolve().parents[1]
 RIG = load_rig()
@@ -327,7 +327,7 @@ def test_cli_writes_report_parameter_file_and_plots(cogging_csv: Path, tmp_path:
 
 
 def test_cli_reads_a_bag(cogging_csv: Path, tmp_path: Path) -> None:
-    rig_csv = pytest.importorskip("worm_rig_driver.rig_csv")
+    rig_csv = pytest.importorskip("worm_model.rig_data.bags")
     bag = tmp_path / "bag"
     rig_csv.csv_to_bag(cogging_csv, bag)
     run = _residuals(str(bag), "--out", str(tmp_path / "out"), "--free", ",".join(FREE), "--no-plots",

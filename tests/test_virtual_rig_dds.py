@@ -26,13 +26,13 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from worm_msgs.msg import DriveCommand, LoadCommand, RigSample
 
-from worm_model.dynamics import reflected_input_torque
-from worm_model.friction import friction_coefficient
-from worm_model.gear_side import gear_side_load
-from worm_model.nodes.qos import COMMAND, STREAM
-from worm_model.nodes.testing import probe_node, stop_process
-from worm_model.parameters import load_rig
-from worm_model.steady_state import steady_worm_speed
+from worm_model.physics.dynamics import reflected_input_torque
+from worm_model.physics.friction import friction_coefficient
+from worm_model.physics.gear_side import gear_side_load
+from worm_model.ros.qos import COMMAND, STREAM
+from worm_model.ros.testing import probe_node, stop_process
+from worm_model.physics.parameters import load_rig
+from worm_model.physics.steady_state import steady_worm_speed
 
 RIG = load_rig()
 MOTOR = RIG.drive_motor
@@ -47,13 +47,13 @@ def graph(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> 
     link = str(logs / "worm_rig")
     rig_log, driver_log = logs / "virtual_rig.log", logs / "driver_node.log"
     with open(rig_log, "w") as out:
-        rig = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.virtual_rig", "--link", link, "--seed", "2"],
+        rig = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.sim.virtual_rig", "--link", link, "--seed", "2"],
                                stdout=out, stderr=subprocess.STDOUT, env=ros_env)
     deadline = time.monotonic() + START_TIMEOUT
     while not os.path.lexists(link) and time.monotonic() < deadline and rig.poll() is None:
         time.sleep(0.05)
     with open(driver_log, "w") as out:
-        driver = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.driver_node", "--ros-args",
+        driver = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.nodes.driver_node", "--ros-args",
                                    "-p", f"port:={link}", "-p", "command_timeout:=5.0"],
                                   stdout=out, stderr=subprocess.STDOUT, env=ros_env)
     try:

@@ -63,6 +63,19 @@ mkdir -p ros_ws/install
 exec 9>ros_ws/.build.lock
 flock 9
 stamp=ros_ws/install/.build-stamp
+# A file moved or deleted in the sources would linger in build/ and install/
+# (colcon's setuptools build copies, it does not prune): when the list of
+# source files differs from the last build's, the Python packages are rebuilt
+# from scratch.
+listing=ros_ws/install/.source-files
+current=$(cd ros_ws/src && find . -name '*.py' -o -name '*.msg' -o -name '*.yaml' | LC_ALL=C sort | sha256sum)
+if [ -f "$listing" ] && [ "$(cat "$listing")" != "$current" ]; then
+  say "source files added, moved or removed: clean rebuild of the Python packages"
+  for pkg in worm_model worm_rig_driver torque_estimator; do
+    rm -rf "ros_ws/build/$pkg" "ros_ws/install/$pkg"
+  done
+  rm -f "$stamp"
+fi
 if [ ! -f "$stamp" ] || [ -n "$(find ros_ws/src -newer "$stamp" -print -quit)" ] \
    || [ requirements.lock -nt "$stamp" ]; then
   say "colcon build of ros_ws (log: ros_ws/log/latest_build)"
@@ -78,6 +91,8 @@ if [ ! -f "$stamp" ] || [ -n "$(find ros_ws/src -newer "$stamp" -print -quit)" ]
       || { echo "setup: colcon build failed; see ros_ws/log/latest_build" >&2; exit 1; }
   )
   mv "$stamp.new" "$stamp"
+  echo "$current" > "$listing"
 fi
+[ -f "$listing" ] || echo "$current" > "$listing"
 exec 9>&-
 say "ready (source .venv/bin/activate && source ros_ws/install/setup.bash)"

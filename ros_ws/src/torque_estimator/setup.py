@@ -22,13 +22,13 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "estimator_node = torque_estimator.estimator_node:main",
-            "controller_node = torque_estimator.controller_node:main",
-            "calibrate = torque_estimator.calibrate:main",
-            "evaluate = torque_estimator.evaluate:main",
-            "run_graph = torque_estimator.run_graph:main",
-            "demo = torque_estimator.demo:main",
-            "replay = torque_estimator.replay:main",
+            "estimator_node = torque_estimator.nodes.estimator_node:main",
+            "controller_node = torque_estimator.nodes.controller_node:main",
+            "calibrate = torque_estimator.calibration.calibrate:main",
+            "evaluate = torque_estimator.experiment.evaluate:main",
+            "run_graph = torque_estimator.graph.run_graph:main",
+            "demo = torque_estimator.experiment.demo:main",
+            "replay = torque_estimator.graph.replay:main",
         ],
     },
 )

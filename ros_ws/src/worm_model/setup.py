@@ -22,9 +22,9 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "model_node = worm_model.model_node:main",
-            "worm_calc = worm_model.worm_calc:main",
-            "report = worm_model.report:main",
+            "model_node = worm_model.nodes.model_node:main",
+            "worm_calc = worm_model.calc.worm_calc:main",
+            "report = worm_model.figures.report:main",
             "residuals = worm_model.residuals.cli:main",
         ],
     },

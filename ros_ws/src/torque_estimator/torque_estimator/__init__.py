@@ -1,0 +1,28 @@
+"""torque_estimator: the load torque without a torque sensor, and what it is for (feedforward).
+
+Map (dependencies point up this list; rclpy only in ``nodes`` and the two
+``*_node.py`` helpers beside the CLIs that talk to a live graph):
+
+==============  ===============================================================
+``estimation``  the estimators behind one interface (``base``: inputs, outputs,
+                flags; ``registry``: name -> factory): ``knn`` (the paper's k-NN),
+                ``extended_model`` (inverts the identified model); the calibration
+                ``database`` they read; ``live`` (LiveEstimator: per-sample front
+                end, matched filters, inertia compensation); ``quasi_static``
+``control``     the speed PI with load-torque feedforward, and the rule for which
+                estimate may be fed forward
+``calibration`` making a calibration: grid and batch run on the simulator
+                (``batch``), point by point on a live graph (``live``,
+                ``calibration_node``), the resumable ``journal``, the steady-state
+                ``operating_points``, the ``calibrate`` CLI
+``experiment``  the paper's experiment and the demo: held-out ``evaluation`` and
+                ``evaluate`` CLI, ``scenario`` timelines, ``closed_loop`` (the graph's
+                loop in one process), ``run_analysis``, ``plots``, ``demo``
+``graph``       running the node graph: ``runner`` (start nodes from one parameter
+                file), ``run_graph`` CLI, ``replay`` (the graph's cores over a bag)
+``nodes``       estimator_node, controller_node
+==============  ===============================================================
+
+Read first: ``estimation/base.py`` (what an estimator is), ``estimation/knn.py``
+(the paper's method), ``estimation/live.py`` (what the node does per sample).
+"""

@@ -1,0 +1,29 @@
+"""worm_model: the worm gearbox's model (paper Eqs 19-30) and the data it is checked against.
+
+Map (dependencies point up this list, never down; no module imports rclpy
+outside ``ros/`` and ``nodes/``):
+
+============  =================================================================
+``physics``   the model itself: rig parameters (one YAML file, a source for every
+              number), friction mu, modes and flanks, efficiencies, internal forces
+              (Eqs 21-23), coupled dynamics (Eq 28), PMDC motor (Eq 29), steady state
+``live``      per-sample processing for live streams (LiveModel: one sample in,
+              the mesh's forces out; causal filters), shared by model_node and replay
+``bags``      rosbag2 bags without rclpy: reader (every layout since Foxy), writer,
+              message types, sequence-gap checks, ros2-topic-echo-style YAML
+``rig_data``  measured rig data: the ``worm_rig_data`` CSV schema and the one reader
+              of CSV files and bags (``read_rig_data``); the ``bag`` command
+``residuals`` closing the loop with measured data: fit, residual, effects, report
+``calc``      ``worm_calc``: one operating point through the model
+``figures``   ``report``: the paper's Figures 6-11 from a calibration
+``cli``       what every command-line tool shares (progress bars)
+``ros``       what every node of the project shares (QoS, parameters, diagnostics,
+              lifecycle, ament lookup)
+``nodes``     model_node, the ROS shell over ``live``
+============  =================================================================
+
+Read first: ``physics/parameters.py`` (the rig and its units), then
+``physics/internal_forces.py`` (Eqs 21-23) and ``physics/dynamics.py`` (Eq 28).
+Signs everywhere: positive worm rotation is the reference; the load torque
+tau_d on the gear shaft is positive when it opposes positive rotation.
+"""

@@ -1,5 +1,5 @@
 /* cobs.h - Consistent Overhead Byte Stuffing (Cheshire & Baker 1999), portable C.
- * Same encoding as worm_rig_driver.codec.cobs_encode (a test checks both on the same vectors). */
+ * Same encoding as worm_rig_driver.protocol.codec.cobs_encode (a test checks both on the same vectors). */
 #ifndef COBS_H
 #define COBS_H
 

@@ -1,6 +1,6 @@
 /* frame.h - protocol frames on a byte stream: the receiver and the encoder, portable C.
  *
- * Receiver rules (docs/protocol.md; worm_rig_driver.codec.StreamDecoder follows the same):
+ * Receiver rules (docs/protocol.md; worm_rig_driver.protocol.codec.StreamDecoder follows the same):
  *  1. bytes accumulate until a 0x00; an empty segment is ignored;
  *  2. a segment longer than PROTO_MAX_ENCODED_LEN is discarded whole (oversize);
  *  3. a segment that is not valid COBS is discarded (cobs_errors);

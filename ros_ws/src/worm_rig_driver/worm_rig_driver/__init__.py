@@ -1,0 +1,27 @@
+"""worm_rig_driver: the rig on the ROS graph, real (serial + firmware) or simulated.
+
+Map (dependencies point up this list; only ``nodes`` and ``fil.commander_node`` import rclpy):
+
+============  =================================================================
+``protocol``  the serial protocol as one table (``table``: frames, fields, units,
+              scales; generates the firmware header and docs/protocol.md), its
+              codec (COBS + CRC-16) and the raw-unit <-> SI ``scaling``
+``link``      the driver's core: link state machine, limits, telemetry -> SI
+              (``core``), bound to a serial port by a reader thread
+              (``serial_link``); ``rig_peer``: a Python rig on a pty for tests
+``sim``       the simulated rig: ``plant`` (motor + worm gearbox + load motors),
+              ``sensors`` (ADC chain, tachos, encoders), ``effects`` (what the
+              model lacks, as plug-ins), ``simulated_rig`` (all of it on the sample
+              clock), ``virtual_rig`` (the simulated rig behind a pty speaking the
+              firmware protocol)
+``fil``       the real firmware in simavr, closed through the simulated plant
+              (``harness``, ``run`` = ``make fil``, ``commander_node``)
+``nodes``     sim_node, driver_node, recorder_node: the executables' ROS shells
+============  =================================================================
+
+``firmware/`` beside this package is the ATmega2560 firmware (AVR C).
+Bags and rig-data CSV live in ``worm_model.bags`` and ``worm_model.rig_data``
+(the ``bag`` executable is declared here, its code is there).
+Read first: ``sim/simulated_rig.py`` (what a rig sample is), then
+``protocol/table.py`` and ``link/core.py`` for the real rig.
+"""

@@ -1,1 +1,1 @@
-"""ROS 2 shell support shared by the project's nodes (the only rclpy code besides *_node.py)."""
+"""model_node: the gearbox's internal forces for every rig sample (a thin shell over ``worm_model.live``)."""

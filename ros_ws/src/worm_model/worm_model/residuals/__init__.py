@@ -1,7 +1,7 @@
 """Closing the loop with measured data (issue 7, physics.md section 9).
 
 Modules (plain Python, no ROS):
-  data      the input: a ``worm_rig_data`` CSV (schema, reader, writer: worm_model.rig_data) or a bag
+  data      the input: a ``worm_rig_data`` CSV (schema, reader, writer: worm_model.rig_data.schema) or a bag
             via worm_rig_driver
   model     the drive current the declared model predicts, plus effect channels; the transmission
             error ratio*theta_worm - theta_gear when the data has a gear encoder

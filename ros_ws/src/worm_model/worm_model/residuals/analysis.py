@@ -36,12 +36,12 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import chi2, norm
 
-from worm_model.parameters import Rig
-from worm_model.units import FloatArray
+from worm_model.physics.parameters import Rig
+from worm_model.physics.units import FloatArray
 
-from .effects import EFFECTS, Effect, Shapes, channels_of, mask_shapes, regressors
-from .free import get_value, set_values
-from .model import ALPHA_TIME_CONSTANT, REFERENCE_TEMPERATURE, ModelState, Signals, evaluate, sensitivities
+from worm_model.residuals.effects import EFFECTS, Effect, Shapes, channels_of, mask_shapes, regressors
+from worm_model.residuals.free import get_value, set_values
+from worm_model.residuals.model import ALPHA_TIME_CONSTANT, REFERENCE_TEMPERATURE, ModelState, Signals, evaluate, sensitivities
 
 
 @dataclass(frozen=True)

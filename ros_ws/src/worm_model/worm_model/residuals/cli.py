@@ -19,17 +19,17 @@ from pathlib import Path
 
 import numpy as np
 
-from worm_model.parameters import ParameterError, default_rig_path, load_rig
-from worm_model.rig_data import RigDataError
+from worm_model.physics.parameters import ParameterError, default_rig_path, load_rig
+from worm_model.rig_data.schema import RigDataError
 
-from .analysis import Settings, Problem, analyse, make_split
-from .data import load_data
-from .effects import EFFECTS
-from .extended import ExtendedModel, write_parameter_file
-from .free import FREE_PARAMETERS, check_free, read_free
-from .model import ALPHA_TIME_CONSTANT, prepare_signals
-from .progress import Progress
-from .report import build_report, console_summary, windowed_rms, write_json, write_plots
+from worm_model.residuals.analysis import Settings, Problem, analyse, make_split
+from worm_model.residuals.data import load_data
+from worm_model.residuals.effects import EFFECTS
+from worm_model.residuals.extended import ExtendedModel, write_parameter_file
+from worm_model.residuals.free import FREE_PARAMETERS, check_free, read_free
+from worm_model.residuals.model import ALPHA_TIME_CONSTANT, prepare_signals
+from worm_model.cli.progress import Progress
+from worm_model.residuals.report import build_report, console_summary, windowed_rms, write_json, write_plots
 
 MIN_SAMPLES = 200  # per set: fewer cannot rank 13 candidates
 

@@ -37,12 +37,12 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 import numpy as np
 from scipy.signal import lfilter
 
-from worm_model.friction import sliding_velocity
-from worm_model.gear_side import gear_side_load
-from worm_model.parameters import Rig
-from worm_model.units import FloatArray
+from worm_model.physics.friction import sliding_velocity
+from worm_model.physics.gear_side import gear_side_load
+from worm_model.physics.parameters import Rig
+from worm_model.physics.units import FloatArray
 
-from .model import CHANNELS, Channels, ModelState, Signals, evaluate, ripple_response, sensitivities
+from worm_model.residuals.model import CHANNELS, Channels, ModelState, Signals, evaluate, ripple_response, sensitivities
 
 #: Shapes: channel -> (n, number of parameters); a parameter's column is zero in the
 #: channels it does not touch (channels an effect never touches are left out).

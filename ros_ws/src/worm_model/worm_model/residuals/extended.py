@@ -1,6 +1,6 @@
 """The extended model: the declared model plus identified effects, as a parameter file and a function.
 
-File: a ``worm_rig_parameters`` v1 file (worm_model.parameters) with two optional
+File: a ``worm_rig_parameters`` v1 file (worm_model.physics.parameters) with two optional
 top-level sections that ``load_rig`` skips:
 
 ``free``     the parameters the residual analysis fitted (dotted names, see residuals.free);
@@ -33,12 +33,12 @@ import numpy as np
 import yaml
 from numpy.typing import ArrayLike
 
-from worm_model.parameters import ParameterError, Rig, load_rig
-from worm_model.units import UNITS, FloatArray, normalize_unit
+from worm_model.physics.parameters import ParameterError, Rig, load_rig
+from worm_model.physics.units import UNITS, FloatArray, normalize_unit
 
-from .effects import EFFECTS, Effect, channels_of
-from .free import check_free, get_value
-from .model import ALPHA_TIME_CONSTANT, Signals, evaluate
+from worm_model.residuals.effects import EFFECTS, Effect, channels_of
+from worm_model.residuals.free import check_free, get_value
+from worm_model.residuals.model import ALPHA_TIME_CONSTANT, Signals, evaluate
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """Free parameters of the declared model: which rig parameters the residual analysis may fit.
 
-A rig parameter file (worm_model.parameters, format ``worm_rig_parameters``) may carry an
+A rig parameter file (worm_model.physics.parameters, format ``worm_rig_parameters``) may carry an
 optional top-level list naming them by their dotted field path::
 
     free: [friction.scale, drive_motor.coulomb_drag]
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import yaml
 
-from worm_model.parameters import ParameterError, Rig, default_rig_path
+from worm_model.physics.parameters import ParameterError, Rig, default_rig_path
 
 #: dotted path -> (SI unit, what it does in the current model)
 FREE_PARAMETERS: dict[str, tuple[str, str]] = {

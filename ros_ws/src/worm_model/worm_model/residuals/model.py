@@ -34,12 +34,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import filtfilt
 
-from worm_model.efficiency import flank_factor
-from worm_model.friction import friction_coefficient
-from worm_model.gear_side import gear_side_drag
-from worm_model.parameters import Rig
-from worm_model.rig_data import MeasuredData
-from worm_model.units import FloatArray
+from worm_model.physics.efficiency import flank_factor
+from worm_model.physics.friction import friction_coefficient
+from worm_model.physics.gear_side import gear_side_drag
+from worm_model.physics.parameters import Rig
+from worm_model.rig_data.schema import MeasuredData
+from worm_model.physics.units import FloatArray
 
 #: the channels an effect can add to: name -> unit
 CHANNELS: dict[str, str] = {

@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from worm_model.units import FloatArray
+from worm_model.physics.units import FloatArray
 
-from .analysis import Analysis, Problem
+from worm_model.residuals.analysis import Analysis, Problem
 
 UNIT = "A"
 
@@ -139,7 +139,7 @@ def build_report(problem: Problem, result: Analysis, tau_d: dict[str, float], fi
 
 
 def _declared(problem: Problem, name: str) -> float:
-    from .free import get_value  # noqa: PLC0415
+    from worm_model.residuals.free import get_value  # noqa: PLC0415
 
     return get_value(problem.rig0, name)
 
@@ -212,7 +212,7 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
     save(fig, "spectrum.png", 2)
 
     # 3. per effect found: the residual it explains against its regressor
-    from .analysis import fit as refit  # noqa: PLC0415
+    from worm_model.residuals.analysis import fit as refit  # noqa: PLC0415
 
     for k, ef in enumerate(final.effects):
         others = [(e.effect, e.grid) for e in final.effects if e is not ef]

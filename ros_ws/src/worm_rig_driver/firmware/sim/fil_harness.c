@@ -1,6 +1,6 @@
 /* fil_harness.c - the firmware in the loop: the real rig.elf on libsimavr, wired to a plant.
  *
- * A shared library (build/libwormfil.so) driven from Python (worm_rig_driver.fil) with ctypes:
+ * A shared library (build/libwormfil.so) driven from Python (worm_rig_driver.fil.harness) with ctypes:
  * Python owns the plant and calls fil_step() once per plant step; this file owns the AVR:
  *
  *   UART0  <-> a pseudo-terminal whose slave is symlinked at `link`; driver_node opens that

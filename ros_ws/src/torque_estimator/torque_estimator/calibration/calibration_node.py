@@ -1,0 +1,145 @@
+"""The ROS shell of `calibrate --live`: drive whatever rig is on the graph through the grid.
+
+Publishes the current point's load torque on /rig/load_command
+(worm_msgs/LoadCommand) and its worm speed on /controller/speed_setpoint
+(std_msgs/Float64), both reliable and latched; reads /rig/sample (RigSample)
+and /rig/drive_command (DriveCommand). The rig is sim_node or driver_node, the
+speed loop is controller_node: calibrate does not close a 1 kHz loop over DDS
+itself, so the rig is held by the same controller (gains, limits, watchdog)
+as in operation. A point's samples are counted from the first sample after
+controller_node's drive commands carry the new set-point. Sequencing,
+steady-state detection and the journal live in live_calibration.
+"""
+from __future__ import annotations
+
+import signal
+import time
+from collections.abc import Callable
+
+import rclpy
+from rclpy.experimental import EventsExecutor
+from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import Float64
+from worm_msgs.msg import DriveCommand, LoadCommand, RigSample
+
+from worm_model.ros.qos import COMMAND, STREAM
+
+from torque_estimator.calibration.live import TOPICS, LiveRigError, PointByPoint
+
+
+class CalibrationClient(Node):
+    """Commands the rig's set-points and feeds its samples to a PointByPoint run."""
+
+    def __init__(self, run: PointByPoint) -> None:
+        super().__init__("calibrate")
+        self.run = run
+        self.samples = 0
+        self.last_sample = time.monotonic()
+        self.drive_commands = 0
+        self.controller_setpoint: float | None = None
+        self.speed_pub = self.create_publisher(Float64, TOPICS["speed_setpoint"], COMMAND)
+        self.load_pub = self.create_publisher(LoadCommand, TOPICS["load_command"], COMMAND)
+        self.create_subscription(RigSample, TOPICS["samples"], self.on_sample, STREAM)
+        self.create_subscription(DriveCommand, TOPICS["drive_command"], self.on_drive_command, STREAM)
+
+    def on_sample(self, msg: RigSample) -> None:
+        self.samples += 1
+        self.last_sample = time.monotonic()
+        self.run.add(msg.omega_worm, msg.current_drive, msg.tau_load)
+
+    def on_drive_command(self, msg: DriveCommand) -> None:
+        self.drive_commands += 1
+        self.controller_setpoint = msg.speed_setpoint
+
+    def command(self, speed: float, torque: float) -> None:
+        """Ask for a worm speed [rad/s] and a load torque [N m] (positive opposing + rotation)."""
+        load = LoadCommand(torque=float(torque))
+        load.header.stamp = self.get_clock().now().to_msg()
+        self.load_pub.publish(load)
+        self.speed_pub.publish(Float64(data=float(speed)))
+
+
+def run_live(run: PointByPoint, *, start_timeout: float = 30.0, ack_timeout: float = 5.0,
+             stall_timeout: float = 5.0, on_point: Callable[[], None] | None = None,
+             on_tick: Callable[[], None] | None = None) -> None:
+    """Measure every pending point of `run` on the rig of the current ROS graph.
+
+    Args:
+        start_timeout: wait this long [s] for rig samples and controller_node's drive commands.
+        ack_timeout: wait this long [s] for controller_node to take a new set-point.
+        stall_timeout: samples stopping for this long [s] aborts the run.
+        on_point: called after every finished (journalled) point.
+        on_tick: called about every 0.1 s (progress display).
+
+    Raises:
+        LiveRigError: no rig, no controller, or the rig stopped sending; the
+            journal keeps every point finished before.
+        KeyboardInterrupt: Ctrl-C (or SIGTERM turned into it by the caller).
+    On every exit the load torque and the speed set-point are commanded to 0.
+    """
+    # Ctrl-C and SIGTERM only set a flag; spin_until turns it into a KeyboardInterrupt between two
+    # executor steps. An interrupt raised asynchronously could land inside the executor or a
+    # callback that is writing the journal, and the clean-up below would then run on a broken
+    # executor (seen as a traceback instead of exit 130, about 1 run in 10 on a loaded machine).
+    interrupted: list[int] = []
+    previous = {sig: signal.signal(sig, lambda signum, _frame: interrupted.append(signum))
+                for sig in (signal.SIGINT, signal.SIGTERM)}
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = CalibrationClient(run)
+    executor = EventsExecutor()
+    executor.add_node(node)
+
+    def spin_until(done: Callable[[], bool], timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        next_tick = time.monotonic()
+        while not done():
+            if interrupted:
+                raise KeyboardInterrupt(f"signal {interrupted[0]}")
+            now = time.monotonic()
+            if now > deadline:
+                return False
+            if on_tick is not None and now >= next_tick:
+                on_tick()
+                next_tick = now + 0.1
+            executor.spin_once(timeout_sec=0.02)
+        return True
+
+    try:
+        if not spin_until(lambda: node.samples > 0, start_timeout):
+            raise LiveRigError(f"no samples on {TOPICS['samples']} within {start_timeout:g} s: "
+                               "is sim_node (or driver_node) running on this ROS_DOMAIN_ID?")
+        if not spin_until(lambda: node.drive_commands > 0, start_timeout):
+            raise LiveRigError(f"no drive commands on {TOPICS['drive_command']} within {start_timeout:g} s: "
+                               "is controller_node running?")
+        while (point := run.current) is not None:
+            node.command(point.speed, point.torque)
+            if not spin_until(lambda: node.controller_setpoint == point.speed, ack_timeout):
+                raise LiveRigError(f"controller_node did not take the speed set-point {point.speed:g} rad/s "
+                                   f"within {ack_timeout:g} s (its drive commands say "
+                                   f"{node.controller_setpoint!r})")
+            run.start()
+            node.last_sample = time.monotonic()
+            spin_until(lambda: run.current != point or time.monotonic() - node.last_sample > stall_timeout,
+                       float("inf"))
+            if run.current == point:
+                raise LiveRigError(f"no samples on {TOPICS['samples']} for {stall_timeout:g} s "
+                                   f"(point {point.plan_index}: {point.speed:g} rad/s, {point.torque:g} N m)")
+            if on_point is not None:
+                on_point()
+    finally:
+        # Leave the rig unloaded and stopped; reliable + latched, so give discovery a moment.
+        node.command(0.0, 0.0)
+        interrupted.clear()  # a second Ctrl-C must not cut the stop command short
+        try:
+            spin_until(lambda: False, 0.3)
+        except KeyboardInterrupt:
+            pass
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown()
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+__all__ = ["CalibrationClient", "run_live"]

@@ -1,0 +1,203 @@
+"""estimator_node's per-sample processing as a plain class: one rig sample in, one estimate out.
+
+A disturbance observer in front of a quasi-static map. Per sample (ω_w [rad/s], i [A]):
+
+1. Matched input filter. ω and i pass through identical cascades of
+   INPUT_FILTER_STAGES first-order low-passes (time constant ``input_filter``
+   each); α is the backward difference of the filtered speed. The current
+   that accelerates the inertia, J_eff·α/K_t (Eq. 28), is taken out
+   (quasi_static.inertia_free_current). Because the current and the speed
+   whose derivative is subtracted went through the same filter, what is left
+   is the filtered (K_t·i − J_eff·α), i.e. the filtered load-plus-drag torque,
+   at every frequency: current the controller's feedforward spends on
+   accelerating the rig is not read as load, so feeding the estimate forward
+   does not close a loop through the estimator (physics.md §8). Filtering the
+   current once and the acceleration twice, as an earlier version did, left a
+   transient loop: after a reversal the estimate sat ~0.4 N·m on the wrong
+   side of the load for ~0.2 s.
+2. Change-gated smoothing. The compensated current is smoothed by a
+   first-order low-pass (``estimate_filter``), which sets the estimate's noise
+   in steady state. When it departs from its smoothed value by more than
+   ``change_threshold`` times its running noise σ, the smoothed value follows
+   the fast one for ``change_hold``: a load step reaches the estimate after
+   the fast filter's delay (~3 × input_filter), not the smoothing's. σ² is a
+   running mean (time constant NOISE_TIME_CONSTANT) of the squared
+   departures, each clipped at the threshold, so a step does not inflate it;
+   it is not updated while following, and changes are not looked for during
+   the first NOISE_TIME_CONSTANT (σ is being learnt). The speed is not
+   smoothed: after the fast filter its noise (~0.2 rad/s) moves the map's
+   output far less than the current's does, and it must follow a reversal.
+3. The configured estimator (e.g. k-NN) maps (ω_f, smoothed i) to τ_d [N·m]
+   (positive opposing positive worm rotation) with an uncertainty and flags;
+   a sample taken while |α| > ``transient_acceleration`` is flagged TRANSIENT.
+
+A NaN/inf input gives an INVALID_INPUT estimate and leaves every state as it
+was. Used by estimator_node and by the controller benchmark, so both run the
+same code. No ROS.
+
+Why these defaults (bench/controller_bench.py, the bundled rig: tacho noise
+0.5 rad/s, 1 rad/s ADC step and 1 % commutator ripple; current noise 0.02 A):
+three 3 ms stages keep α's noise near 45 rad/s² at 150 rad/s (two stages of
+3 ms: ~120; three of 2 ms: ~115, and 3-6 % of steady samples cross the
+TRANSIENT threshold) while a step takes ~16 ms to 90 %; 50 ms of smoothing
+brings the estimate's steady noise back to that of the former single 50 ms
+filter. The figures behind them are in config/sim_graph.yaml.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from worm_model.physics.parameters import Rig
+
+from torque_estimator.estimation.base import EstimateFlags, TorqueEstimator
+from torque_estimator.estimation.quasi_static import inertia_free_current
+
+#: First-order stages of the matched input filter (speed and current alike).
+INPUT_FILTER_STAGES = 3
+#: Time constant [s] of the running noise estimate of the change detector.
+NOISE_TIME_CONSTANT = 0.5
+
+
+@dataclass(frozen=True)
+class LiveEstimate:
+    """One sample's estimate.
+
+    Attributes:
+        torque: τ_d [N·m]; uncertainty [N·m]; flags: EstimateFlags bits;
+        omega_worm [rad/s] and current_drive [A]: the filtered (and, for the
+        current, inertia-compensated) inputs the estimate was computed from.
+    """
+
+    torque: float
+    uncertainty: float
+    flags: int
+    omega_worm: float
+    current_drive: float
+
+
+class _Cascade:
+    """``stages`` equal first-order low-passes in series; starts at the first sample."""
+
+    def __init__(self, time_constant: float, period: float, stages: int) -> None:
+        self.blend = 1.0 if time_constant == 0 else 1.0 - math.exp(-period / time_constant)
+        self.state: list[float] | None = None
+        self.stages = stages
+
+    def update(self, sample: float) -> float:
+        if self.state is None:
+            self.state = [sample] * self.stages
+            return sample
+        x = sample
+        for n in range(self.stages):
+            self.state[n] += self.blend * (x - self.state[n])
+            x = self.state[n]
+        return x
+
+
+class ChangeGatedLowPass:
+    """First-order low-pass that follows its input at once during a detected change.
+
+    Per sample: y += b·(x − y) (b from ``time_constant``). The running noise
+    σ² is the mean of min(|x − y|, threshold·σ)² over ``noise_time_constant``
+    (unclipped while it is first learnt, during the first
+    ``noise_time_constant``). After that, |x − y| > ``threshold``·σ is a
+    change: y = x for the next ``hold`` [s], and σ is not updated meanwhile.
+    ``threshold`` <= 0: no change detection (a plain low-pass);
+    ``time_constant`` 0: y = x.
+    """
+
+    def __init__(self, time_constant: float, period: float, threshold: float, hold: float,
+                 noise_time_constant: float = NOISE_TIME_CONSTANT) -> None:
+        if time_constant < 0 or period <= 0 or hold < 0 or noise_time_constant <= 0:
+            raise ValueError(f"need time_constant >= 0, period > 0, hold >= 0, noise_time_constant > 0; got "
+                             f"{time_constant}, {period}, {hold}, {noise_time_constant}")
+        self.blend = 1.0 if time_constant == 0 else 1.0 - math.exp(-period / time_constant)
+        self.noise_blend = 1.0 - math.exp(-period / noise_time_constant)
+        self.threshold = threshold
+        self.hold_samples = int(round(hold / period))
+        self.learn_samples = int(round(noise_time_constant / period))
+        self.value: float | None = None
+        self.variance = 0.0  # sigma^2, in the input's unit squared
+        self.samples = 0
+        self.following = 0  # samples left to follow the input
+        self.changes = 0  # changes detected so far
+
+    def update(self, x: float) -> float:
+        """Feed one sample; returns the smoothed value."""
+        if self.value is None:
+            self.value = x
+        self.value += self.blend * (x - self.value)
+        departure = x - self.value
+        learning = self.samples < self.learn_samples
+        limit = self.threshold * math.sqrt(self.variance)
+        if not self.following:
+            clipped = departure if learning else max(-limit, min(limit, departure))
+            self.variance += self.noise_blend * (clipped * clipped - self.variance)
+        self.samples += 1
+        if self.threshold > 0 and not learning and abs(departure) > limit:
+            self.changes += not self.following
+            self.following = self.hold_samples
+        if self.following:
+            self.value = x
+            self.following -= 1
+        return self.value
+
+
+class LiveEstimator:
+    """Streaming τ_d estimation for one rig (see module docstring).
+
+    Args:
+        rig: rig parameters (inertia and motor constant for the compensation).
+        estimator: the quasi-static map lookup (e.g. KnnEstimator).
+        sample_period: time between samples [s].
+        input_filter: time constant [s] of each stage of the matched filter on speed and current (0: none).
+        inertia_compensation: remove J_eff·α/K_t from the current.
+        transient_acceleration: |α| [rad/s²] above which an estimate is flagged TRANSIENT.
+        estimate_filter: time constant [s] of the smoothing of the compensated current (0: none).
+        change_threshold: departure of the compensated current from its smoothed value, in running
+            noise σ, that is taken for a change and followed at once (<= 0: never).
+        change_hold: how long [s] a detected change is followed.
+    """
+
+    def __init__(self, rig: Rig, estimator: TorqueEstimator, sample_period: float, input_filter: float = 0.003,
+                 inertia_compensation: bool = True, transient_acceleration: float = 200.0,
+                 estimate_filter: float = 0.05, change_threshold: float = 4.0, change_hold: float = 0.02) -> None:
+        if input_filter < 0 or sample_period <= 0:
+            raise ValueError(f"need input_filter >= 0 and sample_period > 0, got {input_filter}, {sample_period}")
+        self.rig = rig
+        self.estimator = estimator
+        self.sample_period = sample_period
+        self.inertia_compensation = inertia_compensation
+        self.transient_acceleration = transient_acceleration
+        self.speed = _Cascade(input_filter, sample_period, INPUT_FILTER_STAGES)
+        self.current = _Cascade(input_filter, sample_period, INPUT_FILTER_STAGES)
+        self.smooth = ChangeGatedLowPass(estimate_filter, sample_period, change_threshold, change_hold)
+        self._previous_speed: float | None = None
+        self._omega = math.nan  # [rad/s] filtered speed of the last valid sample
+        self.alpha = 0.0  # [rad/s^2] acceleration of the filtered speed, last sample
+
+    def update(self, omega_worm: float, current_drive: float) -> LiveEstimate:
+        """Feed one sample: measured worm speed [rad/s] and drive current [A]."""
+        if math.isfinite(omega_worm) and math.isfinite(current_drive):
+            omega = self.speed.update(omega_worm)
+            current = self.current.update(current_drive)
+            previous, self._previous_speed = self._previous_speed, omega
+            self.alpha = 0.0 if previous is None else (omega - previous) / self.sample_period
+            if self.inertia_compensation:
+                current = float(inertia_free_current(self.rig, current, omega, self.alpha))
+            current = self.smooth.update(current)
+            self._omega = omega
+        else:  # hold: the estimate of the state as it was
+            omega = self._omega
+            current = math.nan if self.smooth.value is None else self.smooth.value
+        result = self.estimator.estimate(omega, current)
+        flags = int(result.flags)
+        if not (math.isfinite(omega_worm) and math.isfinite(current_drive)):
+            flags |= EstimateFlags.INVALID_INPUT
+        if abs(self.alpha) > self.transient_acceleration:
+            flags |= EstimateFlags.TRANSIENT
+        return LiveEstimate(float(result.torque), float(result.uncertainty), flags, float(omega), float(current))
+
+
+__all__ = ["INPUT_FILTER_STAGES", "NOISE_TIME_CONSTANT", "ChangeGatedLowPass", "LiveEstimate", "LiveEstimator"]

@@ -1,0 +1,55 @@
+"""The registry of τ_d estimators: name -> factory, and which node parameters each takes.
+
+Adding an estimator is adding a row here (and its module beside this one);
+estimator_node, replay, evaluate and the benchmarks find it by name.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Callable
+
+from torque_estimator.estimation.database import CalibrationDatabase
+from torque_estimator.estimation.base import TorqueEstimator
+from torque_estimator.estimation.extended_model import ExtendedModelEstimator
+from torque_estimator.estimation.knn import KnnEstimator
+
+
+#: Estimator name → factory ``(database, **options) -> TorqueEstimator``.
+ESTIMATORS: dict[str, Callable[..., TorqueEstimator]] = {
+    "knn": KnnEstimator,
+    "extended_model": ExtendedModelEstimator,
+}
+
+#: Estimator name → the estimator_node parameters passed to its factory as options.
+NODE_OPTIONS: dict[str, tuple[str, ...]] = {
+    "knn": ("k", "weighting"),
+    "extended_model": ("model_file", "rig_file"),
+}
+
+
+def node_options(name: str, parameters: Mapping[str, Any]) -> dict[str, Any]:
+    """The options of estimator ``name`` taken from estimator_node's parameters (node and replay alike)."""
+    return {option: parameters[option] for option in NODE_OPTIONS.get(name, ())}
+
+
+def make_estimator(name: str, database: CalibrationDatabase, **options: Any) -> TorqueEstimator:
+    """Build the estimator registered as ``name`` over ``database``.
+
+    Raises:
+        ValueError: no estimator of that name (the message lists the known ones).
+        TypeError, ValueError: bad options, from the estimator's constructor.
+    """
+    try:
+        factory = ESTIMATORS[name]
+    except KeyError:
+        raise ValueError(f"unknown estimator {name!r}; known: {sorted(ESTIMATORS)}") from None
+    return factory(database, **options)
+
+
+__all__ = [
+    "ESTIMATORS",
+    "make_estimator",
+    "NODE_OPTIONS",
+    "node_options",
+]

@@ -1,0 +1,172 @@
+"""evaluate: the paper's held-out test (Table 3, Figure 13) of a τ_d estimator, plus error sweeps.
+
+    ros2 run torque_estimator evaluate [--calibration calibration.json] [--out out/evaluate]
+
+Calibrates the paper's grid on the simulated rig (17 speeds x 16 torques, both
+directions) unless --calibration names a database, then measures 17 held-out
+operating points that are not grid points (random speeds and torques, seeded;
+the four quadrants of direction x torque sign take turns, so both signs and
+both directions are in) quasi-statically on the simulated rig and estimates
+each. Prints the paper's Table 3 (speed, current, true τ_d, estimated τ_d,
+error %), writes held_out_deviation.png (like Figure 13), and, unless
+--no-sweeps, error_sweeps.png: the error against k (both weightings), grid
+density and sensor noise, each on --sweep-points held-out points.
+
+Errors are |estimated - true| in % of the calibrated torque range (max - min
+of the database's τ_d). The last line printed is
+    <method>: mae_pct=<mean error> max_pct=<largest error> points=<n>
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from worm_model.physics.parameters import ParameterError, load_rig
+
+from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
+from torque_estimator.estimation.database import CalibrationError, load_database
+from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
+from torque_estimator.experiment.evaluation import format_table, measure_held_out, score, sweep_grid_density, sweep_k, sweep_noise
+from torque_estimator.estimation.knn import WEIGHTINGS
+from torque_estimator.experiment.plots import held_out_deviation, sweeps
+from worm_model.cli.progress import ProgressBar
+
+
+def _number_list(kind: Callable[[str], float], minimum: float, what: str) -> Callable[[str], list[Any]]:
+    """argparse type: a non-empty comma-separated list of ``kind`` values, each >= ``minimum``."""
+
+    def parse(text: str) -> list[Any]:
+        try:
+            values = [kind(v) for v in text.split(",") if v.strip()]
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a comma-separated list of {what}: {text!r}") from None
+        if not values or min(values) < minimum:
+            raise argparse.ArgumentTypeError(f"need {what} >= {minimum}: {text!r}")
+        return values
+
+    return parse
+
+
+_int_list = _number_list(int, 1, "integers")
+_float_list = _number_list(float, 0, "numbers")
+
+
+def _sizes(text: str) -> list[tuple[int, int]]:
+    try:
+        sizes = [tuple(int(x) for x in item.lower().split("x")) for item in text.split(",") if item.strip()]
+    except ValueError:
+        sizes = []
+    if not sizes or any(len(s) != 2 or s[0] < 1 or s[1] < 2 for s in sizes):
+        raise argparse.ArgumentTypeError(f"need SPEEDSxTORQUES items (speeds >= 1, torques >= 2): {text!r}")
+    return sizes  # type: ignore[return-value]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="evaluate", description=__doc__.split("\n\n")[0],
+                                epilog="\n\n".join(__doc__.split("\n\n")[1:]),
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--calibration", type=Path, default=None,
+                   help="calibration database to evaluate (default: calibrate the paper's grid now)")
+    p.add_argument("--rig", type=Path, default=None,
+                   help="rig parameter YAML of the simulated rig (default: the bundled NMRV030 rig)")
+    p.add_argument("--out", type=Path, default=Path("out/evaluate"), help="folder for the PNGs (default out/evaluate)")
+    p.add_argument("--method", default="knn", choices=sorted(ESTIMATORS), help="estimator (default knn)")
+    p.add_argument("--k", type=int, default=4, help="neighbours of the k-NN estimator (default 4)")
+    p.add_argument("--weighting", default="inverse_distance", choices=sorted(WEIGHTINGS),
+                   help="k-NN weighting (default inverse_distance)")
+    p.add_argument("--points", type=int, default=17, help="held-out points of the table (default 17, as the paper)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the calibration noise; held-out draws and their noise use seed+1 (default 0)")
+    p.add_argument("--speeds", type=int, default=17, help="speeds per direction of the calibration grid (default 17)")
+    p.add_argument("--torques", type=int, default=16, help="torques of the calibration grid (default 16)")
+    sweep = p.add_argument_group("sweeps")
+    sweep.add_argument("--no-sweeps", action="store_true", help="only the table and the deviation plot")
+    sweep.add_argument("--sweep-points", type=int, default=68,
+                       help="held-out points each sweep value is scored on (default 68)")
+    sweep.add_argument("--ks", type=_int_list, default=[1, 2, 3, 4, 6, 8, 12, 16],
+                       help="k values, comma-separated (default 1,2,3,4,6,8,12,16)")
+    sweep.add_argument("--grid-sizes", type=_sizes, default=[(3, 3), (5, 4), (9, 8), (17, 16), (33, 32)],
+                       help="grid densities as SPEEDSxTORQUES, comma-separated (default 3x3,5x4,9x8,17x16,33x32)")
+    sweep.add_argument("--noise", type=_float_list, default=[0.0, 0.5, 1.0, 2.0, 4.0],
+                       help="sensor noise factors (x the rig's current and speed noise), comma-separated "
+                            "(default 0,0.5,1,2,4)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    start = time.monotonic()
+    try:
+        if args.points < 1 or args.sweep_points < 1 or args.k < 1:
+            raise ValueError("--points, --sweep-points and --k must be >= 1")
+        rig = load_rig(args.rig)
+        if args.calibration is not None:
+            db = load_database(args.calibration)
+            grid = CalibrationGrid(speeds=db.speed_setpoints, torques=db.torque_setpoints)
+            source = str(args.calibration)
+        else:
+            grid = CalibrationGrid.paper(rig, args.speeds, args.torques)
+            n = len(grid.speeds) * len(grid.torques)
+            with ProgressBar(n, "calibration points", enabled=not args.quiet) as bar:
+                db = calibrate_simulated(rig, grid, seed=args.seed,
+                                         progress=lambda f: bar.update_to(round(f * n)))
+            source = f"calibrated now, seed {args.seed}"
+        options = {"k": args.k, "weighting": args.weighting} if args.method == "knn" else {}
+        estimator = make_estimator(args.method, db, **options)
+    except (ParameterError, CalibrationError, ValueError) as err:
+        print(f"evaluate: {err}", file=sys.stderr)
+        return 2
+    args.out.mkdir(parents=True, exist_ok=True)
+    print(f"evaluate: {args.method} ({', '.join(f'{k}={v}' for k, v in options.items())}) on {len(db)} "
+          f"calibration points ({source}), torque range {db.torque_range:.4f} N·m")
+
+    ev = score(estimator, measure_held_out(rig, grid, args.points, args.seed + 1), db.torque_range)
+    print(f"\nTable 3: {args.points} held-out operating points (not grid points), simulated rig")
+    print("\n".join(format_table(ev)))
+    print(f"  mean error {ev.mae_pct:.2f} %, largest {ev.max_pct:.2f} % of the calibrated torque range")
+    pngs = [held_out_deviation(args.out / "held_out_deviation.png", ev.tau_true, ev.tau_estimated, db.torque_range)]
+
+    if not args.no_sweeps:
+        results = run_sweeps(args, rig, grid, db, options)
+        reference = {"neighbours k": args.k, "calibration points": len(db), "sensor noise (x the rig's)": 1.0}
+        pngs.append(sweeps(args.out / "error_sweeps.png", results, reference))
+        print(f"\nSweeps ({args.sweep_points} held-out points each; mean / largest error, % of torque range)")
+        for result in results:
+            for label, mae in result.mae_pct.items():
+                cells = "  ".join(f"{v:g}: {m:.2f}/{x:.2f}" for v, m, x in
+                                  zip(result.values, mae, result.max_pct[label]))
+                print(f"  {result.name} [{label}]  {cells}")
+    print(f"\nevaluate: wrote {', '.join(str(p) for p in pngs)} in {time.monotonic() - start:.1f} s")
+    print(f"{args.method}: mae_pct={ev.mae_pct:.2f} max_pct={ev.max_pct:.2f} points={len(ev.tau_true)}")
+    return 0
+
+
+def run_sweeps(args, rig, grid, db, options) -> list:
+    """Error against k, grid density and sensor noise, with one progress bar over the calibrations."""
+    steps = 1 + len(args.grid_sizes) + len(args.noise)
+    with ProgressBar(steps, "sweeps", enabled=not args.quiet) as bar:
+        done = [0]
+
+        def tick() -> None:
+            done[0] += 1
+            bar.update_to(done[0])
+
+        measured = measure_held_out(rig, grid, args.sweep_points, args.seed + 1)
+        results = []
+        if args.method == "knn":
+            results.append(sweep_k(db, measured, args.ks))
+        tick()
+        results.append(sweep_grid_density(rig, args.grid_sizes, measured, seed=args.seed, method=args.method,
+                                          options=options, reference=db, progress=tick))
+        results.append(sweep_noise(rig, grid, args.noise, args.sweep_points, seed=args.seed, method=args.method,
+                                   options=options, reference=(db, measured), progress=tick))
+    return results
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

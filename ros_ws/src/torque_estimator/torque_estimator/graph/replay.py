@@ -1,0 +1,364 @@
+"""replay: run the model and the estimators over a recorded bag, offline, as the live graph did.
+
+    ros2 run torque_estimator replay <bag> [--params-file sim_graph.yaml]
+        [--set estimator_node.calibration_file=cal.json] [--estimators knn,...] [--follow-live]
+
+No DDS, no rclpy: the bag's /rig/sample stream (worm_msgs/RigSample) is read
+with worm_model.bags.reader and fed, sample by sample in recorded order,
+
+* to :class:`~worm_model.live.live_model.LiveModel`, the very class model_node
+  runs (the internal forces of worm_model, Eqs 21-23, with model_node's
+  parameters), and
+* to :class:`~torque_estimator.estimation.live.LiveEstimator`, the very class
+  estimator_node runs, once per estimator of the registry asked for
+  (``--estimators``; default: the method configured for estimator_node).
+
+Parameters come from the graph's parameter file (the one the live run used)
+plus ``--set`` overrides, with the nodes' defaults for anything missing.
+
+If the bag also holds what the live nodes published (/torque_estimate,
+/gearbox/forces), the replay is compared with it, sample by sample (by
+``seq``), and the largest differences are printed. They are zero, or at
+round-off, except where the live and the replayed input differ:
+
+* The nodes' filters (speed, acceleration, current) carry state from sample
+  to sample. A live node that started before the recording saw samples the
+  bag lacks; its state differs from the replay's fresh one at first and the
+  difference decays with the filter time constant (to round-off after ~40
+  time constants: 2 s for the estimator's 0.05 s). ``--warmup`` excludes that
+  stretch from the comparison.
+* The streams are best effort: a sample the estimator (or model_node) missed
+  live, but the recorder got, is one the replay feeds and live did not, and
+  vice versa. Each live output is the answer to one received sample, so the
+  recorded outputs' seqs tell exactly which samples a node saw;
+  ``--follow-live`` feeds each core only those. A gap in the recording of the
+  outputs themselves (the recorder missed an estimate) then makes the replay
+  skip a sample live processed: the comparison reports it.
+
+Speed: the replay's wall time against the bag's span of sample time is
+printed as ``replay_speed_factor`` (> 1: faster than real time).
+
+Exit code 2 on a bad bag, parameter file or calibration (the message names it).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from worm_model.live.live_model import FIELDS as FORCE_FIELDS
+from worm_model.live.live_model import LiveModel
+from worm_model.physics.parameters import load_rig
+from worm_model.rig_data.schema import RigDataError
+from worm_model.bags.reader import BagReader
+from worm_model.bags.typestore import BagRecordingError
+from worm_model.rig_data.bags import find_sample_topic
+
+from torque_estimator.estimation.database import CalibrationError, load_database
+from torque_estimator.estimation.registry import ESTIMATORS, make_estimator, node_options
+from torque_estimator.graph.runner import GraphError, default_graph_file, parse_overrides
+from torque_estimator.estimation.live import LiveEstimator
+from worm_model.cli.progress import ProgressBar
+
+#: The nodes' parameter defaults (model_node.py, estimator_node.py), for what the file leaves out.
+NODE_DEFAULTS: dict[str, dict[str, Any]] = {
+    "model_node": {"rig_file": "", "use_acceleration": True, "acceleration_filter": 0.01},
+    "estimator_node": {"rig_file": "", "inertia_compensation": True, "calibration_file": "",
+                       "method": "knn", "k": 4, "weighting": "inverse_distance", "model_file": "",
+                       "input_filter": 0.003,
+                       "estimate_filter": 0.05, "change_threshold": 4.0,
+                       "transient_acceleration": 200.0, "sample_rate": 1000.0},
+}
+ESTIMATE_TOPIC = "/torque_estimate"
+FORCES_TOPIC = "/gearbox/forces"
+ESTIMATE_FIELDS = ("torque", "uncertainty", "flags", "omega_worm", "current_drive")
+#: FORCE_FIELDS (imported above): the GearboxForces fields LiveModel returns and model_node publishes
+
+
+class ReplayError(RuntimeError):
+    """A bad bag, parameter file or calibration; the message names it."""
+
+
+# --- configuration ---------------------------------------------------------------------------------
+
+def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> dict[str, dict[str, Any]]:
+    """model_node's and estimator_node's parameters: defaults < file < ``node.param=value`` overrides.
+
+    Raises:
+        ReplayError: Unreadable file or bad override (named).
+    """
+    params = {node: dict(values) for node, values in NODE_DEFAULTS.items()}
+    if params_file is not None:
+        try:
+            document = yaml.safe_load(Path(params_file).read_text(encoding="utf-8")) or {}
+        except (OSError, yaml.YAMLError) as err:
+            raise ReplayError(f"cannot read parameter file {params_file}: {err}") from None
+        if not isinstance(document, dict):
+            raise ReplayError(f"parameter file {params_file}: expected node names at the top level")
+        for node in params:
+            section = document.get(node, {}) or {}
+            values = section.get("ros__parameters", {}) if isinstance(section, dict) else None
+            if not isinstance(values, dict):
+                raise ReplayError(f"parameter file {params_file}: {node}.ros__parameters is not a mapping")
+            params[node].update(values)
+    try:
+        parsed = parse_overrides(list(overrides))
+    except GraphError as err:
+        raise ReplayError(str(err)) from None
+    for node, assignments in parsed.items():
+        if node not in params:
+            continue  # another node of the graph (the same --set list serves run_graph)
+        for assignment in assignments:
+            name, _, text = assignment.partition(":=")
+            params[node][name] = yaml.safe_load(text) if text else ""
+    return params
+
+
+# --- replay ----------------------------------------------------------------------------------------
+
+@dataclass
+class Outputs:
+    """One core's outputs, one row per sample fed (arrays by field, plus the samples' seq)."""
+
+    seq: list[int] = field(default_factory=list)
+    values: dict[str, list[float]] = field(default_factory=dict)
+
+    def add(self, seq: int, row: Mapping[str, float | int]) -> None:
+        self.seq.append(seq)
+        for name, value in row.items():
+            self.values.setdefault(name, []).append(float(value))
+
+    def array(self, name: str) -> np.ndarray:
+        return np.asarray(self.values.get(name, []), dtype=float)
+
+
+@dataclass
+class ReplayResult:
+    """What a replay produced and how long it took."""
+
+    samples: int
+    span: float
+    """[s] sample time from the first to the last sample (header stamps)."""
+    wall: float
+    """[s] wall time of the replay (reading, decoding and computing)."""
+    model: Outputs
+    estimates: dict[str, Outputs]
+    live_seen: dict[str, int] = field(default_factory=dict)
+    """With --follow-live: samples each core was fed because live saw them."""
+
+    @property
+    def speed_factor(self) -> float:
+        """Sample time per wall time: > 1 is faster than real time."""
+        return self.span / self.wall if self.wall > 0 else math.inf
+
+
+def _live_seqs(reader: BagReader, topic: str) -> set[int] | None:
+    if topic not in reader.topics:
+        return None
+    return {int(m.decoded.seq) for m in reader.messages([topic])}
+
+
+def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators: Iterable[str] | None = None,
+           *, follow_live: bool = False, sample_topic: str | None = None, progress: bool = False) -> ReplayResult:
+    """Run model_node's and estimator_node's cores over the bag's RigSample stream.
+
+    Args:
+        bag: Bag directory or storage file.
+        params: From :func:`node_parameters`.
+        estimators: Names in the estimator registry; None: estimator_node's ``method``.
+        follow_live: Feed each core only the samples live answered (see the module docstring).
+        sample_topic: RigSample topic; None: the only one (or /rig/sample).
+        progress: Show a progress bar on stderr.
+
+    Raises:
+        ReplayError: Bad bag, calibration or estimator name.
+    """
+    model_p, est_p = params["model_node"], params["estimator_node"]
+    names = list(estimators) if estimators else [str(est_p["method"])]
+    if unknown := [n for n in names if n not in ESTIMATORS]:
+        raise ReplayError(f"unknown estimator(s) {unknown}; registry: {sorted(ESTIMATORS)}")
+    if not est_p["calibration_file"]:
+        raise ReplayError("estimator_node.calibration_file is not set: pass --set estimator_node.calibration_file=FILE "
+                          "(or set it in the parameter file)")
+    try:
+        database = load_database(est_p["calibration_file"])
+    except CalibrationError as err:
+        raise ReplayError(f"estimator_node.calibration_file: {err}") from None
+    start = time.perf_counter()
+    model = LiveModel(load_rig(model_p["rig_file"] or None), bool(model_p["use_acceleration"]),
+                      float(model_p["acceleration_filter"]))
+    est_rig = load_rig(est_p["rig_file"] or None)
+    period = 1.0 / float(est_p["sample_rate"])
+    options = {**est_p, "k": int(est_p["k"]), "weighting": str(est_p["weighting"]),
+               "model_file": str(est_p["model_file"]), "rig_file": str(est_p["rig_file"])}
+    try:
+        estimators_built = {name: make_estimator(name, database, **node_options(name, options)) for name in names}
+    except ValueError as err:  # worm_model's ParameterError is a ValueError: a bad model_file
+        raise ReplayError(f"estimator_node: {err}") from None
+    cores = {name: LiveEstimator(est_rig, estimators_built[name],
+                                 period, input_filter=float(est_p["input_filter"]),
+                                 inertia_compensation=bool(est_p["inertia_compensation"]),
+                                 transient_acceleration=float(est_p["transient_acceleration"]),
+                                 estimate_filter=float(est_p["estimate_filter"]),
+                                 change_threshold=float(est_p["change_threshold"]))
+             for name in names}
+    model_out, est_out = Outputs(), {name: Outputs() for name in names}
+    first = last = None
+    n = 0
+    try:
+        with BagReader(bag) as reader:
+            topic = find_sample_topic(reader, sample_topic)
+            model_seqs = _live_seqs(reader, FORCES_TOPIC) if follow_live else None
+            est_seqs = _live_seqs(reader, ESTIMATE_TOPIC) if follow_live else None
+            total = reader.topics[topic].metadata_count or 0
+            with ProgressBar(total, "replay", enabled=progress) as bar:
+                for n, message in enumerate(reader.messages([topic]), 1):
+                    sample = message.decoded
+                    seq = int(sample.seq)
+                    stamp = sample.header.stamp.sec + 1e-9 * sample.header.stamp.nanosec
+                    first = stamp if first is None else first
+                    last = stamp
+                    if model_seqs is None or seq in model_seqs:
+                        model_out.add(seq, model.update(sample).as_dict())
+                    if est_seqs is None or seq in est_seqs:
+                        for name, core in cores.items():
+                            e = core.update(sample.omega_worm, sample.current_drive)
+                            est_out[name].add(seq, {"torque": e.torque, "uncertainty": e.uncertainty,
+                                                    "flags": e.flags, "omega_worm": e.omega_worm,
+                                                    "current_drive": e.current_drive})
+                    if n % 1000 == 0:
+                        bar.update_to(n)
+    except (BagRecordingError, RigDataError) as err:
+        raise ReplayError(str(err)) from None
+    wall = time.perf_counter() - start
+    return ReplayResult(n, (last - first) if first is not None else 0.0, wall, model_out, est_out,
+                        {"model": len(model_out.seq), **{k: len(v.seq) for k, v in est_out.items()}}
+                        if follow_live else {})
+
+
+# --- comparison with the live run ------------------------------------------------------------------
+
+@dataclass
+class Comparison:
+    """Replay vs what the live node published, matched by seq."""
+
+    topic: str
+    matched: int
+    live_only: int
+    """Live outputs for samples the replay did not feed (or the bag lacks)."""
+    replay_only: int
+    """Samples replayed that live produced no (recorded) output for."""
+    max_abs: dict[str, float]
+    """Largest |replay - live| per field over the compared samples (NaN == NaN counts equal)."""
+    compared: int
+
+
+def compare(bag: Path | str, topic: str, replayed: Outputs, fields: Sequence[str], warmup: float = 0.0,
+            method: str | None = None) -> Comparison | None:
+    """Compare one core's outputs with the live messages recorded on ``topic`` (None if not recorded).
+
+    Samples within ``warmup`` [s] (of header stamp) after the first recorded
+    live output are matched but not compared (filter start-up, see module docstring).
+    """
+    with BagReader(bag) as reader:
+        if topic not in reader.topics:
+            return None
+        live = {}
+        stamps = {}
+        for message in reader.messages([topic]):
+            m = message.decoded
+            if method is not None and getattr(m, "method", method) != method:
+                continue
+            live[int(m.seq)] = m
+            stamps[int(m.seq)] = m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
+    index = {seq: i for i, seq in enumerate(replayed.seq)}
+    common = sorted(set(index) & set(live))
+    start = min(stamps.values()) if stamps else 0.0
+    compared = [s for s in common if stamps[s] >= start + warmup]
+    max_abs = {}
+    for name in fields:
+        ours = replayed.array(name)
+        diffs = [0.0 if (math.isnan(a) and math.isnan(b)) else abs(a - b)
+                 for s in compared
+                 for a, b in [(float(ours[index[s]]), float(getattr(live[s], name)))]]
+        max_abs[name] = max(diffs, default=0.0)
+    return Comparison(topic, len(common), len(set(live) - set(index)), len(set(index) - set(live)), max_abs,
+                      len(compared))
+
+
+# --- CLI -------------------------------------------------------------------------------------------
+
+def _print_comparison(c: Comparison, label: str) -> None:
+    worst = max(c.max_abs.values(), default=0.0)
+    print(f"replay_{label}_matched: {c.matched} count")
+    print(f"replay_{label}_compared: {c.compared} count")
+    print(f"replay_{label}_live_only: {c.live_only} count")
+    print(f"replay_{label}_replay_only: {c.replay_only} count")
+    print(f"replay_{label}_max_abs_diff: {worst:.3g} (largest field difference)")
+    for name, value in c.max_abs.items():
+        print(f"  {label}.{name}: max |replay - live| = {value:.3g}", file=sys.stderr)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="replay", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="prints `replay_<metric>: <value> <unit>` lines: samples, span, wall, speed_factor, and for\n"
+               "the live outputs the bag holds, replay_forces_* and replay_estimates_* (matched, compared,\n"
+               "live_only, replay_only, max_abs_diff; per-field differences on stderr).\n"
+               "exit code 2 on a bad bag, parameter file or calibration (the message names it).")
+    parser.add_argument("bag", type=Path, help="bag directory (or .mcap/.db3 file) holding /rig/sample")
+    parser.add_argument("--params-file", type=Path, default=None, metavar="FILE",
+                        help="graph parameter file of the live run (default: the installed sim_graph.yaml)")
+    parser.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
+                        help="override one parameter of model_node or estimator_node (repeatable), "
+                             "e.g. estimator_node.calibration_file=cal.json; other nodes' are ignored, "
+                             "so run_graph's --set list can be passed as is")
+    parser.add_argument("--estimators", default=None, metavar="NAME[,NAME...]",
+                        help=f"estimators of the registry to run ({', '.join(sorted(ESTIMATORS))}; "
+                             "default: estimator_node's method)")
+    parser.add_argument("--topic", default=None, help="RigSample topic (default: the only one, or /rig/sample)")
+    parser.add_argument("--follow-live", action="store_true",
+                        help="feed each core only the samples its live node answered (by the seqs of the "
+                             "recorded /torque_estimate and /gearbox/forces)")
+    parser.add_argument("--warmup", type=float, default=0.0, metavar="SECONDS",
+                        help="leave the first SECONDS of live outputs out of the comparison (filter start-up)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    try:
+        params = node_parameters(args.params_file or default_graph_file(), args.set)
+        names = args.estimators.split(",") if args.estimators else None
+        result = replay(args.bag, params, names, follow_live=args.follow_live, sample_topic=args.topic,
+                        progress=not args.quiet)
+        print(f"replay_samples: {result.samples} count")
+        print(f"replay_span: {result.span:.3f} s")
+        print(f"replay_wall: {result.wall:.3f} s")
+        print(f"replay_speed_factor: {result.speed_factor:.1f} x real time")
+        forces = compare(args.bag, FORCES_TOPIC, result.model, FORCE_FIELDS, args.warmup)
+        if forces is not None:
+            _print_comparison(forces, "forces")
+        method = str(params["estimator_node"]["method"])
+        if method in result.estimates:
+            estimates = compare(args.bag, ESTIMATE_TOPIC, result.estimates[method], ESTIMATE_FIELDS,
+                                args.warmup, method)
+            if estimates is not None:
+                _print_comparison(estimates, "estimates")
+        for name, outputs in result.estimates.items():
+            torque = outputs.array("torque")
+            finite = torque[np.isfinite(torque)]
+            print(f"replay_{name}_mean_torque: {finite.mean() if finite.size else math.nan:.6g} N m")
+    except (ReplayError, BagRecordingError) as err:
+        print(f"replay: {err}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

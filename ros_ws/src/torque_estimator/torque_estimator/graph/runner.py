@@ -1,0 +1,123 @@
+"""Start a node graph from one ROS 2 parameter file (no ROS import: processes only).
+
+`ros2 launch` is not always available (it is not on PyPI); this starts every
+node named at the top level of a standard parameter file as its own process,
+exactly as `ros2 run <pkg> <node> --ros-args --params-file <file>` would,
+and stops them all cleanly (SIGINT, then SIGKILL after a grace period).
+Executables are found where `ros2 run` finds them: <prefix>/lib/<pkg>/<exe>
+for every prefix of AMENT_PREFIX_PATH.
+"""
+from __future__ import annotations
+
+import signal
+import subprocess
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+from worm_model.ros.ament import ament_prefixes, find_executable
+
+
+class GraphError(RuntimeError):
+    """A graph file or executable problem, naming the file or node."""
+
+
+def default_graph_file() -> Path:
+    """The installed sim_graph.yaml (share/torque_estimator/config), else the source tree's."""
+    for prefix in ament_prefixes():
+        candidate = prefix / "share" / "torque_estimator" / "config" / "sim_graph.yaml"
+        if candidate.is_file():
+            return candidate
+    return Path(__file__).resolve().parents[2] / "config" / "sim_graph.yaml"
+
+
+def graph_nodes(params_file: Path) -> list[str]:
+    """Node names (= executable names) at the top level of a ROS 2 parameter file."""
+    try:
+        data = yaml.safe_load(Path(params_file).read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as err:
+        raise GraphError(f"cannot read graph file {params_file}: {err}") from None
+    if not isinstance(data, dict) or not data:
+        raise GraphError(f"graph file {params_file}: expected node names at the top level")
+    for name, body in data.items():
+        if not isinstance(body, dict) or "ros__parameters" not in body:
+            raise GraphError(f"graph file {params_file}: node '{name}' has no ros__parameters")
+    return [name for name in data if name != "/**"]
+
+
+def parse_overrides(items: list[str]) -> dict[str, list[str]]:
+    """'node.param=value' strings -> {node: ['param:=value', ...]} for --ros-args -p."""
+    overrides: dict[str, list[str]] = {}
+    for item in items:
+        target, sep, value = item.partition("=")
+        node, dot, param = target.partition(".")
+        if not (sep and dot and node and param):
+            raise GraphError(f"override '{item}' is not of the form node.param=value")
+        overrides.setdefault(node, []).append(f"{param}:={value}")
+    return overrides
+
+
+@dataclass
+class Graph:
+    """The processes of one graph; a context manager that always stops them."""
+
+    params_file: Path
+    overrides: dict[str, list[str]] = field(default_factory=dict)
+    log_dir: Path | None = None
+    processes: dict[str, subprocess.Popen] = field(default_factory=dict)
+
+    def command(self, node: str) -> list[str]:
+        try:
+            executable = find_executable(node)
+        except FileNotFoundError as err:
+            raise GraphError(str(err)) from None
+        cmd = [str(executable), "--ros-args", "--params-file", str(self.params_file)]
+        for assignment in self.overrides.get(node, []):
+            cmd += ["-p", assignment]
+        return cmd
+
+    def start(self) -> "Graph":
+        nodes = graph_nodes(self.params_file)
+        unknown = set(self.overrides) - set(nodes)
+        if unknown:
+            raise GraphError(f"overrides name nodes not in {self.params_file}: {sorted(unknown)}")
+        for node in nodes:
+            out = None
+            if self.log_dir is not None:
+                self.log_dir.mkdir(parents=True, exist_ok=True)
+                out = open(self.log_dir / f"{node}.log", "wb")
+            self.processes[node] = subprocess.Popen(self.command(node), stdout=out, stderr=subprocess.STDOUT
+                                                    if out else None)
+        return self
+
+    def failed(self) -> dict[str, int]:
+        """Nodes that have exited already, with their exit codes."""
+        return {n: p.returncode for n, p in self.processes.items() if p.poll() is not None}
+
+    def stop(self, grace: float = 10.0) -> dict[str, int]:
+        """SIGINT every node, wait up to grace [s], SIGKILL what is left (after SIGUSR1, which makes a
+        node print its threads' stacks to its log); returns exit codes."""
+        for proc in self.processes.values():
+            if proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+        deadline = time.monotonic() + grace
+        for proc in self.processes.values():
+            try:
+                proc.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                proc.send_signal(signal.SIGUSR1)  # run_node prints where it is stuck into its log
+                try:
+                    proc.wait(1.0)
+                except subprocess.TimeoutExpired:
+                    pass
+                proc.kill()
+                proc.wait()
+        return {n: p.returncode for n, p in self.processes.items()}
+
+    def __enter__(self) -> "Graph":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()

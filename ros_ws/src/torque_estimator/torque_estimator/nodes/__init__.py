@@ -1,0 +1,1 @@
+"""The executables' ROS shells: estimator_node, controller_node."""

@@ -1,0 +1,115 @@
+"""estimator_node: the load torque tau_d for every rig sample, without a torque sensor.
+
+Subscribes /rig/sample (worm_msgs/RigSample), publishes /torque_estimate
+(worm_msgs/TorqueEstimate) for every sample, sensor-data QoS. The per-sample
+work is live_estimator.LiveEstimator, a disturbance observer: speed and
+current pass through the same low-pass (input_filter), the current that
+accelerates the inertia is removed (quasi_static.py), the result is smoothed
+(estimate_filter) except while a change is detected (change_threshold), then
+the configured estimator (k-NN over the calibration database, paper Eqs
+33-34) maps (omega, i) to tau_d with an uncertainty and flags. A sample taken
+while the worm accelerates faster than transient_acceleration is flagged
+TRANSIENT.
+
+A missing or broken calibration file is reported (log + /diagnostics ERROR)
+and the node keeps running without publishing estimates, so the rest of the
+graph (the controller falls back to no feedforward) carries on.
+"""
+from __future__ import annotations
+
+from rclpy.node import Node
+from worm_msgs.msg import RigSample, TorqueEstimate
+
+from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
+from worm_model.ros.lifecycle import run_node
+from worm_model.ros.parameters import declare
+from worm_model.ros.qos import STREAM
+from worm_model.physics.parameters import ParameterError, load_rig
+
+from torque_estimator.estimation.database import CalibrationError, load_database
+from torque_estimator.estimation.base import EstimateFlags
+from torque_estimator.estimation.registry import ESTIMATORS, make_estimator, node_options
+from torque_estimator.estimation.live import LiveEstimator
+
+
+class EstimatorNode(Node):
+    def __init__(self) -> None:
+        super().__init__("estimator_node")
+        rig_file = declare(self, "rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
+        self.inertia_compensation = declare(
+            self, "inertia_compensation", True,
+            "Remove the current that accelerates the rig's inertia (Eq. 28) before the quasi-static lookup.")
+        self.calibration_file = declare(self, "calibration_file", "",
+                                        "Calibration database (JSON written by `calibrate`).")
+        self.method = declare(self, "method", "knn", "Estimator.", choices=tuple(ESTIMATORS))
+        k = declare(self, "k", 4, "Neighbours averaged by the k-NN estimator.", low=1, high=64)
+        weighting = declare(self, "weighting", "inverse_distance", "k-NN weighting of the neighbours.",
+                            choices=("inverse_distance", "uniform"))
+        model_file = declare(self, "model_file", "",
+                             "Extended model parameter file (rig + effects, written by `residuals`) inverted by the "
+                             "extended_model estimator; empty = rig_file (or the bundled rig) with no effects, "
+                             "the paper's model.")
+        tau = declare(self, "input_filter", 0.003,
+                      "Time constant [s] of each of the 3 low-pass stages speed and current pass alike.",
+                      low=0.0, high=5.0)
+        estimate_filter = declare(self, "estimate_filter", 0.05,
+                                  "Time constant [s] of the smoothing of the compensated current (0: none).",
+                                  low=0.0, high=5.0)
+        change_threshold = declare(
+            self, "change_threshold", 4.0,
+            "Departure of the compensated current from its smoothed value, in running noise sigma, taken for a "
+            "change and followed at once (0: never).", low=0.0, high=100.0)
+        self.transient_acceleration = declare(
+            self, "transient_acceleration", 200.0,
+            "Worm acceleration [rad/s^2] above which an estimate is flagged TRANSIENT.", low=0.0, high=1e6)
+        period = 1.0 / declare(self, "sample_rate", 1000.0, "Rig sample rate [Hz].", low=1.0, high=100000.0)
+
+        self.rig = load_rig(rig_file or None)
+        self.estimator: LiveEstimator | None = None
+        self.problem = ""
+        try:
+            database = load_database(self.calibration_file)
+            options = node_options(self.method, {"k": k, "weighting": weighting, "model_file": model_file,
+                                                 "rig_file": rig_file})
+            self.estimator = LiveEstimator(self.rig, make_estimator(self.method, database, **options),
+                                           period, input_filter=tau,
+                                           inertia_compensation=self.inertia_compensation,
+                                           transient_acceleration=self.transient_acceleration,
+                                           estimate_filter=estimate_filter, change_threshold=change_threshold)
+            self.get_logger().info(f"{self.method} estimator on {len(database)} calibration points "
+                                   f"from {self.calibration_file}")
+        except (CalibrationError, ParameterError) as err:
+            self.problem = str(err)
+            self.get_logger().error(f"no estimates: {err}")
+
+        self.pub = self.create_publisher(TorqueEstimate, "/torque_estimate", STREAM)
+        self.create_subscription(RigSample, "/rig/sample", self.on_sample, STREAM)
+        self.received = 0
+        self.flag_counts = {flag.name: 0 for flag in EstimateFlags if flag}
+        Diagnostics(self, self.report)
+
+    def on_sample(self, sample: RigSample) -> None:
+        self.received += 1
+        if self.estimator is None:
+            return
+        est = self.estimator.update(sample.omega_worm, sample.current_drive)
+        for flag in EstimateFlags(est.flags):
+            self.flag_counts[flag.name] += 1
+        msg = TorqueEstimate(header=sample.header, seq=sample.seq, torque=est.torque, uncertainty=est.uncertainty,
+                             method=self.method, omega_worm=est.omega_worm, current_drive=est.current_drive,
+                             flags=est.flags)
+        self.pub.publish(msg)
+
+    def report(self) -> tuple[bytes, str, dict]:
+        if self.estimator is None:
+            return ERROR, f"no calibration: {self.problem}", {"samples": self.received}
+        level = WARN if self.flag_counts["INVALID_INPUT"] else OK
+        return level, "estimating", {"samples": self.received, **self.flag_counts}
+
+
+def main(args=None) -> int:
+    return run_node(EstimatorNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

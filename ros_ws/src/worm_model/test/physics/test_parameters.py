@@ -1,0 +1,133 @@
+"""Parameter file loader: the bundled file, unit conversion, and rejected files naming the field."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+
+from worm_model.physics.parameters import (
+    ParameterError,
+    default_rig_path,
+    load_rig,
+    rig_from_dict,
+    rig_to_dict,
+)
+
+
+def test_bundled_file_loads() -> None:
+    rig = load_rig()
+    assert rig == load_rig(default_rig_path())
+    gb = rig.gearbox
+    assert (gb.worm_starts, gb.gear_teeth) == (1, 30)
+    assert gb.ratio == pytest.approx(1 / 30)
+    assert gb.geometric_ratio == pytest.approx(gb.ratio, rel=1e-4)
+    assert gb.lead_angle == pytest.approx(math.atan(0.1), rel=1e-4)
+    assert gb.worm_inertia == pytest.approx(2e-6)  # 20 g cm^2
+    assert rig.drive_motor.inductance == pytest.approx(1.5e-3)
+    assert rig.drive_motor.coulomb_drag == pytest.approx(4e-3)
+    assert rig.sensors.encoder_pulses_per_rev == 500 and isinstance(rig.sensors.encoder_decoding, int)
+    assert rig.total_worm_inertia == pytest.approx(gb.worm_inertia + rig.drive_motor.rotor_inertia)
+    assert rig.total_gear_inertia == pytest.approx(gb.gear_inertia + 2 * rig.load_motor.rotor_inertia)
+    assert rig.max_load_torque == pytest.approx(2 * 0.055 * 2.5)
+    assert Path(rig.source) == default_rig_path()
+
+
+def test_dict_round_trip_is_json() -> None:
+    rig = load_rig()
+    data = json.loads(json.dumps(rig_to_dict(rig)))
+    assert rig_from_dict(data) == rig
+
+
+def _document() -> dict[str, Any]:
+    return yaml.safe_load(default_rig_path().read_text())
+
+
+def _write(tmp_path: Path, doc: dict[str, Any]) -> Path:
+    path = tmp_path / "rig.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+def test_unit_conversion(tmp_path: Path) -> None:
+    doc = _document()
+    doc["drive_motor"] = dict(doc["drive_motor"])
+    doc["drive_motor"]["back_emf_constant"] = {"value": 5.759, "unit": "V/krpm", "source": "test"}
+    doc["gearbox"]["lead_angle"] = {"value": 0.0996687, "unit": "rad", "source": "test"}
+    doc["gearbox"]["worm_pitch_radius"] = {"value": 0.0075, "unit": "m", "source": "test"}
+    rig = load_rig(_write(tmp_path, doc))
+    assert rig.drive_motor.back_emf_constant == pytest.approx(0.055, rel=1e-3)
+    assert rig.load_motor.back_emf_constant == pytest.approx(0.055)
+
+
+def _set(section: str, name: str, **changes: Any) -> Callable[[dict[str, Any]], None]:
+    def mutate(doc: dict[str, Any]) -> None:
+        leaf = dict(doc[section][name])
+        for key, value in changes.items():
+            if value is None:
+                leaf.pop(key, None)
+            else:
+                leaf[key] = value
+        doc[section] = dict(doc[section])
+        doc[section][name] = leaf
+
+    return mutate
+
+
+def _drop(section: str, name: str) -> Callable[[dict[str, Any]], None]:
+    def mutate(doc: dict[str, Any]) -> None:
+        del doc[section][name]
+
+    return mutate
+
+
+BAD = {
+    "broken ratio": (_set("gearbox", "gear_teeth", value=40), "gearbox.gear_teeth", "0.02500"),
+    "missing source": (_set("gearbox", "lead_angle", assumption=None), "gearbox.lead_angle", "source"),
+    "source and assumption": (_set("gearbox", "lead_angle", source="x"), "gearbox.lead_angle", "exactly one"),
+    "unknown unit": (_set("gearbox", "lead_angle", unit="furlong"), "gearbox.lead_angle", "unknown unit"),
+    "wrong dimension": (_set("gearbox", "lead_angle", unit="mm"), "gearbox.lead_angle", "expected a angle"),
+    "non-numeric": (_set("drive_motor", "resistance", value="abc"), "drive_motor.resistance", "not numeric"),
+    "boolean": (_set("sensors", "tacho_ripple", value=True), "sensors.tacho_ripple", "not numeric"),
+    "angle range": (_set("gearbox", "normal_pressure_angle", value=50), "gearbox.normal_pressure_angle", "45"),
+    "negative": (_set("drive_motor", "inductance", value=-1), "drive_motor.inductance", "> 0"),
+    "non-integer count": (_set("sensors", "encoder_pulses_per_rev", value=500.5), "sensors.encoder_pulses_per_rev", "integer"),
+    "missing field": (_drop("sensors", "sample_rate_hz"), "sensors.sample_rate_hz", "missing"),
+    "unknown model": (lambda d: d["friction"].update(model="magic"), "friction.model", "unknown model"),
+    "bare number": (lambda d: d.update(supply_voltage=24), "supply_voltage", "mapping"),
+    "wrong format": (lambda d: d.update(format="other"), "format", "worm_rig_parameters"),
+}
+
+
+@pytest.mark.parametrize("case", list(BAD))
+def test_bad_files_are_rejected_naming_the_field(tmp_path: Path, case: str) -> None:
+    mutate, field, fragment = BAD[case]
+    doc = _document()
+    mutate(doc)
+    path = _write(tmp_path, doc)
+    with pytest.raises(ParameterError) as info:
+        load_rig(path)
+    message = str(info.value)
+    assert str(path) in message and field in message and fragment in message, message
+    assert isinstance(info.value, ValueError)
+
+
+def test_broken_ratio_names_all_fields_and_values(tmp_path: Path) -> None:
+    doc = _document()
+    _set("gearbox", "gear_teeth", value=40)(doc)
+    with pytest.raises(ParameterError) as info:
+        load_rig(_write(tmp_path, doc))
+    msg = str(info.value)
+    for name in ("worm_starts", "gear_teeth", "worm_pitch_radius", "gear_pitch_radius", "lead_angle"):
+        assert f"gearbox.{name}" in msg
+    assert "0.03333" in msg
+
+
+def test_missing_file() -> None:
+    with pytest.raises(ParameterError, match="no_such.yaml"):
+        load_rig("/nonexistent/no_such.yaml")

@@ -1,0 +1,280 @@
+"""Write rosbag2 bags of raw CDR messages, without rclpy; read them via :mod:`bag_reader`.
+
+This is the core of the recorder node (``recorder_node.py`` is a thin rclpy
+shell over it). It uses the pure-Python ``rosbags`` library, so it runs where
+rosbag2 itself is not installed, and writes bags that the stock tools read:
+``ros2 bag info/play``, Foxglove, PlotJuggler.
+
+Message definitions are embedded in every bag; where a type's definition
+comes from is described in :mod:`worm_model.bags.typestore`. The MCAP storage
+carries the definition as a ``ros2msg`` schema per type; the sqlite3 storage
+carries it in its ``message_definitions`` table. Both carry the RIHS01 type
+hash in the topic metadata, as rosbag2 does since Iron.
+
+Reading goes through :class:`worm_model.bags.reader.BagReader`, which
+also reads what the real rosbag2 writes; :func:`read_bag_counts` and
+:func:`read_messages` are kept here as short cuts.
+
+Units: timestamps are integer nanoseconds (ROS time) throughout.
+
+Raises:
+    Every failure is a :class:`BagRecordingError` (or a subclass) whose message
+    names the bag path, topic or type concerned.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Final, Literal
+
+from rosbags.interfaces import Connection, Qos
+from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+from rosbags.typesys import TypesysError
+
+from worm_model.bags.reader import BagReader
+from worm_model.bags.typestore import (
+    STOCK_STORE,
+    BagClosedError,
+    BagReadError,
+    BagRecordingError,
+    ClosesOnExit,
+    MessageTypes,
+    TypeDefinitionNotFoundError,
+    ament_prefixes,
+    deserialize_cdr,
+    normalize_type_name,
+)
+
+__all__ = [
+    'STOCK_STORE',
+    'STORAGES',
+    'BagClosedError',
+    'BagReadError',
+    'BagRecordingError',
+    'BagWriter',
+    'MessageTypes',
+    'TopicHandle',
+    'TypeDefinitionNotFoundError',
+    'ament_prefixes',
+    'deserialize_cdr',
+    'normalize_type_name',
+    'read_bag_counts',
+    'read_messages',
+]
+
+StorageName = Literal['mcap', 'sqlite3']
+
+STORAGES: Final[Mapping[str, StoragePlugin]] = {
+    'mcap': StoragePlugin.MCAP,
+    'sqlite3': StoragePlugin.SQLITE3,
+}
+"""Storage name (as ``ros2 bag record -s`` spells it) -> rosbags plugin."""
+
+
+@dataclass(frozen=True, slots=True)
+class TopicHandle:
+    """A topic added to a :class:`BagWriter`; pass it to :meth:`BagWriter.write`."""
+
+    topic: str
+    type_name: str
+    type_hash: str
+    """RIHS01 hash of the embedded definition (``RIHS01_<hex>``)."""
+    connection: Connection
+
+
+class BagWriter(ClosesOnExit):
+    """A rosbag2 bag directory being written with raw CDR messages.
+
+    Use as a context manager, or call :meth:`close` (idempotent). :meth:`write`
+    is thread-safe, so callbacks of a multi-threaded executor may share one
+    writer.
+
+    Format: rosbag2 metadata version 9 (Jazzy and later) by default, 8 on
+    request for older readers; storage MCAP (rosbag2's default since Iron) or
+    sqlite3.
+    """
+
+    def __init__(
+        self,
+        path: Path | str,
+        storage: StorageName | str = 'mcap',
+        *,
+        types: MessageTypes | None = None,
+        version: Literal[8, 9] = Writer.VERSION_LATEST,
+    ) -> None:
+        """Create the bag directory and open its storage file.
+
+        Args:
+            path: Bag directory to create; it must not exist.
+            storage: ``"mcap"`` or ``"sqlite3"``.
+            types: Type store to take definitions from; a new
+                :class:`MessageTypes` over ``AMENT_PREFIX_PATH`` when None.
+            version: rosbag2 metadata version.
+
+        Raises:
+            BagRecordingError: Unknown storage, the path exists, or it cannot
+                be created.
+
+        """
+        self.path = Path(path)
+        if (plugin := STORAGES.get(storage)) is None:
+            msg = (
+                f'Unknown storage {storage!r} for bag {self.path}; '
+                f'expected one of {sorted(STORAGES)}'
+            )
+            raise BagRecordingError(msg)
+        self.storage = storage
+        self.types = MessageTypes() if types is None else types
+        self.counts: dict[str, int] = {}
+        """Messages written so far, per topic."""
+        self._handles: dict[str, TopicHandle] = {}
+        self._lock = threading.Lock()
+        self._writer: Writer | None = None
+        try:
+            writer = Writer(self.path, version=version, storage_plugin=plugin)
+            writer.open()
+        except (WriterError, OSError) as err:
+            msg = f'Cannot create bag {self.path}: {err}'
+            raise BagRecordingError(msg) from err
+        self._writer = writer
+
+    @property
+    def closed(self) -> bool:
+        """Whether the bag is closed (metadata.yaml written)."""
+        return self._writer is None
+
+    @property
+    def topics(self) -> Mapping[str, TopicHandle]:
+        """Handles of the topics added so far, by topic name."""
+        return dict(self._handles)
+
+    def add_topic(
+        self,
+        topic: str,
+        type_name: str,
+        offered_qos: Sequence[Qos] = (),
+    ) -> TopicHandle:
+        """Add a topic; its type's definition is embedded in the bag.
+
+        Args:
+            topic: Topic name, e.g. ``/rig/sample``.
+            type_name: ``pkg/msg/Name`` (or ``pkg/Name``).
+            offered_qos: QoS profiles of the topic's publishers, stored as
+                rosbag2's ``offered_qos_profiles`` (used by ``ros2 bag play``).
+
+        Returns:
+            The handle to write the topic's messages with.
+
+        Raises:
+            TypeDefinitionNotFoundError: No definition of the type.
+            BagRecordingError: Topic added before, bag closed, or rosbags
+                refused the connection.
+
+        """
+        name = self.types.ensure(type_name)
+        with self._lock:
+            writer = self._open_writer(topic)
+            if (have := self._handles.get(topic)) is not None:
+                msg = f'Topic {topic!r} is already in bag {self.path} as {have.type_name!r}'
+                raise BagRecordingError(msg)
+            try:
+                connection = writer.add_connection(
+                    topic,
+                    name,
+                    typestore=self.types.typestore,
+                    offered_qos_profiles=list(offered_qos),
+                )
+            except (WriterError, TypesysError, KeyError) as err:
+                msg = f'Cannot add topic {topic!r} of type {name!r} to bag {self.path}: {err!r}'
+                raise BagRecordingError(msg) from err
+            handle = TopicHandle(topic, name, connection.digest, connection)
+            self._handles[topic] = handle
+            self.counts[topic] = 0
+        return handle
+
+    def write(self, handle: TopicHandle, timestamp_ns: int, cdr_bytes: bytes | memoryview) -> None:
+        """Append one serialized message, as received (no re-serialization).
+
+        Args:
+            handle: From :meth:`add_topic` of this writer.
+            timestamp_ns: Receive time (ns, ROS time).
+            cdr_bytes: The message in CDR, with its 4-byte encapsulation header.
+
+        Raises:
+            BagClosedError: The bag is closed.
+            BagRecordingError: The handle belongs to another bag.
+
+        """
+        with self._lock:
+            writer = self._open_writer(handle.topic)
+            if self._handles.get(handle.topic) is not handle:
+                msg = f'Topic {handle.topic!r} was not added to bag {self.path}'
+                raise BagRecordingError(msg)
+            writer.write(handle.connection, timestamp_ns, cdr_bytes)
+            self.counts[handle.topic] += 1
+
+    def close(self) -> None:
+        """Finish the storage file and write ``metadata.yaml``; idempotent.
+
+        Raises:
+            BagRecordingError: rosbags failed to finish the bag.
+
+        """
+        with self._lock:
+            writer, self._writer = self._writer, None
+            if writer is None:
+                return
+            try:
+                writer.close()
+            except (WriterError, OSError) as err:
+                msg = f'Cannot finish bag {self.path}: {err}'
+                raise BagRecordingError(msg) from err
+
+    def _open_writer(self, topic: str) -> Writer:
+        """Return the rosbags writer, or raise if closed (caller holds the lock)."""
+        if self._writer is None:
+            msg = f'Bag {self.path} is closed; cannot write topic {topic!r}'
+            raise BagClosedError(msg)
+        return self._writer
+
+
+def read_bag_counts(path: Path | str, types: MessageTypes | None = None) -> dict[str, int]:
+    """Count the messages actually stored per topic (not the metadata's claim).
+
+    Args:
+        path: Bag directory, or a single ``.mcap`` / ``.db3`` file.
+        types: Typestore for bags without embedded definitions.
+
+    Raises:
+        BagReadError: The bag cannot be opened or read.
+
+    """
+    with BagReader(path, types) as reader:
+        return reader.count_messages()
+
+
+def read_messages(
+    path: Path | str,
+    topic: str,
+    types: MessageTypes | None = None,
+) -> Iterator[tuple[int, object]]:
+    """Yield ``(timestamp_ns, message)`` of one topic in storage order.
+
+    Messages are rosbags dataclasses (field names as in the ``.msg``),
+    decoded with the definitions embedded in the bag.
+
+    Args:
+        path: Bag directory, or a single ``.mcap`` / ``.db3`` file.
+        topic: Topic to read.
+        types: Typestore for bags without embedded definitions.
+
+    Raises:
+        BagReadError: The bag cannot be opened or decoded, or has no such topic.
+
+    """
+    with BagReader(path, types) as reader:
+        for message in reader.messages([topic]):
+            yield message.timestamp, message.decoded

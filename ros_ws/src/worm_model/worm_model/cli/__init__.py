@@ -1,0 +1,1 @@
+"""What every command-line tool of the project shares: progress bars (``progress``)."""

@@ -1,0 +1,367 @@
+"""Rig parameters: frozen dataclasses loaded from one YAML file with a source for every number.
+
+File format ``worm_rig_parameters``
+-----------------------------------
+version 1 (current): top-level keys ``format``, ``version``, ``name`` and the sections
+``gearbox``, ``friction``, ``drive_motor``, ``load_motor``, ``sensors`` plus the leaves
+``load_motor_count`` and ``supply_voltage``.  Every numeric leaf is a mapping::
+
+    lead_angle: {value: 5.71, unit: deg, source: "catalogue p. 12"}      # or
+    lead_angle: {value: 5.71, unit: deg, assumption: "why this value"}
+
+with exactly one of ``source`` / ``assumption``.  Values are converted to SI with
+:mod:`worm_model.physics.units`.  Which fields exist, their dimension and their range check
+are declared once, as ``metadata`` on the dataclass fields below; the loader walks
+that table (adding a parameter is adding a field).
+
+Conventions: SI units, angles in rad.  ``hand`` is +1 for a right-hand worm and -1
+for a left-hand one; it only decides the sign of the gear rotation,
+``omega_gear = hand * ratio * omega_worm`` (paper Eqs 26-27).
+
+Every failure raises :class:`ParameterError`, whose message names the file and the
+field (``nmrv030_rig.yaml: gearbox.lead_angle: ...``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from worm_model.physics.friction import FRICTION_MODELS
+from worm_model.physics.units import UNITS, normalize_unit, to_si
+
+FORMAT_NAME = "worm_rig_parameters"
+FORMAT_VERSION = 1
+#: relative tolerance of the check n/Z == r_w tan(lambda) / r_g
+RATIO_TOLERANCE = 0.05
+#: optional top-level sections other modules read from the same file (load_rig skips them):
+#: ``free`` (parameters the residual analysis may fit) and ``effects`` (effects beyond
+#: Eqs 19-30, see worm_model.residuals.effects and the simulator's effect plug-ins)
+OPTIONAL_TOP_SECTIONS = frozenset({"free", "effects"})
+
+
+class ParameterError(ValueError):
+    """A parameter file (or dict) is unreadable or inconsistent.
+
+    Attributes:
+        source: the file (or other origin) that was being read.
+        field: dotted name of the offending field ("" if the whole file).
+    """
+
+    def __init__(self, source: str, field_name: str, problem: str) -> None:
+        self.source = str(source)
+        self.field = field_name
+        where = f"{self.source}: {field_name}" if field_name else self.source
+        super().__init__(f"{where}: {problem}")
+
+
+# ---------------------------------------------------------------------------
+# range checks a field can declare: name -> (predicate on the SI value, message)
+CHECKS: dict[str, tuple[Callable[[float], bool], str]] = {
+    "positive": (lambda x: x > 0.0, "must be > 0"),
+    "nonnegative": (lambda x: x >= 0.0, "must be >= 0"),
+    "angle": (lambda x: 0.0 < x < math.pi / 4.0, "must lie in (0, 45 deg)"),
+    "count": (lambda x: x >= 1, "must be an integer >= 1"),
+    "hand": (lambda x: x in (1, -1), "must be +1 (right-hand) or -1 (left-hand)"),
+    "fraction": (lambda x: 0.0 <= x < 1.0, "must lie in [0, 1)"),
+}
+
+
+def _num(dimension: str, check: str = "positive") -> Any:
+    """Field declaration of a numeric leaf: its dimension and its range check."""
+    return field(metadata={"dimension": dimension, "check": check})
+
+
+def _text() -> Any:
+    return field(metadata={"kind": "text"})
+
+
+def _section(cls: type) -> Any:
+    return field(metadata={"section": cls})
+
+
+@dataclass(frozen=True)
+class Gearbox:
+    """Worm gear set (SI).  ``gear_inertia`` is gear + output shaft, NOT the load motors."""
+
+    worm_starts: int = _num("dimensionless", "count")
+    gear_teeth: int = _num("dimensionless", "count")
+    worm_pitch_radius: float = _num("length")  # r_w [m]
+    gear_pitch_radius: float = _num("length")  # r_g [m]
+    lead_angle: float = _num("angle", "angle")  # lambda [rad]
+    normal_pressure_angle: float = _num("angle", "angle")  # phi_n [rad]
+    hand: int = _num("dimensionless", "hand")  # +1 right-hand, -1 left-hand
+    worm_inertia: float = _num("inertia")  # J_w [kg m^2]
+    gear_inertia: float = _num("inertia")  # J_g [kg m^2]
+
+    @property
+    def ratio(self) -> float:
+        """Speed ratio i = n / Z_g = |omega_g / omega_w| (Eq. 26)."""
+        return self.worm_starts / self.gear_teeth
+
+    @property
+    def geometric_ratio(self) -> float:
+        """r_w tan(lambda) / r_g: the ratio the pitch geometry implies (should equal ``ratio``)."""
+        return self.worm_pitch_radius * math.tan(self.lead_angle) / self.gear_pitch_radius
+
+    @property
+    def radius_ratio(self) -> float:
+        """r_w / r_g."""
+        return self.worm_pitch_radius / self.gear_pitch_radius
+
+    @property
+    def mu_engagement_max(self) -> float:
+        """Remark 4 (after Yeh & Wu): the driving flank engages correctly only for mu < cos(phi_n) cot(lambda)."""
+        return math.cos(self.normal_pressure_angle) / math.tan(self.lead_angle)
+
+    @property
+    def self_locking_mu(self) -> float:
+        """mu above which the load cannot back-drive the worm: cos(phi_n) tan(lambda) (section 6)."""
+        return math.cos(self.normal_pressure_angle) * math.tan(self.lead_angle)
+
+
+@dataclass(frozen=True)
+class Friction:
+    """Tooth-thread friction model: ``model`` is a key of ``worm_model.physics.friction.FRICTION_MODELS``."""
+
+    model: str = _text()  # "agma" or "constant"
+    mu_constant: float = _num("dimensionless", "nonnegative")  # used by model "constant"
+    scale: float = _num("dimensionless")  # multiplies the AGMA curve
+
+
+@dataclass(frozen=True)
+class Motor:
+    """PMDC motor, Eq. 29 (SI)."""
+
+    resistance: float = _num("resistance")  # R [ohm]
+    inductance: float = _num("inductance")  # L [H]
+    torque_constant: float = _num("torque_constant")  # K_t [N m/A]
+    back_emf_constant: float = _num("back_emf_constant")  # K_e [V s/rad]
+    rotor_inertia: float = _num("inertia")  # J_m [kg m^2]
+    viscous_drag: float = _num("viscous", "nonnegative")  # b [N m s/rad]
+    coulomb_drag: float = _num("torque", "nonnegative")  # c [N m]
+    rated_current: float = _num("current")  # continuous [A]
+    max_voltage: float = _num("voltage")  # [V]
+
+
+@dataclass(frozen=True)
+class Sensors:
+    """Measurement chain of one motor channel (SI)."""
+
+    current_noise_std: float = _num("current", "nonnegative")  # [A]
+    current_lsb: float = _num("current")  # ADC resolution of the Hall current channel [A]
+    tacho_noise_std: float = _num("angular_velocity", "nonnegative")  # [rad/s]
+    tacho_ripple: float = _num("dimensionless", "fraction")  # relative ripple amplitude
+    encoder_pulses_per_rev: int = _num("dimensionless", "count")  # per channel
+    encoder_decoding: int = _num("dimensionless", "count")  # 1, 2 or 4 (quadrature)
+    sample_rate_hz: float = _num("frequency")  # [Hz]
+
+
+@dataclass(frozen=True)
+class Rig:
+    """The whole test rig: one drive motor on the worm, ``load_motor_count`` load motors on the gear."""
+
+    name: str = _text()
+    gearbox: Gearbox = _section(Gearbox)
+    friction: Friction = _section(Friction)
+    drive_motor: Motor = _section(Motor)
+    load_motor: Motor = _section(Motor)
+    load_motor_count: int = _num("dimensionless", "count")
+    supply_voltage: float = _num("voltage")  # [V]
+    sensors: Sensors = _section(Sensors)
+    source: str = field(default="", metadata={"kind": "origin"})  # file it came from
+
+    @property
+    def total_worm_inertia(self) -> float:
+        """J_w + J_m,drive [kg m^2]: everything rigidly on the worm shaft (Eq. 30)."""
+        return self.gearbox.worm_inertia + self.drive_motor.rotor_inertia
+
+    @property
+    def total_gear_inertia(self) -> float:
+        """J_g + count * J_m,load [kg m^2]: everything rigidly on the gear shaft."""
+        return self.gearbox.gear_inertia + self.load_motor_count * self.load_motor.rotor_inertia
+
+    @property
+    def max_load_torque(self) -> float:
+        """Continuous disturbance torque the load motors can make: count * K_t,load * rated current [N m]."""
+        return self.load_motor_count * self.load_motor.torque_constant * self.load_motor.rated_current
+
+
+# ---------------------------------------------------------------------------
+# loading
+
+_LEAF_KEYS = {"value", "unit", "source", "assumption", "note"}
+
+
+def default_rig_path() -> Path:
+    """Path of the bundled rig file ``worm_model/data/nmrv030_rig.yaml``."""
+    return Path(__file__).resolve().parent.parent / "data" / "nmrv030_rig.yaml"
+
+
+def _is_int_field(f: dataclasses.Field[Any]) -> bool:
+    return f.type in ("int", int)
+
+
+def finite_number(raw: Any, origin: str, where: str, error: type[ParameterError] = ParameterError) -> float:
+    """A YAML scalar as a finite float (PyYAML reads '1e-5' as a string: accepted).
+
+    Shared with the other YAML files that sit beside the rig file (the simulator's
+    effects file raises its own subclass, passed as ``error``).
+
+    Raises:
+        ParameterError (or ``error``): a bool, a non-scalar, a non-numeric string, inf or nan.
+    """
+    if isinstance(raw, bool) or not isinstance(raw, (int, float, str)):
+        raise error(origin, where, f"value {raw!r} is not numeric")
+    try:
+        number = float(raw)
+    except ValueError:
+        raise error(origin, where, f"value {raw!r} is not numeric") from None
+    if not math.isfinite(number):
+        raise error(origin, where, f"value {raw!r} is not finite")
+    return number
+
+
+def _read_leaf(node: Any, f: dataclasses.Field[Any], origin: str, where: str) -> float | int:
+    """One ``{value, unit, source|assumption}`` leaf -> SI number, checked."""
+    if not isinstance(node, Mapping):
+        raise ParameterError(origin, where, "expected a mapping {value, unit, source | assumption}")
+    for key in ("value", "unit"):
+        if key not in node:
+            raise ParameterError(origin, where, f"missing '{key}'")
+    unknown = set(node) - _LEAF_KEYS
+    if unknown:
+        raise ParameterError(origin, where, f"unknown keys {sorted(unknown)}")
+    provenance = [k for k in ("source", "assumption") if str(node.get(k) or "").strip()]
+    if len(provenance) != 1:
+        raise ParameterError(
+            origin, where, "needs exactly one non-empty 'source' or 'assumption' (where the number comes from)"
+        )
+    number = finite_number(node["value"], origin, where)
+    try:
+        value, dimension = to_si(number, node["unit"])
+    except KeyError:
+        raise ParameterError(
+            origin, where, f"unknown unit {node['unit']!r} (known: {', '.join(UNITS)})"
+        ) from None
+    expected = f.metadata["dimension"]
+    if dimension != expected:
+        raise ParameterError(
+            origin, where, f"unit {normalize_unit(node['unit'])!r} is a {dimension}, expected a {expected}"
+        )
+    return _checked(f, value, origin, where, f"{node['value']!r} {node['unit']}")
+
+
+def _checked(f: dataclasses.Field[Any], value: float, origin: str, where: str, shown: str) -> float | int:
+    """Integer conversion for int fields and the field's declared range check."""
+    result: float | int = value
+    if _is_int_field(f):
+        if not float(value).is_integer():
+            raise ParameterError(origin, where, f"value {shown} must be an integer")
+        result = int(value)
+    predicate, message = CHECKS[f.metadata["check"]]
+    if not predicate(result):
+        raise ParameterError(origin, where, f"value {shown}: {message}")
+    return result
+
+
+def _build(cls: type, node: Any, origin: str, prefix: str, leaves: bool) -> Any:
+    """Walk the field table of ``cls``; ``leaves`` False reads plain SI numbers (rig_from_dict)."""
+    if not isinstance(node, Mapping):
+        raise ParameterError(origin, prefix.rstrip(".") or "<top>", "expected a mapping")
+    kwargs: dict[str, Any] = {}
+    known = set()
+    for f in dataclasses.fields(cls):
+        where = prefix + f.name
+        known.add(f.name)
+        if f.metadata.get("kind") == "origin":
+            continue
+        if f.name not in node:
+            raise ParameterError(origin, where, "missing")
+        raw = node[f.name]
+        if "section" in f.metadata:
+            kwargs[f.name] = _build(f.metadata["section"], raw, origin, where + ".", leaves)
+        elif f.metadata.get("kind") == "text":
+            if not isinstance(raw, str) or not raw.strip():
+                raise ParameterError(origin, where, f"expected a non-empty string, got {raw!r}")
+            kwargs[f.name] = raw.strip()
+        elif leaves:
+            kwargs[f.name] = _read_leaf(raw, f, origin, where)
+        else:
+            kwargs[f.name] = _checked(f, finite_number(raw, origin, where), origin, where, repr(raw))
+    extra = set(node) - known - {"format", "version"} - (OPTIONAL_TOP_SECTIONS if not prefix else set())
+    if extra:
+        raise ParameterError(origin, prefix + sorted(extra)[0], "unknown field")
+    return cls(**kwargs)
+
+
+def check_rig(rig: Rig, origin: str) -> None:
+    """Cross-field checks: friction model known; n/Z consistent with r_w tan(lambda)/r_g within 5 %.
+
+    Raises:
+        ParameterError: naming the fields and both values.
+    """
+    if rig.friction.model not in FRICTION_MODELS:
+        raise ParameterError(
+            origin, "friction.model", f"unknown model {rig.friction.model!r} (known: {', '.join(FRICTION_MODELS)})"
+        )
+    gb = rig.gearbox
+    if abs(gb.geometric_ratio - gb.ratio) > RATIO_TOLERANCE * gb.ratio:
+        raise ParameterError(
+            origin,
+            "gearbox.worm_starts/gearbox.gear_teeth vs gearbox.worm_pitch_radius, "
+            "gearbox.gear_pitch_radius, gearbox.lead_angle",
+            f"ratio n/Z = {gb.ratio:.5f} but r_w*tan(lambda)/r_g = {gb.geometric_ratio:.5f} "
+            f"(more than {RATIO_TOLERANCE:.0%} apart): the geometry is inconsistent",
+        )
+
+
+def load_rig(path: str | os.PathLike[str] | None = None) -> Rig:
+    """Load and check a ``worm_rig_parameters`` v1 file; ``None`` loads :func:`default_rig_path`.
+
+    Returns:
+        a :class:`Rig` in SI units whose ``source`` is the resolved file path.
+
+    Raises:
+        ParameterError: unreadable file, wrong format/version, missing or unknown field,
+            leaf without source/assumption, non-numeric value, unknown or mismatched unit,
+            out-of-range value, inconsistent gear geometry.  The message names file and field.
+    """
+    file = Path(path) if path is not None else default_rig_path()
+    origin = str(file)
+    try:
+        document = yaml.safe_load(file.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as err:
+        raise ParameterError(origin, "", f"cannot read parameter file: {err}") from err
+    if not isinstance(document, Mapping):
+        raise ParameterError(origin, "", "not a YAML mapping")
+    if document.get("format") != FORMAT_NAME:
+        raise ParameterError(origin, "format", f"expected {FORMAT_NAME!r}, got {document.get('format')!r}")
+    if document.get("version") != FORMAT_VERSION:
+        raise ParameterError(origin, "version", f"unsupported version {document.get('version')!r}")
+    rig = dataclasses.replace(_build(Rig, document, origin, "", leaves=True), source=str(file.resolve()))
+    check_rig(rig, origin)
+    return rig
+
+
+def rig_to_dict(rig: Rig) -> dict[str, Any]:
+    """Plain JSON-able dict of the rig, SI values, same nesting as the dataclasses."""
+    return dataclasses.asdict(rig)
+
+
+def rig_from_dict(data: Mapping[str, Any], origin: str = "<dict>") -> Rig:
+    """Inverse of :func:`rig_to_dict` (e.g. the rig embedded in a calibration file), checked.
+
+    Raises:
+        ParameterError: missing/unknown/non-numeric field or inconsistent geometry.
+    """
+    rig = dataclasses.replace(_build(Rig, data, origin, "", leaves=False), source=str(data.get("source", "")))
+    check_rig(rig, origin)
+    return rig

@@ -1,0 +1,55 @@
+"""Steady state of the drive: the worm speed at which a held voltage and load settle.
+
+Eq. 28 with a_w = 0 and Eq. 29 with di/dt = 0. In steady state the motor's shaft
+torque (Eq. 30 without the rotor inertia) is exactly the input torque that keeps
+the worm turning against the gear-side load:
+
+    K_t (V - K_e w) / R - b w - c sign(w) = reflected_input_torque(mu(w), tau_load + drag(w), w)
+
+The right-hand side includes the load motors' drag (gear_side.gear_side_load).
+The expectation is computed by root finding, so it is independent of any time
+integration. That makes it a reference for the simulators (plant, simulated and
+virtual rig).
+
+Conventions: those of dynamics.py. voltage [V] and omega_worm [rad/s] are signed
+in the fixed frame. tau_load [N m] is + when it opposes + worm rotation.
+"""
+from __future__ import annotations
+
+from scipy.optimize import brentq
+
+from worm_model.physics.dynamics import reflected_input_torque
+from worm_model.physics.friction import friction_coefficient
+from worm_model.physics.gear_side import gear_side_load
+from worm_model.physics.motor import shaft_torque, steady_state_current
+from worm_model.physics.parameters import Rig
+
+
+def torque_surplus(rig: Rig, voltage: float, tau_load: float, omega_worm: float) -> float:
+    """Drive shaft torque at steady current minus the input torque the load needs [N m].
+
+    The result is 0 at the steady speed and > 0 where the worm would speed up.
+    """
+    motor = rig.drive_motor
+    current = steady_state_current(motor, voltage, omega_worm)
+    mu = friction_coefficient(rig.friction, rig.gearbox, omega_worm)
+    need = reflected_input_torque(rig.gearbox, mu, gear_side_load(rig, tau_load, omega_worm), omega_worm)
+    return float(shaft_torque(motor, current, omega_worm) - need)
+
+
+def steady_worm_speed(rig: Rig, voltage: float, tau_load: float) -> float:
+    """Worm speed [rad/s] that ``voltage`` [V] settles at against ``tau_load`` [N m].
+
+    The speed turns in the direction of the voltage. It is sought between 1 mrad/s
+    and 1.5 times the no-load speed |V| / K_e.
+
+    Raises:
+        ValueError: voltage 0, or the motor cannot turn the load. A self-locking box
+            stalls, and then the torque surplus has no sign change in that range.
+    """
+    if voltage == 0.0:
+        raise ValueError("voltage 0: no steady speed to seek (the worm stands still)")
+    top = 1.5 * abs(voltage) / rig.drive_motor.back_emf_constant
+    lo, hi = (1e-3, top) if voltage > 0 else (-top, -1e-3)
+    return float(brentq(lambda w: torque_surplus(rig, voltage, tau_load, w), lo, hi, xtol=1e-12, rtol=1e-13))
+

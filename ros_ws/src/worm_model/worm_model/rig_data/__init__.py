@@ -1,0 +1,16 @@
+"""Measured rig data: the ``worm_rig_data`` CSV schema and its conversion to and from bags.
+
+=================  ==============================================================
+``schema``         the CSV schema, :class:`MeasuredData`, CSV reader and writer
+``reader``         :func:`read_rig_data`: the one entry for CSV files and bags
+``bags``           RigSample bags <-> MeasuredData (``bag export`` / ``bag import``)
+``bag_cli``        the ``bag`` command (``ros2 run worm_rig_driver bag``)
+=================  ==============================================================
+
+Start with :mod:`~worm_model.rig_data.schema`. Bags themselves (rosbag2 layouts,
+reading, writing) are :mod:`worm_model.bags`.
+"""
+from worm_model.rig_data.reader import read_rig_data
+from worm_model.rig_data.schema import MeasuredData, RigDataError, read_rig_csv, write_rig_csv
+
+__all__ = ["MeasuredData", "RigDataError", "read_rig_csv", "read_rig_data", "write_rig_csv"]

@@ -1,0 +1,224 @@
+"""Bags of RigSample to and from rig data (the ``worm_rig_data`` CSV schema of worm_model.rig_data.schema).
+
+The schema, :class:`~worm_model.rig_data.schema.MeasuredData`, the CSV reader and writer and
+:class:`~worm_model.rig_data.schema.RigDataError` are worm_model.rig_data.schema's; this module only
+converts between them and rosbag2 bags.
+
+:func:`bag_to_measured` reads a ``worm_msgs/msg/RigSample`` stream, ``t`` counted
+from the first sample's ``header.stamp``, ``current_load`` the sum of the two load
+motors; :func:`measured_to_bag` writes one, ``header.stamp = start + t``, ``seq`` the
+row index, ``current_load`` split equally over the two load motors, and channels
+the data lacks set to NaN (counts to 0). :func:`bag_to_csv` and :func:`csv_to_bag`
+are ``bag export`` and ``bag import``: as the CSV writer keeps every float exactly,
+export -> import -> export gives the same file.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Iterator
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+
+from worm_model.rig_data.schema import (
+    REQUIRED_COLUMNS,
+    MeasuredData,
+    RigDataError,
+    read_rig_csv,
+    write_rig_csv,
+)
+from worm_model.bags.reader import BagReader
+from worm_model.bags.writer import BagWriter
+from worm_model.bags.typestore import MessageTypes
+
+__all__ = [
+    'DEFAULT_TOPIC',
+    'RIG_SAMPLE_TYPE',
+    'bag_to_csv',
+    'bag_to_measured',
+    'csv_to_bag',
+    'find_sample_topic',
+    'measured_to_bag',
+    'rig_samples',
+    'samples_to_measured',
+]
+
+RIG_SAMPLE_TYPE: Final[str] = 'worm_msgs/msg/RigSample'
+DEFAULT_TOPIC: Final[str] = '/rig/sample'
+NS_PER_S: Final[int] = 1_000_000_000
+#: the optional columns a RigSample carries (it has no temperature)
+SAMPLE_OPTIONAL: Final[tuple[str, ...]] = ('voltage_drive', 'theta_gear', 'current_load')
+
+
+def find_sample_topic(reader: BagReader, topic: str | None = None) -> str:
+    """The RigSample topic to use: ``topic`` if given, else the only one (or ``/rig/sample``).
+
+    Raises:
+        RigDataError: No such topic, not a RigSample topic, or several to choose from.
+
+    """
+    source = str(reader.path)
+    if topic is not None:
+        info = reader.topics.get(topic)
+        if info is None:
+            raise RigDataError(source, f'no topic {topic!r}; it has {sorted(reader.topics)}')
+        if info.type != RIG_SAMPLE_TYPE:
+            raise RigDataError(source, f'topic {topic!r} is {info.type}, not {RIG_SAMPLE_TYPE}')
+        return topic
+    candidates = sorted(n for n, i in reader.topics.items() if i.type == RIG_SAMPLE_TYPE)
+    if not candidates:
+        raise RigDataError(source, f'no {RIG_SAMPLE_TYPE} topic; it has {sorted(reader.topics)}')
+    if len(candidates) > 1:
+        if DEFAULT_TOPIC in candidates:
+            return DEFAULT_TOPIC
+        raise RigDataError(source, f'several {RIG_SAMPLE_TYPE} topics {candidates}; choose one')
+    return candidates[0]
+
+
+def _stamp_ns(header: Any) -> int:
+    return int(header.stamp.sec) * NS_PER_S + int(header.stamp.nanosec)
+
+
+def samples_to_measured(samples: Iterable[Any], source: str = '<samples>') -> MeasuredData:
+    """RigSample messages (any object with their fields) -> rig data, ``t`` from the first stamp.
+
+    Samples with a non-finite required channel, or a stamp not after the
+    previous one, are left out and counted in :attr:`MeasuredData.skipped`.
+
+    Raises:
+        RigDataError: No usable sample.
+
+    """
+    rows: dict[str, list[float]] = {c: [] for c in (*REQUIRED_COLUMNS, *SAMPLE_OPTIONAL)}
+    skipped = {'non-finite': 0, 'not after the previous stamp': 0}
+    first: int | None = None
+    last: int | None = None
+    for sample in samples:
+        stamp = _stamp_ns(sample.header)
+        required = (sample.current_drive, sample.omega_worm, sample.theta_worm, sample.tau_load)
+        if not all(math.isfinite(v) for v in required):
+            skipped['non-finite'] += 1
+            continue
+        if last is not None and stamp <= last:
+            skipped['not after the previous stamp'] += 1
+            continue
+        first = stamp if first is None else first
+        last = stamp
+        rows['t'].append((stamp - first) / NS_PER_S)
+        rows['current_drive'].append(sample.current_drive)
+        rows['omega_worm'].append(sample.omega_worm)
+        rows['theta_worm'].append(sample.theta_worm)
+        rows['tau_load'].append(sample.tau_load)
+        rows['voltage_drive'].append(sample.voltage_drive)
+        rows['theta_gear'].append(sample.theta_gear)
+        rows['current_load'].append(sample.current_load_1 + sample.current_load_2)
+    if first is None:
+        raise RigDataError(source, 'no usable RigSample (all non-finite or none at all)')
+    columns = {c: np.asarray(v, dtype=float) for c, v in rows.items()}
+    for name in SAMPLE_OPTIONAL:
+        if np.all(np.isnan(columns[name])):
+            del columns[name]  # all-NaN optional channel = absent, as an all-empty CSV column
+    return MeasuredData(**columns, source=source, skipped={k: v for k, v in skipped.items() if v})
+
+
+def bag_to_measured(path: Path | str, topic: str | None = None,
+                    types: MessageTypes | None = None) -> MeasuredData:
+    """Read the RigSample stream of a bag (see :func:`find_sample_topic`) as rig data.
+
+    Raises:
+        RigDataError: No usable RigSample topic or sample.
+        BagRecordingError: The bag cannot be read.
+
+    """
+    with BagReader(path, types) as reader:
+        name = find_sample_topic(reader, topic)
+        return samples_to_measured((m.decoded for m in reader.messages([name])), f'{path}:{name}')
+
+
+def rig_samples(data: MeasuredData, types: MessageTypes, start_ns: int = 0,
+                frame_id: str = 'rig') -> Iterator[tuple[int, bytes]]:
+    """``(stamp_ns, cdr)`` of one RigSample per row (see the module docstring).
+
+    Raises:
+        RigDataError: A stamp does not fit ``builtin_interfaces/Time``.
+
+    """
+    store = types.typestore
+    types.ensure(RIG_SAMPLE_TYPE)
+    sample_cls = store.types[RIG_SAMPLE_TYPE]
+    header_cls = store.types['std_msgs/msg/Header']
+    time_cls = store.types['builtin_interfaces/msg/Time']
+    nan = np.full(len(data), math.nan)
+    optional = {c: nan if getattr(data, c) is None else getattr(data, c) for c in SAMPLE_OPTIONAL}
+    for i in range(len(data)):
+        stamp = start_ns + round(float(data.t[i]) * NS_PER_S)
+        sec, nanosec = divmod(stamp, NS_PER_S)
+        if not -(2**31) <= sec < 2**31:
+            raise RigDataError(data.source, f'stamp {stamp} ns does not fit builtin_interfaces/Time '
+                                            '(int32 seconds)', column='t')
+        half = float(optional['current_load'][i]) / 2.0
+        sample = sample_cls(
+            header=header_cls(stamp=time_cls(sec=sec, nanosec=nanosec), frame_id=frame_id),
+            seq=i,
+            current_drive=float(data.current_drive[i]),
+            current_load_1=half,
+            current_load_2=half,
+            omega_worm=float(data.omega_worm[i]),
+            omega_gear=math.nan,
+            theta_worm=float(data.theta_worm[i]),
+            theta_gear=float(optional['theta_gear'][i]),
+            count_drive=0,
+            count_load_1=0,
+            count_load_2=0,
+            voltage_drive=float(optional['voltage_drive'][i]),
+            tau_load=float(data.tau_load[i]),
+            status=0,
+        )
+        yield stamp, bytes(store.serialize_cdr(sample, RIG_SAMPLE_TYPE))
+
+
+def measured_to_bag(data: MeasuredData, out: Path | str, storage: str = 'mcap',
+                    topic: str = DEFAULT_TOPIC, start_ns: int = 0,
+                    types: MessageTypes | None = None) -> int:
+    """Write ``data`` as a bag of RigSample on ``topic``; returns the message count.
+
+    Raises:
+        RigDataError: A stamp does not fit ``builtin_interfaces/Time``.
+        BagRecordingError: The bag cannot be created (e.g. ``out`` exists).
+
+    """
+    types = MessageTypes() if types is None else types
+    with BagWriter(out, storage, types=types) as writer:
+        handle = writer.add_topic(topic, RIG_SAMPLE_TYPE)
+        for stamp, cdr in rig_samples(data, types, start_ns):
+            writer.write(handle, stamp, cdr)
+        return writer.counts[topic]
+
+
+def bag_to_csv(bag: Path | str, csv_path: Path | str, topic: str | None = None) -> MeasuredData:
+    """``bag export``: the bag's RigSample stream as a ``worm_rig_data`` CSV; returns what was written.
+
+    Raises:
+        RigDataError: No usable RigSample topic or sample, or the CSV cannot be written.
+        BagRecordingError: The bag cannot be read.
+
+    """
+    data = bag_to_measured(bag, topic)
+    write_rig_csv(csv_path, data)
+    return data
+
+
+def csv_to_bag(csv_path: Path | str, bag: Path | str, storage: str = 'mcap',
+               topic: str = DEFAULT_TOPIC, start_ns: int = 0) -> int:
+    """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample; returns the message count.
+
+    The CSV is read whole first, so a bad file creates no bag.
+
+    Raises:
+        RigDataError: A bad CSV (named by file, line and column), or a stamp out of range.
+        BagRecordingError: The bag cannot be created (e.g. ``bag`` exists).
+
+    """
+    return measured_to_bag(read_rig_csv(csv_path), bag, storage, topic, start_ns)

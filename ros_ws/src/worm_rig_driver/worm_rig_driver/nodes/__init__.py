@@ -1,0 +1,1 @@
+"""The executables' ROS shells: sim_node, driver_node, recorder_node."""

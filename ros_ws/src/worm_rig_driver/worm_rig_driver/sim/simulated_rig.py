@@ -1,0 +1,152 @@
+"""A simulated rig sampled like the real one: plant + effects + sensors + a sample clock.
+
+The same object serves the live sim_node (n = 1, advanced in real time) and
+batch work such as calibration (n rigs side by side, as fast as numpy goes).
+Deterministic for a given seed: the seed drives the sensor noise only; the plant
+and the effects are deterministic.
+
+Timing of one sample (the firmware's): the tick at the start of the period latches
+the encoders and starts the ADC sequence, each analogue channel is held at its own
+instant inside the period (sensors.AdcChain), and the sample is complete at the
+period's end, which is when sample() returns it. truth() is the plant at that end.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from worm_model.physics.internal_forces import internal_forces
+from worm_model.physics.modes import Flank, Mode
+from worm_model.physics.parameters import Rig
+
+from worm_rig_driver.sim.effects import EffectsConfig
+from worm_rig_driver.sim.plant import STANDSTILL_SPEED, PlantOutputs, RigPlant
+from worm_rig_driver.sim.sensors import AdcChain, Measurement, SensorModel, Trajectory
+
+#: plant state fields recorded at every substep boundary for the ADC's sampling instants
+_RECORDED = ("current_drive", "current_load", "omega_worm", "theta_worm", "omega_gear", "theta_gear")
+
+
+@dataclass
+class Truth:
+    """What only a simulator knows, for one sample; arrays of shape (n,)."""
+
+    tau_load: np.ndarray  # [N m] load torque the load motors apply (positive opposing + rotation)
+    tau_in: np.ndarray  # [N m] torque delivered to the worm shaft
+    omega_worm: np.ndarray  # [rad/s]
+    current_drive: np.ndarray  # [A]
+    normal_force: np.ndarray  # [N]
+    friction_force: np.ndarray  # [N]
+    mu: np.ndarray  # [1]
+    mode: np.ndarray  # worm_model.physics.modes.Mode values
+    flank: np.ndarray  # worm_model.physics.modes.Flank values
+    omega_gear: np.ndarray | None = None  # [rad/s] worm-referenced (differs from i*omega_worm in the backlash)
+    theta_worm: np.ndarray | None = None  # [rad]
+    theta_gear: np.ndarray | None = None  # [rad] worm-referenced
+    contact: np.ndarray | None = None  # int8: +1/-1 the side the teeth touch (fixed frame), 0 apart
+    effects: dict | None = None  # observable effect states, e.g. {"oil_temperature": [degC]}
+
+
+def true_mode(flank: np.ndarray, tau_load: np.ndarray, omega_worm: np.ndarray) -> np.ndarray:
+    """Mode from the engaged flank (physics.md section 3): the flank decides, not a threshold."""
+    load_in_frame = np.sign(omega_worm) * tau_load
+    mode = np.where(flank < 0, Mode.ASSISTIVE,
+                    np.where(load_in_frame >= 0, Mode.RESISTIVE, Mode.PSEUDO_RESISTIVE))
+    return np.where(np.abs(omega_worm) > STANDSTILL_SPEED, mode, Mode.STANDSTILL).astype(np.int8)
+
+
+class SimulatedRig:
+    """n simulated rigs with the paper's sensors, advanced one sample period at a time.
+
+    Args:
+        rig: rig parameters.
+        n: rigs side by side (each gets its own commands and noise).
+        seed: seed of the sensor noise; same seed, same commands -> same samples.
+        substeps: integration steps per sample period.
+        effects: effects the model lacks, switched on in the simulator only
+            (effects.EffectsConfig, an ``effects`` mapping, or a worm_rig_effects
+            file); None = the paper's model exactly.
+        adc: multiplexer/ADC timing and scaling of the analogue channels.
+
+    Raises:
+        ValueError: substeps < 1, or the ADC sequence does not fit in a sample period.
+        effects.EffectsError: a bad effects file or mapping.
+    """
+
+    def __init__(self, rig: Rig, n: int = 1, seed: int = 0, substeps: int = 2,
+                 effects: EffectsConfig | dict | str | None = None, adc: AdcChain = AdcChain()) -> None:
+        if substeps < 1:
+            raise ValueError(f"substeps must be >= 1, got {substeps}")
+        self.rig = rig
+        self.n = n
+        self.plant = RigPlant(rig, n, effects=effects)
+        self.effects = self.plant.effects
+        self.sensors = SensorModel(rig, np.random.default_rng(seed), self.plant.fx, adc)
+        self.sample_period = 1.0 / rig.sensors.sample_rate_hz
+        self.substeps = substeps
+        self.seq = 0
+        self.time = 0.0
+        self.voltage_drive = np.zeros(n)
+        self.load_torque = np.zeros(n)
+        self._last: PlantOutputs | None = None
+
+    def command(self, voltage_drive=None, load_torque=None) -> None:
+        """Set the drive voltage [V] and/or the load torque [N m] held until changed."""
+        if voltage_drive is not None:
+            self.voltage_drive = np.broadcast_to(np.asarray(voltage_drive, float), (self.n,)).copy()
+        if load_torque is not None:
+            self.load_torque = np.broadcast_to(np.asarray(load_torque, float), (self.n,)).copy()
+
+    def sample(self) -> Measurement:
+        """Advance one sample period and return what the sensors read during it."""
+        dt = self.sample_period / self.substeps
+        state = self.plant.state
+        history = {name: np.empty((self.substeps + 1, self.n)) for name in _RECORDED}
+        for name in _RECORDED:
+            history[name][0] = getattr(state, name)
+        for k in range(1, self.substeps + 1):
+            self._last = self.plant.step(dt, self.voltage_drive, self.load_torque)
+            for name in _RECORDED:
+                history[name][k] = getattr(state, name)
+        tick = self.time
+        self.seq += 1
+        # the clock counts samples, so it does not drift by summing periods
+        self.time = self.seq * self.sample_period
+        return self.sensors.measure_period(Trajectory(self.sample_period, history), self._last, tick)
+
+    @property
+    def applied_load_torque(self) -> np.ndarray:
+        """Load torque [N m] the load motors applied in the last step (cheap part of the truth)."""
+        if self._last is None:
+            raise RuntimeError("applied_load_torque needs at least one sample()")
+        return self._last.tau_load
+
+    def truth(self) -> Truth:
+        """Ground truth at the end of the last sample period (call after sample()).
+
+        Contact forces come from Eqs 19-23 with everything that acts on each shaft
+        (effects included) and the true inertias; while the teeth are apart in the
+        backlash, N = F_f = 0, mu = NaN and the flank is NONE.
+        """
+        if self._last is None:
+            raise RuntimeError("truth() needs at least one sample()")
+        out, state = self._last, self.plant.state
+        forces = internal_forces(self.rig.gearbox, out.tau_in, out.gear_load, state.omega_worm,
+                                 out.alpha_worm, worm_inertia=self.plant.worm_inertia,
+                                 gear_inertia=self.plant.gear_inertia)
+        moving = np.abs(state.omega_worm) > STANDSTILL_SPEED
+        apart = out.contact == 0
+        flank = np.where(moving & ~apart, forces.flank, Flank.NONE)
+        normal = np.where(apart, 0.0, forces.normal_force)
+        friction = np.where(apart, 0.0, forces.friction_force)
+        mu = np.where(apart, np.nan, forces.mu)
+        return Truth(
+            tau_load=out.tau_load.copy(), tau_in=out.tau_in.copy(),
+            omega_worm=state.omega_worm.copy(), current_drive=state.current_drive.copy(),
+            normal_force=normal, friction_force=friction,
+            mu=mu, mode=true_mode(flank, out.tau_load, state.omega_worm),
+            flank=flank.astype(np.int8), omega_gear=state.omega_gear.copy(), theta_worm=state.theta_worm.copy(),
+            theta_gear=state.theta_gear.copy(), contact=np.asarray(out.contact).copy(),
+            effects=self.plant.fx.observe(),
+        )
