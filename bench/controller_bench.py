@@ -55,7 +55,7 @@ from torque_estimator.graph.runner import default_graph_file
 from torque_estimator.estimation.registry import make_estimator
 from torque_estimator.experiment.run_analysis import load_step_responses
 from torque_estimator.experiment.scenario import DEMO_SCENARIO, segment_starts
-from torque_estimator.control.speed_controller import PiGains
+from worm_rig_driver.drive.speed_loop import PiGains
 from worm_model.physics.parameters import load_rig
 
 MODES = {"off": "ff_off", "estimate": "ff_on", "truth": "ff_ideal"}

@@ -20,7 +20,7 @@ from torque_estimator.estimation.database import POINT_COLUMNS, load_database, s
 from torque_estimator.calibration.journal import CalibrationJournal, JournalError, default_journal_path
 from torque_estimator.calibration.live import PointByPoint, live_settings
 from torque_estimator.calibration.operating_points import SteadyStateCriterion, SteadyStateDetector
-from torque_estimator.control.speed_controller import DEFAULT_GAINS, SpeedController
+from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, SpeedController
 
 RIG = load_rig()
 PERIOD = 1.0 / RIG.sensors.sample_rate_hz

@@ -12,7 +12,7 @@ from worm_model.physics.gear_side import gear_side_load
 from worm_model.physics.parameters import load_rig
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 from torque_estimator.calibration.operating_points import SteadyStateCriterion, measure_operating_points
-from torque_estimator.control.speed_controller import PiGains, SpeedController
+from worm_rig_driver.drive.speed_loop import PiGains, SpeedController
 
 RIG = load_rig()
 MOTOR = RIG.drive_motor

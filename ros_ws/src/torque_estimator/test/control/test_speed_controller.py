@@ -10,7 +10,8 @@ from worm_model.physics.efficiency import forward_efficiency
 from worm_model.physics.friction import friction_coefficient
 from worm_model.physics.parameters import load_rig
 from worm_rig_driver.sim.plant import RigPlant
-from torque_estimator.control.speed_controller import PiGains, SpeedController, feedforward_torque
+from worm_rig_driver.drive.speed_loop import PiGains, SpeedController
+from worm_model.physics.steady_state import balancing_torque as feedforward_torque
 
 RIG = load_rig()
 GB = RIG.gearbox
@@ -161,7 +162,7 @@ def test_feedforward_reduces_the_speed_dip_after_a_load_step() -> None:
 
 def test_feedforward_gate_uses_only_fresh_usable_estimates() -> None:
     from torque_estimator.estimation.base import EstimateFlags
-    from torque_estimator.control.speed_controller import FeedforwardGate
+    from torque_estimator.control.feedforward import FeedforwardGate
 
     gate = FeedforwardGate(timeout=0.05)
     assert gate.load(10.0) is None  # nothing offered yet

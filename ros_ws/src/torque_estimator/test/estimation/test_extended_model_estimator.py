@@ -17,7 +17,7 @@ from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
 from torque_estimator.estimation.extended_model import ExtendedModelEstimator
 from torque_estimator.calibration.batch import DEFAULT_GAINS
 from torque_estimator.calibration.operating_points import measure_operating_points
-from torque_estimator.control.speed_controller import SpeedController
+from worm_rig_driver.drive.speed_loop import SpeedController
 from worm_model.physics.parameters import default_rig_path, load_rig
 from worm_model.residuals.extended import ExtendedModel
 from worm_rig_driver.sim.simulated_rig import SimulatedRig

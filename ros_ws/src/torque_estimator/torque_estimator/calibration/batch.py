@@ -26,7 +26,7 @@ from worm_rig_driver.sim.simulated_rig import SimulatedRig
 from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.calibration.journal import CalibrationJournal
 from torque_estimator.calibration.operating_points import OperatingPoints, SteadyStateCriterion, measure_operating_points
-from torque_estimator.control.speed_controller import DEFAULT_GAINS, PiGains, SpeedController
+from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, PiGains, SpeedController
 
 
 #: Points simulated side by side per batch: a quarter of the paper's grid. Bigger batches

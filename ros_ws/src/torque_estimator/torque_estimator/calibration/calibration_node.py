@@ -2,12 +2,12 @@
 
 Publishes the current point's load torque on /rig/load_command
 (worm_msgs/LoadCommand) and its worm speed on /controller/speed_setpoint
-(std_msgs/Float64), both reliable and latched; reads /rig/sample (RigSample)
-and /rig/drive_command (DriveCommand). The rig is sim_node or driver_node, the
-speed loop is controller_node: calibrate does not close a 1 kHz loop over DDS
-itself, so the rig is held by the same controller (gains, limits, watchdog)
-as in operation. A point's samples are counted from the first sample after
-controller_node's drive commands carry the new set-point. Sequencing,
+(std_msgs/Float64), both reliable and latched; reads /rig/samples (RigSamples)
+and /rig/speed_command (SpeedCommand). The rig is sim_node or driver_node, held
+by its own speed loop on the set-point controller_node sends: calibrate does
+not close a loop over DDS itself, so the rig is held by the same controller
+(gains, limits, watchdog) as in operation. A point's samples are counted from
+the first sample after controller_node's speed commands carry the new set-point. Sequencing,
 steady-state detection and the journal live in live_calibration.
 """
 from __future__ import annotations
@@ -21,7 +21,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
-from worm_msgs.msg import DriveCommand, LoadCommand, RigSample
+from worm_msgs.msg import LoadCommand, RigSamples, SpeedCommand
 
 from worm_model.ros.qos import COMMAND, STREAM
 
@@ -36,20 +36,21 @@ class CalibrationClient(Node):
         self.run = run
         self.samples = 0
         self.last_sample = time.monotonic()
-        self.drive_commands = 0
+        self.speed_commands = 0
         self.controller_setpoint: float | None = None
         self.speed_pub = self.create_publisher(Float64, TOPICS["speed_setpoint"], COMMAND)
         self.load_pub = self.create_publisher(LoadCommand, TOPICS["load_command"], COMMAND)
-        self.create_subscription(RigSample, TOPICS["samples"], self.on_sample, STREAM)
-        self.create_subscription(DriveCommand, TOPICS["drive_command"], self.on_drive_command, STREAM)
+        self.create_subscription(RigSamples, TOPICS["samples"], self.on_samples, STREAM)
+        self.create_subscription(SpeedCommand, TOPICS["speed_command"], self.on_speed_command, STREAM)
 
-    def on_sample(self, msg: RigSample) -> None:
-        self.samples += 1
+    def on_samples(self, msg: RigSamples) -> None:
+        self.samples += len(msg.omega_worm)
         self.last_sample = time.monotonic()
-        self.run.add(msg.omega_worm, msg.current_drive, msg.tau_load)
+        for omega, current, load in zip(msg.omega_worm, msg.current_drive, msg.tau_load):
+            self.run.add(omega, current, load)
 
-    def on_drive_command(self, msg: DriveCommand) -> None:
-        self.drive_commands += 1
+    def on_speed_command(self, msg: SpeedCommand) -> None:
+        self.speed_commands += 1
         self.controller_setpoint = msg.speed_setpoint
 
     def command(self, speed: float, torque: float) -> None:
@@ -66,7 +67,7 @@ def run_live(run: PointByPoint, *, start_timeout: float = 30.0, ack_timeout: flo
     """Measure every pending point of `run` on the rig of the current ROS graph.
 
     Args:
-        start_timeout: wait this long [s] for rig samples and controller_node's drive commands.
+        start_timeout: wait this long [s] for rig samples and controller_node's speed commands.
         ack_timeout: wait this long [s] for controller_node to take a new set-point.
         stall_timeout: samples stopping for this long [s] aborts the run.
         on_point: called after every finished (journalled) point.
@@ -109,14 +110,14 @@ def run_live(run: PointByPoint, *, start_timeout: float = 30.0, ack_timeout: flo
         if not spin_until(lambda: node.samples > 0, start_timeout):
             raise LiveRigError(f"no samples on {TOPICS['samples']} within {start_timeout:g} s: "
                                "is sim_node (or driver_node) running on this ROS_DOMAIN_ID?")
-        if not spin_until(lambda: node.drive_commands > 0, start_timeout):
-            raise LiveRigError(f"no drive commands on {TOPICS['drive_command']} within {start_timeout:g} s: "
+        if not spin_until(lambda: node.speed_commands > 0, start_timeout):
+            raise LiveRigError(f"no speed commands on {TOPICS['speed_command']} within {start_timeout:g} s: "
                                "is controller_node running?")
         while (point := run.current) is not None:
             node.command(point.speed, point.torque)
             if not spin_until(lambda: node.controller_setpoint == point.speed, ack_timeout):
                 raise LiveRigError(f"controller_node did not take the speed set-point {point.speed:g} rad/s "
-                                   f"within {ack_timeout:g} s (its drive commands say "
+                                   f"within {ack_timeout:g} s (its speed commands say "
                                    f"{node.controller_setpoint!r})")
             run.start()
             node.last_sample = time.monotonic()

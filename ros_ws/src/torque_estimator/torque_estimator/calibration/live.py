@@ -1,7 +1,7 @@
 """Live calibration's core: one rig on the graph, the grid's points one after the other.
 
 The rig (sim_node now, driver_node on the real rig: both publish
-worm_msgs/RigSample on /rig/sample) is held at each point by controller_node,
+worm_msgs/RigSamples on /rig/samples) is held at each point by controller_node,
 which tracks the speed set-point published on /controller/speed_setpoint,
 while the load motors apply the point's torque (/rig/load_command). This
 module only decides what to measure and when a point is done; the ROS shell
@@ -34,7 +34,7 @@ from torque_estimator.calibration.journal import CalibrationJournal
 from torque_estimator.calibration.operating_points import SteadyStateCriterion, SteadyStateDetector
 
 #: Topics of the graph a live calibration uses (recorded in the journal's settings).
-TOPICS = {"samples": "/rig/sample", "drive_command": "/rig/drive_command",
+TOPICS = {"samples": "/rig/samples", "speed_command": "/rig/speed_command",
           "speed_setpoint": "/controller/speed_setpoint", "load_command": "/rig/load_command"}
 
 

@@ -21,7 +21,7 @@ import numpy as np
 
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
-from torque_estimator.control.speed_controller import SpeedController
+from worm_rig_driver.drive.speed_loop import SpeedController
 
 
 @dataclass(frozen=True)

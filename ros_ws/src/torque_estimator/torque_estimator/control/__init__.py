@@ -1,2 +1,2 @@
-"""Speed control with load-torque feedforward: ``speed_controller`` (PI, anti-windup, Eq 28
-feedforward, FeedforwardGate)."""
+"""What the controller node decides: ``feedforward`` (which estimate may be fed forward, and the
+FeedforwardGate's freshness rule). The speed PI itself runs at the rig (worm_rig_driver.drive)."""

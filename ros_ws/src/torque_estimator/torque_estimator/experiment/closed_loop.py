@@ -38,7 +38,9 @@ from worm_rig_driver.sim.simulated_rig import SimulatedRig
 from torque_estimator.estimation.base import TorqueEstimator
 from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.experiment.scenario import Segment, segment_at
-from torque_estimator.control.speed_controller import DEFAULT_GAINS, FeedforwardGate, PiGains, SpeedController, feedforward_torque
+from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, PiGains, SpeedController
+from torque_estimator.control.feedforward import FeedforwardGate
+from worm_model.physics.steady_state import balancing_torque as feedforward_torque
 
 FEEDFORWARD_MODES = ("off", "estimate", "truth")
 

@@ -36,13 +36,13 @@ from torque_estimator.experiment.scenario_node import live_run
 def load_run(bag: Path, start_stamp: float) -> dict:
     """The streams the analysis needs, from a recorded bag; times from the scenario's start [s]."""
     from worm_model.bags.writer import read_messages
+    from worm_model.rig_data.samples import unbatch
 
     def stamp(header) -> float:
         return header.stamp.sec + header.stamp.nanosec * 1e-9 - start_stamp
 
-    samples = [(stamp(m.header), m.omega_worm) for _, m in read_messages(bag, "/rig/sample")]
-    commands = [(m.sample_stamp.sec + m.sample_stamp.nanosec * 1e-9 - start_stamp, m.speed_setpoint)
-                for _, m in read_messages(bag, "/rig/drive_command")]
+    samples = [(stamp(s.header), s.omega_worm) for _, m in read_messages(bag, "/rig/samples") for s in unbatch(m)]
+    commands = [(stamp(m.header), m.speed_setpoint) for _, m in read_messages(bag, "/rig/speed_command")]
     estimates = [(stamp(m.header), m.torque) for _, m in read_messages(bag, "/torque_estimate")]
     truth = [(stamp(m.header), m.tau_load, m.mode, m.omega_worm) for _, m in read_messages(bag, "/sim/truth")]
     s, c, e, tr = (np.array(x, dtype=float) for x in (samples, commands, estimates, truth))

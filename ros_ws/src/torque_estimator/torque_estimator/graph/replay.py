@@ -3,8 +3,9 @@
     ros2 run torque_estimator replay <bag> [--params-file sim_graph.yaml]
         [--set estimator_node.calibration_file=cal.json] [--estimators knn,...] [--follow-live]
 
-No DDS, no rclpy: the bag's /rig/sample stream (worm_msgs/RigSample) is read
-with worm_model.bags.reader and fed, sample by sample in recorded order,
+No DDS, no rclpy: the bag's sample stream (/rig/samples, worm_msgs/RigSamples
+batches, or /rig/sample, worm_msgs/RigSample) is read with
+worm_model.bags.reader and fed, message by message in recorded order,
 
 * to :class:`~worm_model.live.live_model.LiveModel`, the very class model_node
   runs (the internal forces of worm_model, Eqs 21-23, with model_node's
@@ -27,13 +28,14 @@ round-off, except where the live and the replayed input differ:
   difference decays with the filter time constant (to round-off after ~40
   time constants: 2 s for the estimator's 0.05 s). ``--warmup`` excludes that
   stretch from the comparison.
-* The streams are best effort: a sample the estimator (or model_node) missed
+* The streams are best effort: a batch the estimator (or model_node) missed
   live, but the recorder got, is one the replay feeds and live did not, and
-  vice versa. Each live output is the answer to one received sample, so the
-  recorded outputs' seqs tell exactly which samples a node saw;
-  ``--follow-live`` feeds each core only those. A gap in the recording of the
-  outputs themselves (the recorder missed an estimate) then makes the replay
-  skip a sample live processed: the comparison reports it.
+  vice versa. Each live output answers one received batch (its seq is the
+  batch's last sample), so the recorded outputs' seqs tell exactly which
+  batches a node saw; ``--follow-live`` feeds each core only those. A gap in
+  the recording of the outputs themselves (the recorder missed an estimate)
+  then makes the replay skip a batch live processed: the comparison reports it.
+  (A stream of single RigSamples counts each sample as its own batch.)
 
 Speed: the replay's wall time against the bag's span of sample time is
 printed as ``replay_speed_factor`` (> 1: faster than real time).
@@ -61,6 +63,7 @@ from worm_model.rig_data.schema import RigDataError
 from worm_model.bags.reader import BagReader
 from worm_model.bags.typestore import BagRecordingError
 from worm_model.rig_data.bags import find_sample_topic
+from worm_model.rig_data.samples import samples_of
 
 from torque_estimator.estimation.database import CalibrationError, load_database
 from torque_estimator.estimation.registry import ESTIMATORS, make_estimator, node_options
@@ -175,7 +178,7 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
         params: From :func:`node_parameters`.
         estimators: Names in the estimator registry; None: estimator_node's ``method``.
         follow_live: Feed each core only the samples live answered (see the module docstring).
-        sample_topic: RigSample topic; None: the only one (or /rig/sample).
+        sample_topic: sample stream topic; None: the only one (or /rig/samples, then /rig/sample).
         progress: Show a progress bar on stderr.
 
     Raises:
@@ -219,23 +222,31 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
             model_seqs = _live_seqs(reader, FORCES_TOPIC) if follow_live else None
             est_seqs = _live_seqs(reader, ESTIMATE_TOPIC) if follow_live else None
             total = reader.topics[topic].metadata_count or 0
+            kind = reader.topics[topic].type
             with ProgressBar(total, "replay", enabled=progress) as bar:
-                for n, message in enumerate(reader.messages([topic]), 1):
-                    sample = message.decoded
-                    seq = int(sample.seq)
-                    stamp = sample.header.stamp.sec + 1e-9 * sample.header.stamp.nanosec
-                    first = stamp if first is None else first
-                    last = stamp
-                    if model_seqs is None or seq in model_seqs:
-                        model_out.add(seq, model.update(sample).as_dict())
-                    if est_seqs is None or seq in est_seqs:
-                        for name, core in cores.items():
-                            e = core.update(sample.omega_worm, sample.current_drive)
-                            est_out[name].add(seq, {"torque": e.torque, "uncertainty": e.uncertainty,
-                                                    "flags": e.flags, "omega_worm": e.omega_worm,
-                                                    "current_drive": e.current_drive})
-                    if n % 1000 == 0:
-                        bar.update_to(n)
+                for n_messages, message in enumerate(reader.messages([topic]), 1):
+                    batch = samples_of(message.decoded, kind)
+                    if not batch:
+                        continue
+                    last_seq = int(batch[-1].seq)
+                    stamps = [s.header.stamp.sec + 1e-9 * s.header.stamp.nanosec for s in batch]
+                    first = stamps[0] if first is None else first
+                    last = stamps[-1]
+                    n += len(batch)
+                    if model_seqs is None or last_seq in model_seqs:  # as model_node: a batch at once
+                        forces = model.update_batch([s.omega_worm for s in batch], [s.current_drive for s in batch],
+                                                    [s.tau_load for s in batch])
+                        for s, f in zip(batch, forces):
+                            model_out.add(int(s.seq), f.as_dict())
+                    if est_seqs is None or last_seq in est_seqs:
+                        for s in batch:
+                            for name, core in cores.items():
+                                e = core.update(s.omega_worm, s.current_drive)
+                                est_out[name].add(int(s.seq), {"torque": e.torque, "uncertainty": e.uncertainty,
+                                                               "flags": e.flags, "omega_worm": e.omega_worm,
+                                                               "current_drive": e.current_drive})
+                    if n_messages % 200 == 0:
+                        bar.update_to(n_messages)
     except (BagRecordingError, RigDataError) as err:
         raise ReplayError(str(err)) from None
     wall = time.perf_counter() - start
@@ -245,6 +256,14 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
 
 
 # --- comparison with the live run ------------------------------------------------------------------
+
+def difference(a: float, b: float) -> float:
+    """|a - b|, with NaN == NaN counted equal and NaN against a number counted infinitely different
+    (a plain ``abs(a - b)`` would give NaN, which ``max`` drops unless it comes first)."""
+    if math.isnan(a) or math.isnan(b):
+        return 0.0 if math.isnan(a) and math.isnan(b) else math.inf
+    return abs(a - b)
+
 
 @dataclass
 class Comparison:
@@ -257,7 +276,8 @@ class Comparison:
     replay_only: int
     """Samples replayed that live produced no (recorded) output for."""
     max_abs: dict[str, float]
-    """Largest |replay - live| per field over the compared samples (NaN == NaN counts equal)."""
+    """Largest |replay - live| per field over the compared samples (NaN == NaN counts equal,
+    NaN against a number as inf: :func:`difference`)."""
     compared: int
 
 
@@ -286,10 +306,8 @@ def compare(bag: Path | str, topic: str, replayed: Outputs, fields: Sequence[str
     max_abs = {}
     for name in fields:
         ours = replayed.array(name)
-        diffs = [0.0 if (math.isnan(a) and math.isnan(b)) else abs(a - b)
-                 for s in compared
-                 for a, b in [(float(ours[index[s]]), float(getattr(live[s], name)))]]
-        max_abs[name] = max(diffs, default=0.0)
+        max_abs[name] = max((difference(float(ours[index[s]]), float(getattr(live[s], name))) for s in compared),
+                            default=0.0)
     return Comparison(topic, len(common), len(set(live) - set(index)), len(set(index) - set(live)), max_abs,
                       len(compared))
 
@@ -314,7 +332,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                "the live outputs the bag holds, replay_forces_* and replay_estimates_* (matched, compared,\n"
                "live_only, replay_only, max_abs_diff; per-field differences on stderr).\n"
                "exit code 2 on a bad bag, parameter file or calibration (the message names it).")
-    parser.add_argument("bag", type=Path, help="bag directory (or .mcap/.db3 file) holding /rig/sample")
+    parser.add_argument("bag", type=Path, help="bag directory (or .mcap/.db3 file) holding /rig/samples or /rig/sample")
     parser.add_argument("--params-file", type=Path, default=None, metavar="FILE",
                         help="graph parameter file of the live run (default: the installed sim_graph.yaml)")
     parser.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
@@ -324,7 +342,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--estimators", default=None, metavar="NAME[,NAME...]",
                         help=f"estimators of the registry to run ({', '.join(sorted(ESTIMATORS))}; "
                              "default: estimator_node's method)")
-    parser.add_argument("--topic", default=None, help="RigSample topic (default: the only one, or /rig/sample)")
+    parser.add_argument("--topic", default=None, help="sample stream topic, RigSamples or RigSample (default: the only one, or /rig/samples, then /rig/sample)")
     parser.add_argument("--follow-live", action="store_true",
                         help="feed each core only the samples its live node answered (by the seqs of the "
                              "recorded /torque_estimate and /gearbox/forces)")

@@ -1,8 +1,10 @@
 """estimator_node: the load torque tau_d for every rig sample, without a torque sensor.
 
-Subscribes /rig/sample (worm_msgs/RigSample), publishes /torque_estimate
-(worm_msgs/TorqueEstimate) for every sample, sensor-data QoS. The per-sample
-work is live_estimator.LiveEstimator, a disturbance observer: speed and
+Subscribes /rig/samples (worm_msgs/RigSamples, batches of consecutive samples)
+and runs the estimator on every sample; publishes /torque_estimate
+(worm_msgs/TorqueEstimate) for the newest sample of each batch (the rig's batch
+rate, 200 Hz by default), sensor-data QoS: what the controller feeds forward and
+other stacks read. The per-sample work is live_estimator.LiveEstimator, a disturbance observer: speed and
 current pass through the same low-pass (input_filter), the current that
 accelerates the inertia is removed (quasi_static.py), the result is smoothed
 (estimate_filter) except while a change is detected (change_threshold), then
@@ -18,7 +20,8 @@ graph (the controller falls back to no feedforward) carries on.
 from __future__ import annotations
 
 from rclpy.node import Node
-from worm_msgs.msg import RigSample, TorqueEstimate
+from rclpy.time import Time
+from worm_msgs.msg import RigSamples, TorqueEstimate
 
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
@@ -83,21 +86,29 @@ class EstimatorNode(Node):
             self.get_logger().error(f"no estimates: {err}")
 
         self.pub = self.create_publisher(TorqueEstimate, "/torque_estimate", STREAM)
-        self.create_subscription(RigSample, "/rig/sample", self.on_sample, STREAM)
+        self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
         self.received = 0
         self.flag_counts = {flag.name: 0 for flag in EstimateFlags if flag}
         Diagnostics(self, self.report)
 
-    def on_sample(self, sample: RigSample) -> None:
-        self.received += 1
-        if self.estimator is None:
+    def on_samples(self, batch: RigSamples) -> None:
+        n = len(batch.omega_worm)
+        self.received += n
+        if self.estimator is None or not n:
             return
-        est = self.estimator.update(sample.omega_worm, sample.current_drive)
-        for flag in EstimateFlags(est.flags):
-            self.flag_counts[flag.name] += 1
-        msg = TorqueEstimate(header=sample.header, seq=sample.seq, torque=est.torque, uncertainty=est.uncertainty,
+        omega, current = batch.omega_worm, batch.current_drive
+        for k in range(n):
+            est = self.estimator.update(omega[k], current[k])
+            if est.flags:
+                for flag in EstimateFlags(est.flags):
+                    self.flag_counts[flag.name] += 1
+        last = n - 1
+        msg = TorqueEstimate(seq=batch.first_seq + last, torque=est.torque, uncertainty=est.uncertainty,
                              method=self.method, omega_worm=est.omega_worm, current_drive=est.current_drive,
                              flags=est.flags)
+        stamp = Time.from_msg(batch.header.stamp).nanoseconds + int(round(last * batch.sample_period * 1e9))
+        msg.header.stamp = Time(nanoseconds=stamp).to_msg()
+        msg.header.frame_id = batch.header.frame_id
         self.pub.publish(msg)
 
     def report(self) -> tuple[bytes, str, dict]:

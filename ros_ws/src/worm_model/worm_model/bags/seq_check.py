@@ -28,10 +28,12 @@ from typing import Final, cast
 from rosbags.interfaces import Nodetype
 from rosbags.typesys.store import Typestore
 
-__all__ = ['DeliveryCheck', 'SequenceTracker', 'StreamCheck', 'check_messages', 'header_seq',
+__all__ = ['DeliveryCheck', 'SequenceTracker', 'StreamCheck', 'check_messages', 'header_seq', 'header_seq_run',
            'seq_reader']
 
 SEQ_FIELD: Final = ('seq', (Nodetype.BASE, ('uint64', 0)))
+FIRST_SEQ_FIELD: Final = ('first_seq', (Nodetype.BASE, ('uint64', 0)))
+PERIOD_FIELD: Final = ('sample_period', (Nodetype.BASE, ('float64', 0)))
 HEADER_FIELD: Final = ('header', (Nodetype.NAME, 'std_msgs/msg/Header'))
 MAX_GAPS_KEPT: Final[int] = 20
 
@@ -55,11 +57,40 @@ def header_seq(data: bytes | memoryview) -> int:
     return int(seq)
 
 
-def seq_reader(typestore: Typestore, type_name: str) -> Callable[[bytes | memoryview], int] | None:
-    """:func:`header_seq` if ``type_name`` has the ``Header header; uint64 seq`` layout, else None."""
+def header_seq_run(data: bytes | memoryview) -> tuple[int, int]:
+    """(first seq, sample count) of a CDR batch laid out ``Header header; uint64 first_seq;
+    float64 sample_period; <T>[] first_field; ...`` (worm_msgs/RigSamples).
+
+    The count is the length of the first sequence field, a uint32 right after
+    ``sample_period`` (aligned to 4, which it already is).
+
+    Raises:
+        struct.error: The bytes are too short for this layout.
+
+    """
+    order = '<' if data[1] == 1 else '>'
+    (length,) = struct.unpack_from(f'{order}I', data, 12)
+    offset = (12 + length + 7) & ~7
+    first, _period, count = struct.unpack_from(f'{order}QdI', data, 4 + offset)
+    return int(first), int(count)
+
+
+def _single(data: bytes | memoryview) -> tuple[int, int]:
+    return header_seq(data), 1
+
+
+def seq_reader(typestore: Typestore, type_name: str) -> Callable[[bytes | memoryview], tuple[int, int]] | None:
+    """A reader of (first seq, count) if ``type_name`` carries sample seqs, else None.
+
+    ``Header header; uint64 seq; ...``: one seq per message (count 1); ``Header header;
+    uint64 first_seq; float64 sample_period; <T>[] ...``: a batch of consecutive seqs.
+    """
     fields = typestore.fielddefs.get(type_name, ((), []))[1]
     if len(fields) >= 2 and tuple(fields[0]) == HEADER_FIELD and tuple(fields[1]) == SEQ_FIELD:
-        return header_seq
+        return _single
+    if (len(fields) >= 4 and tuple(fields[0]) == HEADER_FIELD and tuple(fields[1]) == FIRST_SEQ_FIELD
+            and tuple(fields[2]) == PERIOD_FIELD and fields[3][1][0] == Nodetype.SEQUENCE):
+        return header_seq_run
     return None
 
 
@@ -75,20 +106,23 @@ class SequenceTracker:
     gaps: list[tuple[int, int]] = field(default_factory=list)
     """The first :data:`MAX_GAPS_KEPT` gaps as (first missing, last missing) seq."""
 
-    def add(self, seq: int) -> None:
-        """Account for one received ``seq``."""
-        self.count += 1
+    def add(self, seq: int, count: int = 1) -> None:
+        """Account for ``count`` received consecutive seqs from ``seq`` on (a message, or a batch)."""
+        if count < 1:
+            return
+        self.count += count
+        last = seq + count - 1
         if self.last is None:
-            self.first = self.last = seq
+            self.first, self.last = seq, last
             return
         if seq <= self.last:
-            self.repeated += 1
+            self.repeated += count
             return
         if seq > self.last + 1:
             self.lost += seq - self.last - 1
             if len(self.gaps) < MAX_GAPS_KEPT:
                 self.gaps.append((self.last + 1, seq - 1))
-        self.last = seq
+        self.last = last
 
     def summary(self) -> str:
         """One line: range, lost, repeated."""
@@ -109,7 +143,7 @@ class StreamCheck:
 
     def __init__(self) -> None:
         self.trackers: dict[str, SequenceTracker] = {}
-        self._readers: dict[str, Callable[[bytes | memoryview], int] | None] = {}
+        self._readers: dict[str, Callable[[bytes | memoryview], tuple[int, int]] | None] = {}
         self.unreadable: dict[str, int] = {}
         """Messages per topic too short for the layout (counted, not tracked)."""
 
@@ -127,11 +161,11 @@ class StreamCheck:
         if reader is None:
             return
         try:
-            seq = reader(data)
+            seq, count = reader(data)
         except (struct.error, IndexError):
             self.unreadable[topic] = self.unreadable.get(topic, 0) + 1
             return
-        self.trackers[topic].add(seq)
+        self.trackers[topic].add(seq, count)
 
     @property
     def lost(self) -> int:

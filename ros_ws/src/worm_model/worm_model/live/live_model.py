@@ -111,8 +111,12 @@ class LiveModel:
 
     def update(self, sample: RigSampleLike) -> LiveForces:
         """Feed one sample (ω_w [rad/s], i_drive [A], τ_load [N·m]); returns its forces and flags."""
+        return self.update_values(sample.omega_worm, sample.current_drive, sample.tau_load)
+
+    def update_values(self, omega_worm: float, current_drive: float, tau_load: float) -> LiveForces:
+        """:meth:`update` from the three values: ω_w [rad/s], i_drive [A], τ_load [N·m]."""
         rig = self.rig
-        omega, current, tau_load = float(sample.omega_worm), float(sample.current_drive), float(sample.tau_load)
+        omega, current, tau_load = float(omega_worm), float(current_drive), float(tau_load)
         _omega_f, alpha = self.derivative.update(omega)
         alpha = alpha if self.use_acceleration else 0.0
         tau_in = float(shaft_torque(rig.drive_motor, current, omega))
@@ -133,6 +137,39 @@ class LiveModel:
         return LiveForces(float(f.normal_force), float(f.friction_force), float(f.mu),
                           float(rig.gearbox.mu_engagement_max), tau_sw, tau_load, tau_in, int(mode),
                           int(f.flank), flags)
+
+    def update_batch(self, omega_worm, current_drive, tau_load) -> list[LiveForces]:
+        """:meth:`update_values` for consecutive samples at once (sequences of equal length).
+
+        The acceleration filter runs sample by sample; the forces are computed for all
+        samples in one vectorised pass, which costs about what one sample does on its
+        own. The results equal :meth:`update_values` called per sample (a test checks).
+        """
+        rig = self.rig
+        omega = np.asarray(omega_worm, dtype=float)
+        current = np.asarray(current_drive, dtype=float)
+        load = np.asarray(tau_load, dtype=float)
+        alpha = np.empty_like(omega)
+        for k, w in enumerate(omega.tolist()):
+            alpha[k] = self.derivative.update(w)[1]
+        if not self.use_acceleration:
+            alpha[:] = 0.0
+        tau_in = shaft_torque(rig.drive_motor, current, omega)
+        gear_load = gear_side_load(rig, load, omega)
+        tau_sw = no_load_switching_torque(rig, omega)
+        with np.errstate(invalid="ignore"):  # NaN inputs give NaN forces, flagged below
+            f = internal_forces(rig.gearbox, tau_in, gear_load, omega, alpha,
+                                worm_inertia=rig.total_worm_inertia, gear_inertia=rig.total_gear_inertia)
+        mode = classify_mode(motion_sign(omega) * load, tau_sw)
+        finite = np.isfinite(omega) & np.isfinite(current) & np.isfinite(load)
+        valid = np.broadcast_to(f.valid, omega.shape)
+        mu_valid = np.broadcast_to(f.mu_valid, omega.shape)
+        flags = np.where(~finite, _INVALID_INPUT, np.where(~valid, _STANDSTILL, np.where(~mu_valid, _MU_OUT_OF_BOUND, 0)))
+        mu_max = float(rig.gearbox.mu_engagement_max)
+        columns = (f.normal_force, f.friction_force, f.mu, tau_sw, load, tau_in, mode, f.flank, flags)
+        rows = zip(*(np.broadcast_to(c, omega.shape).tolist() for c in columns))
+        return [LiveForces(n, ff, mu, mu_max, sw, tl, ti, int(md), int(fl), int(fg))
+                for n, ff, mu, sw, tl, ti, md, fl, fg in rows]
 
 
 __all__ = ["FIELDS", "ForceFlags", "LiveForces", "LiveModel", "RigSampleLike"]

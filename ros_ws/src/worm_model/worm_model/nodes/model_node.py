@@ -1,7 +1,9 @@
 """model_node: the gearbox's internal forces for every rig sample (paper Eqs 21-23).
 
-Subscribes /rig/sample (worm_msgs/RigSample), publishes /gearbox/forces
-(worm_msgs/GearboxForces), sensor-data QoS both. The per-sample work is
+Subscribes /rig/samples (worm_msgs/RigSamples, batches of consecutive samples)
+and runs the model on every sample; publishes /gearbox/forces
+(worm_msgs/GearboxForces) for the newest sample of each batch (the rig's batch
+rate, 200 Hz by default), sensor-data QoS both. The per-sample work is
 live_model.LiveModel (the same class the offline replay runs): the input
 torque at the worm is the drive motor's torque less its declared drags
 (Eq. 29); the gear shaft carries the measured load torque plus the load
@@ -12,7 +14,8 @@ counts the flags for /diagnostics.
 from __future__ import annotations
 
 from rclpy.node import Node
-from worm_msgs.msg import GearboxForces, RigSample
+from rclpy.time import Time
+from worm_msgs.msg import GearboxForces, RigSamples
 
 from worm_model.live.live_model import ForceFlags, LiveModel
 from worm_model.ros.diagnostics import OK, WARN, Diagnostics
@@ -35,23 +38,30 @@ class ModelNode(Node):
         self.rig = load_rig(rig_file or None)
         self.model = LiveModel(self.rig, use_acceleration, tau)
         self.pub = self.create_publisher(GearboxForces, "/gearbox/forces", STREAM)
-        self.create_subscription(RigSample, "/rig/sample", self.on_sample, STREAM)
+        self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
         self.received = 0
         self.invalid = 0
         self.mu_out_of_bound = 0
         Diagnostics(self, self.report)
 
-    def on_sample(self, sample: RigSample) -> None:
-        self.received += 1
-        f = self.model.update(sample)
-        if f.flags & _INVALID_INPUT:
-            self.invalid += 1
-        if f.flags & _MU_OUT_OF_BOUND:
-            self.mu_out_of_bound += 1
-        self.pub.publish(GearboxForces(
-            header=sample.header, seq=sample.seq, normal_force=f.normal_force, friction_force=f.friction_force,
+    def on_samples(self, batch: RigSamples) -> None:
+        n = len(batch.omega_worm)
+        if not n:
+            return
+        self.received += n
+        for f in self.model.update_batch(batch.omega_worm, batch.current_drive, batch.tau_load):
+            if f.flags & _INVALID_INPUT:
+                self.invalid += 1
+            if f.flags & _MU_OUT_OF_BOUND:
+                self.mu_out_of_bound += 1
+        msg = GearboxForces(
+            seq=batch.first_seq + n - 1, normal_force=f.normal_force, friction_force=f.friction_force,
             mu=f.mu, mu_max=f.mu_max, switching_torque=f.switching_torque, tau_load=f.tau_load, tau_in=f.tau_in,
-            mode=f.mode, flank=f.flank, flags=f.flags))
+            mode=f.mode, flank=f.flank, flags=f.flags)
+        stamp = Time.from_msg(batch.header.stamp).nanoseconds + int(round((n - 1) * batch.sample_period * 1e9))
+        msg.header.stamp = Time(nanoseconds=stamp).to_msg()
+        msg.header.frame_id = batch.header.frame_id
+        self.pub.publish(msg)
 
     def report(self) -> tuple[bytes, str, dict]:
         level = WARN if self.invalid else OK

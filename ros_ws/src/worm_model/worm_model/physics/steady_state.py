@@ -16,6 +16,8 @@ in the fixed frame. tau_load [N m] is + when it opposes + worm rotation.
 """
 from __future__ import annotations
 
+import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
 from worm_model.physics.dynamics import reflected_input_torque
@@ -23,6 +25,7 @@ from worm_model.physics.friction import friction_coefficient
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.physics.motor import shaft_torque, steady_state_current
 from worm_model.physics.parameters import Rig
+from worm_model.physics.units import FloatArray
 
 
 def torque_surplus(rig: Rig, voltage: float, tau_load: float, omega_worm: float) -> float:
@@ -53,3 +56,17 @@ def steady_worm_speed(rig: Rig, voltage: float, tau_load: float) -> float:
     lo, hi = (1e-3, top) if voltage > 0 else (-top, -1e-3)
     return float(brentq(lambda w: torque_surplus(rig, voltage, tau_load, w), lo, hi, xtol=1e-12, rtol=1e-13))
 
+
+
+def balancing_torque(rig: Rig, tau_load: ArrayLike, omega_worm: ArrayLike) -> FloatArray:
+    """Input torque at the worm [N m] that balances load tau_load [N m] at speed omega_worm [rad/s].
+
+    Eq. 28 quasi-statically (a_w = 0) with the friction coefficient of the rig's
+    friction model at that speed: what a speed controller feeds forward for a
+    known load. The load motors' own drag is not added (the feedforward balances
+    the load it is told). NaN loads give 0, never NaN.
+    """
+    tau_load = np.asarray(tau_load, dtype=float)
+    mu = friction_coefficient(rig.friction, rig.gearbox, omega_worm)
+    torque = reflected_input_torque(rig.gearbox, mu, np.nan_to_num(tau_load), omega_worm)
+    return np.where(np.isfinite(tau_load), torque, 0.0)

@@ -4,7 +4,8 @@ The schema, :class:`~worm_model.rig_data.schema.MeasuredData`, the CSV reader an
 :class:`~worm_model.rig_data.schema.RigDataError` are worm_model.rig_data.schema's; this module only
 converts between them and rosbag2 bags.
 
-:func:`bag_to_measured` reads a ``worm_msgs/msg/RigSample`` stream, ``t`` counted
+:func:`bag_to_measured` reads a sample stream (``worm_msgs/msg/RigSamples`` batches or
+``worm_msgs/msg/RigSample``, see :mod:`worm_model.rig_data.samples`), ``t`` counted
 from the first sample's ``header.stamp``, ``current_load`` the sum of the two load
 motors; :func:`measured_to_bag` writes one, ``header.stamp = start + t``, ``seq`` the
 row index, ``current_load`` split equally over the two load motors, and channels
@@ -29,6 +30,7 @@ from worm_model.rig_data.schema import (
     read_rig_csv,
     write_rig_csv,
 )
+from worm_model.rig_data.samples import SAMPLE_TOPICS, SAMPLE_TYPES, iter_samples
 from worm_model.bags.reader import BagReader
 from worm_model.bags.writer import BagWriter
 from worm_model.bags.typestore import MessageTypes
@@ -41,6 +43,7 @@ __all__ = [
     'csv_to_bag',
     'find_sample_topic',
     'measured_to_bag',
+    'read_samples',
     'rig_samples',
     'samples_to_measured',
 ]
@@ -53,10 +56,13 @@ SAMPLE_OPTIONAL: Final[tuple[str, ...]] = ('voltage_drive', 'theta_gear', 'curre
 
 
 def find_sample_topic(reader: BagReader, topic: str | None = None) -> str:
-    """The RigSample topic to use: ``topic`` if given, else the only one (or ``/rig/sample``).
+    """The sample stream to use: ``topic`` if given, else the only one (or /rig/samples, then /rig/sample).
+
+    A stream is a ``worm_msgs/msg/RigSamples`` (batches) or ``worm_msgs/msg/RigSample`` topic
+    (see :mod:`worm_model.rig_data.samples`).
 
     Raises:
-        RigDataError: No such topic, not a RigSample topic, or several to choose from.
+        RigDataError: No such topic, not a sample stream, or several to choose from.
 
     """
     source = str(reader.path)
@@ -64,17 +70,23 @@ def find_sample_topic(reader: BagReader, topic: str | None = None) -> str:
         info = reader.topics.get(topic)
         if info is None:
             raise RigDataError(source, f'no topic {topic!r}; it has {sorted(reader.topics)}')
-        if info.type != RIG_SAMPLE_TYPE:
-            raise RigDataError(source, f'topic {topic!r} is {info.type}, not {RIG_SAMPLE_TYPE}')
+        if info.type not in SAMPLE_TYPES:
+            raise RigDataError(source, f'topic {topic!r} is {info.type}, not one of {list(SAMPLE_TYPES)}')
         return topic
-    candidates = sorted(n for n, i in reader.topics.items() if i.type == RIG_SAMPLE_TYPE)
+    candidates = sorted(n for n, i in reader.topics.items() if i.type in SAMPLE_TYPES)
     if not candidates:
-        raise RigDataError(source, f'no {RIG_SAMPLE_TYPE} topic; it has {sorted(reader.topics)}')
+        raise RigDataError(source, f'no sample stream ({" or ".join(SAMPLE_TYPES)}); it has {sorted(reader.topics)}')
     if len(candidates) > 1:
-        if DEFAULT_TOPIC in candidates:
-            return DEFAULT_TOPIC
-        raise RigDataError(source, f'several {RIG_SAMPLE_TYPE} topics {candidates}; choose one')
+        for preferred in SAMPLE_TOPICS:
+            if preferred in candidates:
+                return preferred
+        raise RigDataError(source, f'several sample streams {candidates}; choose one')
     return candidates[0]
+
+
+def read_samples(reader: BagReader, topic: str) -> Iterator[Any]:
+    """Every sample of the stream ``topic`` (RigSample-like records, batches unpacked), in order."""
+    return iter_samples((m.decoded for m in reader.messages([topic])), reader.topics[topic].type)
 
 
 def _stamp_ns(header: Any) -> int:
@@ -134,7 +146,7 @@ def bag_to_measured(path: Path | str, topic: str | None = None,
     """
     with BagReader(path, types) as reader:
         name = find_sample_topic(reader, topic)
-        return samples_to_measured((m.decoded for m in reader.messages([name])), f'{path}:{name}')
+        return samples_to_measured(read_samples(reader, name), f'{path}:{name}')
 
 
 def rig_samples(data: MeasuredData, types: MessageTypes, start_ns: int = 0,

@@ -11,7 +11,15 @@ STREAM = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                     reliability=qos_profile_sensor_data.reliability,
                     durability=qos_profile_sensor_data.durability)
 
-#: Occasional commands and set-points: reliable, latched for late joiners.
+#: Publishers of occasional commands and set-points: reliable, latched for late joiners.
 COMMAND = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                      reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+#: Subscriptions to commands and set-points: reliable but volatile, so every ordinary
+#: publisher reaches them (``ros2 topic pub`` offers volatile; a transient-local
+#: subscription would refuse it as incompatible), and a latched publisher still hands
+#: its last value to a late subscriber.
+COMMAND_IN = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                        reliability=ReliabilityPolicy.RELIABLE,
+                        durability=DurabilityPolicy.VOLATILE)

@@ -11,7 +11,11 @@ Parameters:
         ``rosbag2_YYYY_MM_DD-HH_MM_SS`` directory in the working directory.
     storage (string): ``mcap`` (default) or ``sqlite3``.
     topics (string array): topics to record. Unset or empty: every topic of
-        the graph, hidden ones (a ``_``-prefixed name part) excepted.
+        the graph, hidden ones (a ``_``-prefixed name part) and ``exclude`` excepted.
+    exclude (string array): topics left out when recording every topic
+        (default ``[/rig/sample]``: the rig publishes that per-sample copy of
+        /rig/samples only while someone subscribes, and recording it would
+        double what the rig publishes for nothing; ``[]`` records it too).
     discovery_period (double, s): how often the graph is searched for the
         topics' publishers (and, when recording all, for new topics).
     queue_depth (integer): KEEP_LAST depth of each subscription (default
@@ -152,6 +156,10 @@ def subscription_qos(publishers: Sequence[TopicEndpointInfo], depth: int) -> QoS
     )
 
 
+#: what recording every topic leaves out by default: the rig's per-sample copy of /rig/samples
+DEFAULT_EXCLUDE: tuple[str, ...] = ('/rig/sample',)
+
+
 def is_hidden(topic: str) -> bool:
     """Whether a name part of ``topic`` starts with ``_`` (ROS hidden topic)."""
     return any(part.startswith('_') for part in topic.split('/'))
@@ -194,6 +202,8 @@ class TopicRecorder:
         self.wanted: dict[str, str | None] = {}
         """Topics to record -> type name (None: take it from the graph)."""
         self.record_all = False
+        self.excluded: set[str] = set()
+        """Topics :meth:`subscribe_all` leaves out."""
         self.dropped_after_close = 0
         self.sequences = StreamCheck()
         """``seq`` fields of the recorded streams that carry one."""
@@ -227,9 +237,10 @@ class TopicRecorder:
             self.wanted.setdefault(topic, type_name)
             return self._try_subscribe(topic)
 
-    def subscribe_all(self) -> None:
-        """Record every (non-hidden) topic of the graph, now and as they appear."""
+    def subscribe_all(self, exclude: Sequence[str] = DEFAULT_EXCLUDE) -> None:
+        """Record every (non-hidden) topic of the graph but ``exclude``, now and as they appear."""
         self.record_all = True
+        self.excluded = set(exclude)
         self.discover()
 
     def discover(self) -> None:
@@ -241,7 +252,7 @@ class TopicRecorder:
         with self._lock:
             if self.record_all:
                 for topic, _types in self.node.get_topic_names_and_types():
-                    if not is_hidden(topic):
+                    if not is_hidden(topic) and topic not in self.excluded:
                         self.wanted.setdefault(topic, None)
             for topic in self.wanted.keys() - self._subscriptions.keys() - self._failed:
                 try:
@@ -365,6 +376,10 @@ class RecorderNode(Node):
             'topics', Parameter.Type.STRING_ARRAY,
             'Topics to record; unset or empty: all non-hidden ones, as they appear',
         )
+        exclude: list[str] = self._parameter(
+            'exclude', list(DEFAULT_EXCLUDE),
+            'Topics left out when recording every topic (/rig/sample: a per-sample copy of /rig/samples)',
+        )
         period: float = self._parameter(
             'discovery_period', 1.0, '[s] period of the graph search for publishers and new topics',
             floating_point_range=[FloatingPointRange(from_value=0.05, to_value=60.0)],
@@ -380,7 +395,7 @@ class RecorderNode(Node):
             for topic in topics:
                 self.recorder.subscribe(topic)
         else:
-            self.recorder.subscribe_all()
+            self.recorder.subscribe_all(exclude)
         self.recorder.start_discovery(period)
 
     def _parameter(

@@ -1,0 +1,105 @@
+"""The rig's sample streams as recorded: one sample per message, or batches of consecutive samples.
+
+A rig publishes the same samples two ways (worm_rig_driver.nodes.rig_topics):
+``worm_msgs/msg/RigSamples`` on /rig/samples (``batch_size`` consecutive samples
+per message, arrays per field, the graph's stream) and ``worm_msgs/msg/RigSample``
+on /rig/sample (one by one, while someone subscribes). Readers of recordings
+(``bag export``, ``replay``, ``residuals``) take either through :func:`samples_of`,
+which turns a message of either type into RigSample-like records in sample order.
+No rclpy: works on the dataclasses the bag reader decodes and on rclpy messages alike.
+"""
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any, Final
+
+RIG_SAMPLE_TYPE: Final[str] = "worm_msgs/msg/RigSample"
+RIG_SAMPLES_TYPE: Final[str] = "worm_msgs/msg/RigSamples"
+#: the types a sample stream may have, preferred first
+SAMPLE_TYPES: Final[tuple[str, ...]] = (RIG_SAMPLES_TYPE, RIG_SAMPLE_TYPE)
+#: where the rigs publish them, preferred first
+SAMPLE_TOPICS: Final[tuple[str, ...]] = ("/rig/samples", "/rig/sample")
+#: the per-sample fields of both types (RigSample's, header and seq aside)
+FIELDS: Final[tuple[str, ...]] = (
+    "current_drive", "current_load_1", "current_load_2", "omega_worm", "omega_gear", "theta_worm", "theta_gear",
+    "count_drive", "count_load_1", "count_load_2", "voltage_drive", "tau_load", "status")
+NS_PER_S: Final[int] = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class Stamp:
+    """builtin_interfaces/Time."""
+
+    sec: int
+    nanosec: int
+
+
+@dataclass(frozen=True)
+class Header:
+    """std_msgs/Header."""
+
+    stamp: Stamp
+    frame_id: str
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One rig sample unpacked from a batch: the fields of worm_msgs/RigSample (and the speed
+    command in force, ``command_seq``, 0 when unknown)."""
+
+    header: Header
+    seq: int
+    current_drive: float
+    current_load_1: float
+    current_load_2: float
+    omega_worm: float
+    omega_gear: float
+    theta_worm: float
+    theta_gear: float
+    count_drive: int
+    count_load_1: int
+    count_load_2: int
+    voltage_drive: float
+    tau_load: float
+    status: int
+    command_seq: int = 0
+
+
+def stamp_ns(stamp: Any) -> int:
+    """A builtin_interfaces/Time as integer nanoseconds."""
+    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
+
+
+def unbatch(batch: Any) -> list[Sample]:
+    """The samples of one RigSamples message, in order; sample k is stamped first + k * sample_period."""
+    columns = [list(getattr(batch, name)) for name in FIELDS]
+    commands = list(getattr(batch, "command_seq", ())) or [0] * len(columns[0])
+    first = stamp_ns(batch.header.stamp)
+    period_ns = batch.sample_period * NS_PER_S
+    frame_id = batch.header.frame_id
+    out = []
+    for k, values in enumerate(zip(*columns, commands)):
+        ns = first + int(round(k * period_ns))
+        out.append(Sample(Header(Stamp(ns // NS_PER_S, ns % NS_PER_S), frame_id), int(batch.first_seq) + k,
+                          *values))
+    return out
+
+
+def samples_of(message: Any, type_name: str) -> list[Any]:
+    """The samples a message of ``type_name`` (RigSample or RigSamples) carries, in order."""
+    if type_name == RIG_SAMPLES_TYPE:
+        return unbatch(message)
+    if type_name == RIG_SAMPLE_TYPE:
+        return [message]
+    raise ValueError(f"{type_name} is not a sample stream (expected one of {SAMPLE_TYPES})")
+
+
+def iter_samples(messages: Any, type_name: str) -> Iterator[Any]:
+    """Every sample of a stream of messages of ``type_name``, in order."""
+    for message in messages:
+        yield from samples_of(message, type_name)
+
+
+__all__ = ["FIELDS", "RIG_SAMPLES_TYPE", "RIG_SAMPLE_TYPE", "SAMPLE_TOPICS", "SAMPLE_TYPES", "Header", "Sample",
+           "Stamp", "iter_samples", "samples_of", "stamp_ns", "unbatch"]

@@ -1,0 +1,149 @@
+"""What sim_node and driver_node share: the rig's topics, and the commands they take.
+
+Out (sensor-data QoS):
+  /rig/samples      worm_msgs/RigSamples   every sample, ``batch_size`` per message (the graph's stream)
+  /rig/sample       worm_msgs/RigSample    every sample one by one, only while someone subscribes
+                                           (``ros2 topic echo``, a foreign stack); costs nothing otherwise
+  /rig/currents, /rig/joint_states, /rig/encoders   every ``channel_decimation``-th sample, only while
+                                           someone subscribes
+In:
+  /rig/speed_command  worm_msgs/SpeedCommand  the rig's own speed loop (drive.rig_loop), sensor-data QoS
+  /rig/drive_command  worm_msgs/DriveCommand  a voltage to hold, sensor-data QoS
+  /rig/load_command   worm_msgs/LoadCommand   reliable, volatile: any publisher reaches it
+
+Why batches: a 1 kHz topic costs rclpy ~12-15 % of a core per endpoint, whatever the
+message holds; five samples per message cut that five-fold, and the speed loop, the
+only thing that needs every sample at once, runs in the rig's own process. The
+batch is published the moment its last sample is taken, so the newest sample
+reaches the graph as fast as a single one would.
+
+Called from the rig's sampling thread (sim_node's clock, driver_node's reader):
+rclpy publishers may be used from a thread other than the executor's.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from rclpy.node import Node
+from rclpy.time import Time
+from sensor_msgs.msg import JointState
+from worm_msgs.msg import DriveCommand, EncoderCounts, LoadCommand, MotorCurrents, RigSample, RigSamples, SpeedCommand
+
+from worm_model.ros.qos import COMMAND_IN, STREAM
+
+from worm_rig_driver.drive.rig_loop import SpeedCommand as LoopCommand
+
+#: RigSamples' per-sample fields, in message order (RigSample's fields of the same names)
+FIELDS = ("current_drive", "current_load_1", "current_load_2", "omega_worm", "omega_gear", "theta_worm",
+          "theta_gear", "count_drive", "count_load_1", "count_load_2", "voltage_drive", "tau_load", "status")
+_INT_FIELDS = ("count_drive", "count_load_1", "count_load_2", "status")
+
+
+@dataclass
+class _Batch:
+    first_seq: int = 0
+    first_stamp_ns: int = 0
+    columns: dict[str, list] = field(default_factory=lambda: {name: [] for name in (*FIELDS, "command_seq")})
+
+    def __len__(self) -> int:
+        return len(self.columns["command_seq"])
+
+
+class RigTopics:
+    """Publishers of one rig's samples (see module docstring).
+
+    Args:
+        node: the node that owns the publishers.
+        frame_id: of every header.
+        sample_period: [s] of the rig's clock.
+        batch_size: samples per /rig/samples message.
+        decimation: the per-channel topics carry every decimation-th sample.
+        counts_per_rev: encoder counts per revolution (EncoderCounts).
+    """
+
+    def __init__(self, node: Node, frame_id: str, sample_period: float, batch_size: int, decimation: int,
+                 counts_per_rev: int) -> None:
+        self.frame_id = frame_id
+        self.sample_period = sample_period
+        self.batch_size = batch_size
+        self.decimation = decimation
+        self.counts_per_rev = counts_per_rev
+        self.pub_samples = node.create_publisher(RigSamples, "/rig/samples", STREAM)
+        self.pub_sample = node.create_publisher(RigSample, "/rig/sample", STREAM)
+        self.pub_currents = node.create_publisher(MotorCurrents, "/rig/currents", STREAM)
+        self.pub_joints = node.create_publisher(JointState, "/rig/joint_states", STREAM)
+        self.pub_encoders = node.create_publisher(EncoderCounts, "/rig/encoders", STREAM)
+        self._batch = _Batch()
+        self.published = 0  # samples published on /rig/samples
+
+    def add(self, seq: int, stamp_ns: int, values: dict[str, float | int], command_seq: int) -> None:
+        """One sample (``values``: every name of FIELDS); publishes the batch once it is full, and the
+        per-sample topics that have subscribers."""
+        batch = self._batch
+        if len(batch) and seq != batch.first_seq + len(batch):
+            self.flush()  # a gap (lost telemetry): a batch holds consecutive samples only
+            batch = self._batch
+        if not len(batch):
+            batch.first_seq, batch.first_stamp_ns = seq, stamp_ns
+        for name in FIELDS:
+            batch.columns[name].append(values[name])
+        batch.columns["command_seq"].append(command_seq)
+        single = self.pub_sample.get_subscription_count() > 0
+        channels = seq % self.decimation == 0 and (self.pub_currents.get_subscription_count()
+                                                   or self.pub_joints.get_subscription_count()
+                                                   or self.pub_encoders.get_subscription_count())
+        if single or channels:
+            self._publish_single(seq, stamp_ns, values, single, channels)
+        if len(batch) >= self.batch_size:
+            self.flush()
+
+    def flush(self) -> None:
+        """Publish what the batch holds (nothing if empty)."""
+        batch, self._batch = self._batch, _Batch()
+        if not len(batch):
+            return
+        msg = RigSamples(first_seq=batch.first_seq, sample_period=self.sample_period, **batch.columns)
+        msg.header.stamp = Time(nanoseconds=batch.first_stamp_ns).to_msg()
+        msg.header.frame_id = self.frame_id
+        self.pub_samples.publish(msg)
+        self.published += len(batch)
+
+    def _publish_single(self, seq: int, stamp_ns: int, values: dict, single: bool, channels: bool) -> None:
+        sample = RigSample(seq=seq, **values)
+        sample.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
+        sample.header.frame_id = self.frame_id
+        if single:
+            self.pub_sample.publish(sample)
+        if not channels:
+            return
+        s = sample
+        if self.pub_currents.get_subscription_count():
+            self.pub_currents.publish(MotorCurrents(header=s.header, drive=s.current_drive, load_1=s.current_load_1,
+                                                    load_2=s.current_load_2))
+        if self.pub_joints.get_subscription_count():
+            self.pub_joints.publish(JointState(header=s.header, name=["worm", "gear"],
+                                               position=[s.theta_worm, s.theta_gear],
+                                               velocity=[s.omega_worm, s.omega_gear],
+                                               effort=[math.nan, s.tau_load]))
+        if self.pub_encoders.get_subscription_count():
+            self.pub_encoders.publish(EncoderCounts(header=s.header, drive=s.count_drive, load_1=s.count_load_1,
+                                                    load_2=s.count_load_2, counts_per_rev=self.counts_per_rev))
+
+
+def speed_command_from_msg(msg: SpeedCommand) -> LoopCommand:
+    """The rig loop's view of a worm_msgs/SpeedCommand (RigLoop.command_speed checks it)."""
+    return LoopCommand(setpoint=msg.speed_setpoint, feedforward=msg.feedforward_torque, kp=msg.kp, ki=msg.ki,
+                       voltage_limit=msg.voltage_limit, source_seq=msg.sample_seq)
+
+
+def subscribe_commands(node: Node, on_speed: Callable[[SpeedCommand], None],
+                       on_drive: Callable[[DriveCommand], None], on_load: Callable[[LoadCommand], None]) -> None:
+    """The rig's command subscriptions, with the QoS every rig uses."""
+    node.create_subscription(SpeedCommand, "/rig/speed_command", on_speed, STREAM)
+    node.create_subscription(DriveCommand, "/rig/drive_command", on_drive, STREAM)
+    node.create_subscription(LoadCommand, "/rig/load_command", on_load, COMMAND_IN)
+
+
+__all__ = ["FIELDS", "RigTopics", "speed_command_from_msg", "subscribe_commands"]
