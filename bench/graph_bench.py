@@ -1,35 +1,48 @@
-"""Benchmark of the live node graph over DDS: rate, command latency and lost samples.
+"""Benchmark of the live node graph over DDS: CPU, command latency, lost samples; idle and under load.
 
-    python bench/graph_bench.py          (run_all.py runs it with its own ROS_DOMAIN_ID)
+    python bench/graph_bench.py [--window 60] [--skip-load]   (run_all.py runs it with its own ROS_DOMAIN_ID)
 
-Starts the graph of sim_graph.yaml (calibration written first, speed set-point
-150 rad/s, a resistive load of +0.15 N m), lets it settle, then a probe in this
-process listens for WINDOW seconds and prints to stdout:
+Twice (the second time while a CPU hog started here holds one core busy):
+starts the graph of sim_graph.yaml (calibration written first) and the recorder
+(`ros2 run worm_rig_driver recorder`, every topic) beside it, commands 150 rad/s
+and a resistive load of +0.15 N m, lets it settle, then measures for --window
+seconds and prints to stdout:
 
-  graph_rate: <x> Hz            /rig/sample messages received per second
-  graph_latency_p99: <x> ms     p99 of DriveCommand.header.stamp - feedforward_stamp
-                                (commands with feedforward): rig sample stamped -> command out
-  graph_lost_samples: <n>       seqs missing between consecutive /rig/sample messages
+  graph_cpu_cores: <x> cores          CPU of sim_node + model_node + estimator_node + controller_node
+  graph_cpu_<node>: <x> cores         each of them (process CPU time over the window / window)
+  graph_latency_p50: <x> ms           newest rig sample a speed command was computed from (its stamp)
+  graph_latency_p99: <x> ms           -> that command in force at the rig, per command, read from the
+                                      recorded /rig/samples' own clock (seq, command_seq): the time from
+                                      that sample's stamp to the start of the first period the command
+                                      drove, in whole periods (1 ms): a command that missed only the
+                                      tick right after its sample counts 1 ms
+  graph_lost_samples: <n>             seqs missing from the recorded /rig/samples over the window
+  graph_sim_skipped_samples: <n>      sample periods sim_node never simulated (it fell behind real time)
 
-Progress goes to stderr. Never asserts: a failure prints nan figures and exits 1.
+and the same with an ``_under_load`` suffix for the loaded run. Progress on stderr.
+Never asserts: a failure prints nan figures and exits 1.
 """
 from __future__ import annotations
 
+import argparse
+import math
 import os
 import random
+import signal
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-WINDOW = 10.0  # [s]
-SETTLE = 3.0  # [s] after the load command, before the window
+SETTLE = 5.0  # [s] after the commands, before the window
 SPEED_SETPOINT = 150.0  # [rad/s]
 LOAD = 0.15  # [N m], resistive at positive speed
 START_TIMEOUT = 45.0  # [s]
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
+NODES = ("sim_node", "model_node", "estimator_node", "controller_node")
+HZ = os.sysconf("SC_CLK_TCK")
 
 
 def info(text: str) -> None:
@@ -40,29 +53,40 @@ def percentile(values: list[float], q: float) -> float:
     if not values:
         return float("nan")
     ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, max(0, round(q / 100 * (len(ordered) - 1))))]
+    return ordered[min(len(ordered) - 1, max(0, math.ceil(q / 100 * len(ordered)) - 1))]
 
 
-def main() -> int:
-    os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(100, 230)))
-    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time [s] of a process and its threads."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / HZ
+
+
+def start_hog() -> subprocess.Popen:
+    """One process spinning one core at 100 % (stopped by the caller)."""
+    return subprocess.Popen([sys.executable, "-c", "while True: pass"], env={**os.environ,
+                            "_ROS_WHEELS_BOOTSTRAP_COMPLETE": "1"})
+
+
+def run_phase(calibration: Path, work: Path, window: float, hog: bool) -> dict[str, float]:
+    """One measurement; returns the figures by name (without suffix)."""
     import rclpy
     from rclpy.context import Context
     from rclpy.experimental import EventsExecutor
-    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
     from rclpy.task import Future
-    from worm_msgs.msg import DriveCommand, LoadCommand, RigSample
+    from std_msgs.msg import Float64
+    from worm_msgs.msg import LoadCommand
 
     from torque_estimator.graph.runner import Graph, parse_overrides
+    from worm_model.bags.reader import BagReader
+    from worm_model.rig_data.samples import command_latencies, missing_seqs, unbatch
+    from worm_model.ros.ament import find_executable
     from worm_model.ros.qos import COMMAND
 
-    probe_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=500, reliability=ReliabilityPolicy.BEST_EFFORT)
-    work = Path(tempfile.mkdtemp(prefix="graph_bench_"))
-    calibration = work / "calibration.json"
-    info(f"domain {os.environ['ROS_DOMAIN_ID']}, work dir {work}")
-    subprocess.run([sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(calibration), "--quiet"],
-                   check=True, stdout=sys.stderr)
-
+    tag = "under_load" if hog else "idle"
+    bag = work / f"bag_{tag}"
+    figures = {name: float("nan") for name in ("cpu_cores", *(f"cpu_{n}" for n in NODES), "latency_p50",
+                                               "latency_p99", "lost_samples", "sim_skipped_samples")}
     context = Context()
     rclpy.init(context=context)
     node = rclpy.create_node("graph_bench_probe", context=context)
@@ -72,78 +96,107 @@ def main() -> int:
     def spin_for(seconds: float) -> None:
         executor.spin_until_future_complete(Future(executor=executor), timeout_sec=seconds)
 
-    samples: list[tuple[float, int]] = []  # (receive time, seq)
-    latencies: list[float] = []  # [s]
-    sample_latencies: list[float] = []  # [s] command stamp - stamp of the sample it responds to (stderr only)
-    window = [False]
-
-    def on_sample(msg: RigSample) -> None:
-        if window[0]:
-            samples.append((time.monotonic(), msg.seq))
-        elif not samples:
-            samples.append((time.monotonic(), msg.seq))  # the first one only says "flowing"
-
-    def on_command(msg: DriveCommand) -> None:
-        ff, sent = msg.feedforward_stamp, msg.header.stamp
-        if window[0]:
-            sample_latencies.append((sent.sec - msg.sample_stamp.sec) + (sent.nanosec - msg.sample_stamp.nanosec) * 1e-9)
-        if window[0] and (ff.sec or ff.nanosec):
-            latencies.append((sent.sec - ff.sec) + (sent.nanosec - ff.nanosec) * 1e-9)
-
     overrides = parse_overrides([f"estimator_node.calibration_file={calibration}",
                                  f"controller_node.speed_setpoint={SPEED_SETPOINT}"])
-    graph = Graph(GRAPH_FILE, overrides, work / "logs")
-    code = 0
-    rate = p99 = float("nan")
-    lost: float | int = float("nan")
+    graph = Graph(GRAPH_FILE, overrides, work / f"logs_{tag}")
+    recorder = hog_proc = None
     try:
+        hog_proc = start_hog() if hog else None
         graph.start()
-        node.create_subscription(RigSample, "/rig/sample", on_sample, probe_qos)
-        node.create_subscription(DriveCommand, "/rig/drive_command", on_command, probe_qos)
-        load_pub = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
+        recorder = subprocess.Popen([str(find_executable("recorder")), "--ros-args", "-p", f"output:={bag}"],
+                                    stdout=open(work / f"recorder_{tag}.log", "wb"), stderr=subprocess.STDOUT)
+        seen = []
+        from worm_msgs.msg import RigSamples
+        from worm_model.ros.qos import STREAM
+        sub = node.create_subscription(RigSamples, "/rig/samples", lambda m: seen.append(m.first_seq), STREAM)
         deadline = time.monotonic() + START_TIMEOUT
-        while not samples and not graph.failed() and time.monotonic() < deadline:
+        while not seen and not graph.failed() and time.monotonic() < deadline:
             spin_for(0.1)
-        if not samples:
-            raise RuntimeError(f"/rig/sample did not flow within {START_TIMEOUT:g} s (exited: {graph.failed()}); "
-                               f"logs in {work / 'logs'}")
-        load_pub.publish(LoadCommand(torque=LOAD))
-        info(f"graph up; load {LOAD:+g} N m, speed {SPEED_SETPOINT:g} rad/s; settling {SETTLE:g} s")
+        node.destroy_subscription(sub)  # the probe does not listen during the window
+        if not seen:
+            raise RuntimeError(f"/rig/samples did not flow within {START_TIMEOUT:g} s (exited: {graph.failed()})")
+        node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND).publish(Float64(data=SPEED_SETPOINT))
+        node.create_publisher(LoadCommand, "/rig/load_command", COMMAND).publish(LoadCommand(torque=LOAD))
+        info(f"{tag}: graph up; {SPEED_SETPOINT:g} rad/s, load {LOAD:+g} N m; settling {SETTLE:g} s")
         spin_for(SETTLE)
-        samples.clear()
-        window[0] = True
-        t0 = time.monotonic()
-        spin_for(WINDOW)
-        t1 = time.monotonic()
-        window[0] = False
-        info(f"window {t1 - t0:.2f} s: {len(samples)} samples, {len(latencies)} commands with feedforward")
-        in_window = [seq for t, seq in samples if t <= t1]
-        rate = len(in_window) / (t1 - t0)
-        seqs = [seq for _, seq in samples]
-        lost = sum(b - a - 1 for a, b in zip(seqs, seqs[1:]) if b > a + 1)
-        reordered = sum(1 for a, b in zip(seqs, seqs[1:]) if b <= a)
-        if reordered:
-            info(f"{reordered} samples out of order or duplicated")
-        p99 = percentile(latencies, 99) * 1e3
-        info(f"sample -> feedforward command: p50 {percentile(latencies, 50) * 1e3:.2f} ms, "
-             f"max {max(latencies, default=float('nan')) * 1e3:.2f} ms; sample -> its command: "
-             f"p50 {percentile(sample_latencies, 50) * 1e3:.2f} ms, p99 {percentile(sample_latencies, 99) * 1e3:.2f} ms")
+        pids = {name: graph.processes[name].pid for name in NODES}
+        before = {name: cpu_seconds(pid) for name, pid in pids.items()}
+        t0, wall0 = time.monotonic(), time.time_ns()
+        spin_for(window)
+        t1, wall1 = time.monotonic(), time.time_ns()
+        after = {name: cpu_seconds(pid) for name, pid in pids.items()}
+        for name in NODES:
+            figures[f"cpu_{name}"] = (after[name] - before[name]) / (t1 - t0)
+        figures["cpu_cores"] = sum(figures[f"cpu_{n}"] for n in NODES)
         if graph.failed():
-            info(f"nodes exited during the run: {graph.failed()}")
-            code = 1
-    except Exception as err:  # a benchmark reports, it does not assert
-        info(f"failed: {err!r}")
-        code = 1
+            raise RuntimeError(f"nodes exited during the run: {graph.failed()}")
     finally:
+        if recorder is not None:
+            recorder.send_signal(signal.SIGINT)
+            try:
+                recorder.wait(30)
+            except subprocess.TimeoutExpired:
+                recorder.kill()
         codes = graph.stop()
-        if any(codes.values()):
-            info(f"node exit codes {codes}; logs in {work / 'logs'}")
+        if hog_proc is not None:
+            hog_proc.kill()
+            hog_proc.wait()
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown(context=context)
-    print(f"graph_rate: {rate:.1f} Hz")
-    print(f"graph_latency_p99: {p99:.2f} ms")
-    print(f"graph_lost_samples: {lost}")
+        if any(codes.values()):
+            info(f"{tag}: node exit codes {codes}; logs in {work}")
+    samples, skipped = [], 0.0
+    with BagReader(bag) as reader:
+        for message in reader.messages(["/rig/samples"]):
+            stamp = message.decoded.header.stamp
+            if wall0 <= stamp.sec * 1_000_000_000 + stamp.nanosec <= wall1:
+                samples += unbatch(message.decoded)
+        for message in reader.messages(["/diagnostics"]) if "/diagnostics" in reader.topics else ():
+            for status in message.decoded.status:
+                if status.name == "sim_node":
+                    values = {kv.key: kv.value for kv in status.values}
+                    skipped = float(values.get("skipped_samples", skipped))
+    period_ms = 1.0  # the rig's sample period [ms]
+    # from sample s's stamp (the end of its period) to the start of the first period the command drives
+    latencies = [k * period_ms for k in command_latencies(samples)]
+    figures["latency_p50"] = percentile(latencies, 50)
+    figures["latency_p99"] = percentile(latencies, 99)
+    figures["lost_samples"] = missing_seqs(s.seq for s in samples)
+    figures["sim_skipped_samples"] = skipped
+    info(f"{tag}: {len(samples)} samples recorded in the {window:g} s window, {len(latencies)} commands; "
+         f"latency max {max(latencies, default=math.nan):.0f} ms")
+    return figures
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--window", type=float, default=60.0, help="measuring window [s] of each run")
+    parser.add_argument("--skip-load", action="store_true", help="only the run without the CPU hog")
+    args = parser.parse_args(argv)
+    os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(100, 230)))
+    os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    work = Path(tempfile.mkdtemp(prefix="graph_bench_"))
+    info(f"domain {os.environ['ROS_DOMAIN_ID']}, work dir {work}")
+    calibration = work / "calibration.json"
+    subprocess.run([sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(calibration),
+                    "--quiet"], check=True, stdout=sys.stderr)
+    code = 0
+    units = {"cpu": "cores", "latency": "ms"}
+    for hog in (False,) if args.skip_load else (False, True):
+        try:
+            figures = run_phase(calibration, work, args.window, hog)
+        except Exception as err:  # a benchmark reports, it does not assert
+            info(f"failed: {err!r}")
+            figures = {}
+            code = 1
+        suffix = "_under_load" if hog else ""
+        for name in ("cpu_cores", *(f"cpu_{n}" for n in NODES), "latency_p50", "latency_p99", "lost_samples",
+                     "sim_skipped_samples"):
+            value = figures.get(name, float("nan"))
+            unit = units.get(name.split("_")[0], "")
+            text = f"{value:.3f}" if unit == "cores" else f"{value:.2f}" if unit == "ms" else f"{value:g}"
+            print(f"graph_{name}{suffix}: {text} {unit}".rstrip(), flush=True)
     return code
 
 

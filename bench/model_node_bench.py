@@ -1,20 +1,22 @@
-"""Benchmark of model_node's per-sample work: its /rig/sample callback, timed in-process.
+"""Benchmark of model_node's work: its /rig/samples callback (a batch of 5 samples), timed in-process.
 
     python bench/model_node_bench.py       (run_all.py runs it with its own ROS_DOMAIN_ID)
 
-Builds the real ModelNode (rclpy, bundled rig), prepares RigSample messages of a
-simulated run (speed swings through both directions, load torque sweeps all modes, the
-current the model needs plus sensor noise), and calls node.on_sample(msg) on each in
-turn, timing every call with perf_counter_ns, in 3 rounds of 10^4 calls.  Each call is the whole callback: filter update, Eqs 21-23, mode, the
-GearboxForces message and its publish (to no subscriber, so the DDS write but no
-delivery).  Executor dispatch and DDS transport to a subscriber are not included (the
+Builds the real ModelNode (rclpy, bundled rig), prepares RigSamples messages (5
+consecutive samples each, as the rig publishes them) of a simulated run (speed swings
+through both directions, load torque sweeps all modes, the current the model needs
+plus sensor noise), and calls node.on_samples(msg) on each in turn, timing every call
+with perf_counter_ns, in 3 rounds of 2000 calls.  Each call is the whole callback:
+filter updates, Eqs 21-23 for the 5 samples, modes, the GearboxForces message of the
+newest and its publish (to no subscriber, so the DDS write but no delivery).  Executor dispatch and DDS transport to a subscriber are not included (the
 graph benchmark measures those end to end).  Prints to stdout:
 
-  model_node_latency_p99: <x> us     p99 of one on_sample call (lowest of the 3 rounds:
-                                     on a shared machine the tail is mostly other processes)
+  model_node_latency_p99: <x> us     p99 of one on_samples call, 5 samples (lowest of the 3
+                                     rounds: on a shared machine the tail is mostly other processes)
   model_node_latency_p50: <x> us     median of the same (lowest round)
   model_node_cpu_p99: <x> us         p99 of the thread CPU time of one call (what the code
                                      costs, without the waits for a CPU that wall time includes)
+  model_node_cpu_per_sample: <x> us  mean thread CPU time per sample (lowest round)
 
 Progress goes to stderr. Never asserts.
 """
@@ -25,23 +27,24 @@ import time
 
 import numpy as np
 import rclpy
-from worm_msgs.msg import RigSample
+from worm_msgs.msg import RigSamples
 
 from worm_model.physics.dynamics import reflected_input_torque
 from worm_model.physics.friction import friction_coefficient
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.nodes.model_node import ModelNode
 
-N = 10000  # calls per round
+N = 2000  # calls per round
 ROUNDS = 3
-WARMUP = 1000
+WARMUP = 200
+BATCH = 5  # samples per message (sim_graph.yaml's batch_size)
 
 
 def info(text: str) -> None:
     print(f"[model_node_bench] {text}", file=sys.stderr, flush=True)
 
 
-def messages(rig, n: int) -> list[RigSample]:
+def messages(rig, n: int) -> list[RigSamples]:
     """A 1 kHz run: speed swings -300 -> 300 rad/s, load sweeps +-0.25 N m (every mode), and the
     drive current the quasi-static model needs for that (Eqs 28-29) plus sensor noise."""
     rng = np.random.default_rng(4)
@@ -54,9 +57,11 @@ def messages(rig, n: int) -> list[RigSample]:
     current = (t_mesh + m.viscous_drag * omega + m.coulomb_drag * np.sign(omega)) / m.torque_constant
     current += rng.normal(0, rig.sensors.current_noise_std, n)
     out = []
-    for k in range(n):
-        msg = RigSample(seq=k, omega_worm=float(omega[k]), current_drive=float(current[k]),
-                        tau_load=float(tau[k]), omega_gear=float(omega[k] * rig.gearbox.ratio))
+    for k in range(0, n - BATCH + 1, BATCH):
+        b = slice(k, k + BATCH)
+        msg = RigSamples(first_seq=k, sample_period=1e-3, omega_worm=omega[b].tolist(),
+                         current_drive=current[b].tolist(), tau_load=tau[b].tolist(),
+                         omega_gear=(omega[b] * rig.gearbox.ratio).tolist())
         msg.header.stamp.sec, msg.header.stamp.nanosec = int(t[k]), int((t[k] % 1.0) * 1e9)
         out.append(msg)
     return out
@@ -66,27 +71,29 @@ def main() -> int:
     rclpy.init()
     node = ModelNode()
     try:
-        msgs = messages(node.rig, WARMUP + ROUNDS * N)
+        msgs = messages(node.rig, (WARMUP + ROUNDS * N) * BATCH)
         for msg in msgs[:WARMUP]:
-            node.on_sample(msg)
+            node.on_samples(msg)
         clock, cpu_clock = time.perf_counter_ns, time.thread_time_ns
-        p50, p99, cpu99 = [], [], []
+        p50, p99, cpu99, per_sample = [], [], [], []
         for r in range(ROUNDS):
             times, cpu = np.empty(N), np.empty(N)
             for k, msg in enumerate(msgs[WARMUP + r * N:WARMUP + (r + 1) * N]):
                 t0, c0 = clock(), cpu_clock()
-                node.on_sample(msg)
+                node.on_samples(msg)
                 times[k], cpu[k] = clock() - t0, cpu_clock() - c0
             p50.append(np.percentile(times, 50) / 1e3)
             p99.append(np.percentile(times, 99) / 1e3)
             cpu99.append(np.percentile(cpu, 99) / 1e3)
-            info(f"round {r + 1}: {N} on_sample calls, p50 {p50[-1]:.1f} us, p99 {p99[-1]:.1f} us, "
+            per_sample.append(cpu.mean() / 1e3 / BATCH)
+            info(f"round {r + 1}: {N} on_samples calls of {BATCH} samples, p50 {p50[-1]:.1f} us, p99 {p99[-1]:.1f} us, "
                  f"max {times.max() / 1e3:.1f} us; CPU time p99 {cpu99[-1]:.1f} us")
         info(f"mu out of bound {node.mu_out_of_bound}, invalid {node.invalid} of {node.received} samples")
         # the least disturbed round: on a shared machine the tail is mostly other processes
         print(f"model_node_latency_p99: {min(p99):.1f} us", flush=True)
         print(f"model_node_latency_p50: {min(p50):.1f} us", flush=True)
         print(f"model_node_cpu_p99: {min(cpu99):.1f} us", flush=True)
+        print(f"model_node_cpu_per_sample: {min(per_sample):.1f} us", flush=True)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

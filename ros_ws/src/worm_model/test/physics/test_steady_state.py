@@ -4,13 +4,17 @@ from __future__ import annotations
 
 import dataclasses
 
+import numpy as np
 import pytest
 
 from worm_model.physics.dynamics import reflected_input_torque
+from worm_model.physics.efficiency import forward_efficiency
+from worm_model.physics.friction import friction_coefficient
 from worm_model.physics.parameters import load_rig
-from worm_model.physics.steady_state import steady_worm_speed, torque_surplus
+from worm_model.physics.steady_state import balancing_torque, steady_worm_speed, torque_surplus
 
 RIG = load_rig()
+GB = RIG.gearbox
 
 
 def test_constant_mu_speed_is_the_root_of_the_linear_balance() -> None:
@@ -42,3 +46,22 @@ def test_more_load_is_slower() -> None:
 def test_zero_voltage_is_refused() -> None:
     with pytest.raises(ValueError, match="voltage 0"):
         steady_worm_speed(RIG, 0.0, 0.1)
+
+
+# --- the torque that balances a load (what a speed loop feeds forward) ---------------------------
+
+def test_balancing_torque_is_i_d_over_eta_for_resistive_loads_in_both_directions() -> None:
+    omega = np.array([20.0, 150.0, 400.0, -20.0, -150.0, -400.0])
+    tau = np.array([0.05, 0.2, 0.27, -0.05, -0.2, -0.27])  # opposing the motion in every case
+    mu = friction_coefficient(RIG.friction, GB, omega)
+    expected = np.sign(omega) * GB.ratio * np.abs(tau) / forward_efficiency(GB, mu)  # T_min = i D / eta
+    # (r_w/r_g) K_+ = i / eta holds to the geometric consistency of i = r_w tan(lambda) / r_g
+    # (the bundled lead angle is rounded to 1e-6 deg: ~2e-8 relative)
+    assert abs(GB.geometric_ratio / GB.ratio - 1) < 1e-7
+    np.testing.assert_allclose(balancing_torque(RIG, tau, omega), expected, rtol=1e-6)
+
+
+def test_balancing_torque_of_nan_load_is_zero() -> None:
+    ff = balancing_torque(RIG, np.array([np.nan, 0.1, np.nan]), np.array([100.0, 100.0, -50.0]))
+    assert np.all(np.isfinite(ff))
+    assert ff[0] == 0.0 and ff[2] == 0.0 and ff[1] > 0.0

@@ -101,5 +101,33 @@ def iter_samples(messages: Any, type_name: str) -> Iterator[Any]:
         yield from samples_of(message, type_name)
 
 
+def command_latencies(samples: Iterator[Any]) -> list[int]:
+    """Per speed command, the sample periods from the sample it was computed from to its effect.
+
+    Read from the stream's own clock (``seq`` and ``command_seq`` of each sample,
+    RigSamples' definition): a command computed from sample ``s`` first drives the
+    period of sample ``k``; its latency is ``k - 1 - s`` periods (0: it drove the very
+    next period). Commands are told apart by their source ``s``; samples without one
+    (``command_seq`` 0) are skipped.
+    """
+    first_seen: dict[int, int] = {}
+    for sample in samples:
+        source = int(sample.command_seq)
+        if source and source not in first_seen:
+            first_seen[source] = int(sample.seq)
+    return [k - 1 - s for s, k in first_seen.items()]
+
+
+def missing_seqs(seqs: Iterator[int]) -> int:
+    """Samples missing between consecutive seqs of a stream (its gaps), in receive order."""
+    lost, last = 0, None
+    for seq in seqs:
+        if last is not None and seq > last + 1:
+            lost += seq - last - 1
+        last = seq if last is None else max(last, seq)
+    return lost
+
+
 __all__ = ["FIELDS", "RIG_SAMPLES_TYPE", "RIG_SAMPLE_TYPE", "SAMPLE_TOPICS", "SAMPLE_TYPES", "Header", "Sample",
+           "command_latencies", "missing_seqs",
            "Stamp", "iter_samples", "samples_of", "stamp_ns", "unbatch"]

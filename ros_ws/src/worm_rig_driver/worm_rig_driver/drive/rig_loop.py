@@ -92,13 +92,17 @@ class RigLoop:
         sample_period: [s] between steps (the PI's dt).
         command_timeout: [s] a command older than this stops the drive.
         gains: PI gains until a speed command brings its own.
+        seq_period: [s] per unit of the samples' seq (default: sample_period; a rig streaming
+            every n-th tick of its clock has sample_period = n * seq_period).
     """
 
-    def __init__(self, rig: Rig, sample_period: float, command_timeout: float, gains: PiGains) -> None:
+    def __init__(self, rig: Rig, sample_period: float, command_timeout: float, gains: PiGains,
+                 seq_period: float | None = None) -> None:
         if not (sample_period > 0 and command_timeout > 0):
             raise ValueError(f"need sample_period > 0 and command_timeout > 0, got {sample_period}, {command_timeout}")
         self.rig = rig
         self.sample_period = sample_period
+        self.seq_period = sample_period if seq_period is None else seq_period
         self.command_timeout = command_timeout
         self.supply = rig.supply_voltage
         self.pi = PiLoop(rig, gains, self.supply)
@@ -106,7 +110,7 @@ class RigLoop:
         self._active: object = None  # the command in force (identity tells a new one)
         self.mode = DriveMode.STOPPED
         self.commanded = False  # a command arrived at some point (STOPPED after that: the watchdog)
-        self.latencies: Counter[int] = Counter()  # sample periods from source sample to effect -> commands
+        self.latencies: Counter[int] = Counter()  # seq units from source sample to effect -> commands
 
     # --- commands (any thread) -------------------------------------------------------------
     def command_voltage(self, voltage: float, now: float) -> str:
@@ -169,8 +173,8 @@ class RigLoop:
         for periods in sorted(self.latencies):
             seen += self.latencies[periods]
             if seen >= rank:
-                return periods * self.sample_period
-        return max(self.latencies) * self.sample_period
+                return periods * self.seq_period
+        return max(self.latencies) * self.seq_period
 
 
 __all__ = ["DriveMode", "LoopOutput", "RigLoop", "SpeedCommand"]

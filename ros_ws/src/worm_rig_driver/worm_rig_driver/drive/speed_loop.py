@@ -116,8 +116,7 @@ class PiLoop:
 
     def __init__(self, rig: Rig, gains: PiGains, voltage_limit: float) -> None:
         motor = rig.drive_motor
-        self._r_over_kt = motor.resistance / motor.torque_constant
-        self._ke = motor.back_emf_constant
+        self._r, self._kt, self._ke = motor.resistance, motor.torque_constant, motor.back_emf_constant
         self.gains = gains
         self.voltage_limit = float(voltage_limit)
         if not self.voltage_limit > 0:
@@ -143,12 +142,13 @@ class PiLoop:
         kp, ki = self.gains.kp, self.gains.ki
         limit = self.voltage_limit
         candidate = self.integral + ki * error * dt
-        v_candidate = self._r_over_kt * (kp * error + candidate + tau_ff) + self._ke * omega_ref
+        # the same operations in the same order as SpeedController, so both give the same bits
+        v_candidate = self._r * (kp * error + candidate + tau_ff) / self._kt + self._ke * omega_ref
         # Integrate unless that drives the output further into its limit.
         winding_up = abs(v_candidate) > limit and (error > 0) - (error < 0) == (v_candidate > 0) - (v_candidate < 0)
         if not winding_up:
             self.integral = candidate
-        voltage = self._r_over_kt * (kp * error + self.integral + tau_ff) + self._ke * omega_ref
+        voltage = self._r * (kp * error + self.integral + tau_ff) / self._kt + self._ke * omega_ref
         self.saturated = abs(voltage) > limit
         return min(max(voltage, -limit), limit)
 

@@ -21,7 +21,9 @@ import time
 from pathlib import Path
 
 from rclpy.node import Node
-from worm_msgs.msg import DriveCommand, LoadCommand, RigSample
+from worm_msgs.msg import DriveCommand, LoadCommand, RigSample, RigSamples
+
+from worm_model.rig_data.samples import unbatch
 
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
@@ -47,7 +49,7 @@ class FilCommander(Node):
         self.report_file = declare(self, "report_file", "", "Write the JSON summary here at shutdown (empty: no file).")
         self.drive = self.create_publisher(DriveCommand, "/rig/drive_command", STREAM)
         self.load = self.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
-        self.create_subscription(RigSample, "/rig/sample", self.on_sample, STREAM)
+        self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
         self.create_timer(1.0 / rate, self.on_tick)
         self.start: float | None = None
         self.torque: float | None = None
@@ -57,7 +59,12 @@ class FilCommander(Node):
         self.phases: dict[str, dict[str, float]] = {}
         self.watchdog_samples = 0
 
-    def on_sample(self, s: RigSample) -> None:
+    def on_samples(self, batch: RigSamples) -> None:
+        for s in unbatch(batch):
+            self.on_sample(s)
+
+    def on_sample(self, s) -> None:
+        """One sample (worm_model.rig_data.samples.Sample: RigSample's fields)."""
         if self.start is None:
             self.start = time.monotonic()
         self.samples += 1

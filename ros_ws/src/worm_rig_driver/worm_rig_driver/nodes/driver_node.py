@@ -1,14 +1,20 @@
 """driver_node: the real rig (ATmega2560 firmware over a serial port) on the graph.
 
-Publishes what sim_node publishes, from the rig's telemetry (sensor-data QoS):
-  /rig/sample       worm_msgs/RigSample       every telemetry frame, seq = the firmware's sample tick
-  /rig/currents     worm_msgs/MotorCurrents   (every `channel_decimation`-th sample)
-  /rig/joint_states sensor_msgs/JointState    worm and gear position, velocity, effort
-  /rig/encoders     worm_msgs/EncoderCounts
-  /diagnostics      diagnostic_msgs/DiagnosticArray  link state and statistics, 1 Hz
-and forwards /rig/drive_command (DriveCommand) and /rig/load_command
-(LoadCommand) to the firmware, refusing (with a logged reason) anything
-non-finite or beyond max_drive_voltage / max_load_torque.
+Publishes what sim_node publishes, from the rig's telemetry (rig_topics.py; seq =
+the firmware's sample tick): /rig/samples (RigSamples, ``batch_size`` frames per
+message), /rig/sample (RigSample, one by one, while subscribed), /rig/currents,
+/rig/joint_states, /rig/encoders (every ``channel_decimation``-th sample, while
+subscribed) and /diagnostics (link state and statistics, 1 Hz).
+
+Commands: /rig/load_command (LoadCommand) goes to the firmware's load-current
+loops; /rig/drive_command (DriveCommand, a voltage) and /rig/speed_command
+(SpeedCommand) go to the rig's speed loop (worm_rig_driver.drive.rig_loop),
+which this node runs on every telemetry frame in the reader thread, as the
+firmware would: the drive voltage for the next tick is computed the moment a
+frame arrives and sent back at once. Anything non-finite or beyond
+max_drive_voltage / max_load_torque is refused with a logged reason; no drive or
+speed command for ``command_timeout`` sets the drive to zero (and the firmware's
+own watchdog stops the motors when the host goes quiet).
 
 The port is owned by a reader thread (serial_link.SerialLink: why a thread is
 said there); the protocol, the limits and the statistics are link.LinkCore.
@@ -17,21 +23,23 @@ from __future__ import annotations
 
 import json
 
+import time
+
 from rclpy.node import Node
-from rclpy.time import Time
-from sensor_msgs.msg import JointState
-from worm_msgs.msg import DriveCommand, EncoderCounts, LoadCommand, MotorCurrents, RigSample
+from worm_msgs.msg import DriveCommand, LoadCommand, RigSample, SpeedCommand
 
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
-from worm_model.ros.qos import COMMAND, STREAM
 from worm_model.physics.parameters import load_rig
 
 import worm_rig_driver.protocol.table as table
 from worm_rig_driver.link.core import CommandLimits, LinkConfig, LinkCore, LinkState, Sample
 from worm_rig_driver.protocol.scaling import RigScaling
 from worm_rig_driver.link.serial_link import SUPPORTED_BAUDS, SerialLink
+from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
+from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
+from worm_rig_driver.nodes.rig_topics import FIELDS, RigTopics, speed_command_from_msg, subscribe_commands
 
 
 class DriverNode(Node):
@@ -45,13 +53,14 @@ class DriverNode(Node):
         rate = declare(self, "stream_rate_hz", table.SAMPLE_RATE_HZ,
                        f"Telemetry rate [Hz]: 0 or a divisor of {table.SAMPLE_RATE_HZ}.", low=0,
                        high=table.SAMPLE_RATE_HZ)
-        self.decimation = declare(self, "channel_decimation", 10,
-                                  "Publish currents/joint_states/encoders every N-th sample (RigSample: every one).",
-                                  low=1, high=1000)
-        command_timeout = declare(self, "command_timeout", 0.5,
-                                  "Drive command age [s] after which the drive is set to zero (host watchdog; "
-                                  f"the firmware's own stops the motors {table.WATCHDOG_MS} ms after the link dies).",
-                                  low=0.01, high=10.0)
+        batch_size = declare(self, "batch_size", 5, "Telemetry frames per /rig/samples message.", low=1, high=1000)
+        decimation = declare(self, "channel_decimation", 10,
+                             "Publish currents/joint_states/encoders every N-th sample (while subscribed).",
+                             low=1, high=1000)
+        command_timeout = declare(self, "command_timeout", 0.1,
+                                  "Age [s] of the last drive or speed command after which the drive is set to zero "
+                                  f"(host watchdog; the firmware's own stops the motors {table.WATCHDOG_MS} ms after "
+                                  "the link dies).", low=0.005, high=10.0)
         rx_timeout = declare(self, "rx_timeout", 0.25, "No frame from the rig for this long [s]: count a timeout "
                              "and handshake again.", low=0.01, high=10.0)
         reconnect = declare(self, "reconnect_period", 0.1, "Period [s] of attempts to reopen a lost port.",
@@ -68,16 +77,18 @@ class DriverNode(Node):
         self.frame_id = declare(self, "frame_id", "worm_rig", "frame_id of published headers.")
 
         self.scaling = RigScaling.from_rig(self.rig)
+        self.max_voltage = max_voltage
+        # The link's own drive watchdog backs the loop's up (the loop sends every frame).
         core = LinkCore(self.scaling, CommandLimits(max_voltage, max_torque),
                         LinkConfig(stream_rate_hz=rate, rx_timeout=rx_timeout, command_timeout=command_timeout,
                                    clock_max_drift=drift))
-
-        self.pub_sample = self.create_publisher(RigSample, "/rig/sample", STREAM)
-        self.pub_currents = self.create_publisher(MotorCurrents, "/rig/currents", STREAM)
-        self.pub_joints = self.create_publisher(JointState, "/rig/joint_states", STREAM)
-        self.pub_encoders = self.create_publisher(EncoderCounts, "/rig/encoders", STREAM)
-        self.create_subscription(DriveCommand, "/rig/drive_command", self.on_drive_command, STREAM)
-        self.create_subscription(LoadCommand, "/rig/load_command", self.on_load_command, COMMAND)
+        tick = 1.0 / table.SAMPLE_RATE_HZ
+        self.loop = RigLoop(self.rig, tick * table.SAMPLE_RATE_HZ / max(rate, 1), command_timeout, DEFAULT_GAINS,
+                            seq_period=tick)
+        self.topics = RigTopics(self, self.frame_id, tick, batch_size, decimation, self.scaling.counts_per_rev)
+        self._command_seq = 0  # the speed command in force for the next frame (its source seq)
+        self._driving = False
+        subscribe_commands(self, self.on_speed_command, self.on_drive_command, self.on_load_command)
 
         self.link = SerialLink(port, core, self.publish_samples, self.log_line, baud=baud,
                                reconnect_period=reconnect)
@@ -92,43 +103,47 @@ class DriverNode(Node):
         super().destroy_node()
 
     # --- commands ---------------------------------------------------------------------------
-    def on_drive_command(self, msg: DriveCommand) -> None:
-        reason = self.link.command(lambda core, now: core.drive(msg.voltage, now))
+    def _refused(self, what: str, reason: str | None) -> None:
         if reason:
             # .warning, not .warn: rclpy keys a call site's throttle filter on its caller, and
             # .warn (deprecated) is one caller for every site: a throttled and an unthrottled
             # .warn in one node raise "logging filters cannot be changed" in the second.
-            self.get_logger().warning(f"rejected drive command: {reason}", throttle_duration_sec=1.0)
+            self.get_logger().warning(f"rejected {what} command: {reason}", throttle_duration_sec=1.0)
+
+    def on_drive_command(self, msg: DriveCommand) -> None:
+        reason = self.link.core.limits.drive_problem(msg.voltage)
+        if reason is None:
+            reason = self.loop.command_voltage(msg.voltage, time.monotonic()) or None
+        if reason:
+            self.link.core.stats.rejected_commands += 1
+        self._refused("drive", reason)
+
+    def on_speed_command(self, msg: SpeedCommand) -> None:
+        command = speed_command_from_msg(msg)
+        reason = self.loop.command_speed(command, time.monotonic())
+        if reason:
+            self.link.core.stats.rejected_commands += 1
+        self._refused("speed", reason)
 
     def on_load_command(self, msg: LoadCommand) -> None:
-        reason = self.link.command(lambda core, now: core.load(msg.torque, now))
-        if reason:
-            self.get_logger().warning(f"rejected load command: {reason}")
+        self._refused("load", self.link.command(lambda core, now: core.load(msg.torque, now)))
 
     # --- telemetry (called from the reader thread) ----------------------------------------------
     def publish_samples(self, samples: list[Sample]) -> None:
+        """Run the speed loop on the newest frame and send its voltage; publish every frame."""
+        stopped = RigSample.STATUS_WATCHDOG_STOP if self.loop.watchdog_stopped else 0
         for s in samples:
-            msg = RigSample(
-                seq=s.seq, current_drive=s.current_drive, current_load_1=s.current_load_1,
-                current_load_2=s.current_load_2, omega_worm=s.omega_worm, omega_gear=s.omega_gear,
-                theta_worm=s.theta_worm, theta_gear=s.theta_gear, count_drive=s.count_drive,
-                count_load_1=s.count_load_1, count_load_2=s.count_load_2, voltage_drive=s.voltage_drive,
-                tau_load=s.tau_load, status=s.status)
-            msg.header.stamp = Time(nanoseconds=s.stamp_ns).to_msg()
-            msg.header.frame_id = self.frame_id
-            self.pub_sample.publish(msg)
-            if s.seq % self.decimation == 0:
-                self.publish_channels(msg)
-
-    def publish_channels(self, s: RigSample) -> None:
-        self.pub_currents.publish(MotorCurrents(header=s.header, drive=s.current_drive, load_1=s.current_load_1,
-                                                load_2=s.current_load_2))
-        self.pub_joints.publish(JointState(header=s.header, name=["worm", "gear"],
-                                           position=[s.theta_worm, s.theta_gear],
-                                           velocity=[s.omega_worm, s.omega_gear],
-                                           effort=[float("nan"), s.tau_load]))
-        self.pub_encoders.publish(EncoderCounts(header=s.header, drive=s.count_drive, load_1=s.count_load_1,
-                                                load_2=s.count_load_2, counts_per_rev=self.scaling.counts_per_rev))
+            values = {name: getattr(s, name) for name in FIELDS}
+            values["status"] |= stopped
+            self.topics.add(s.seq, s.stamp_ns, values, self._command_seq)
+        newest = samples[-1]
+        out = self.loop.step(time.monotonic(), newest.omega_worm, newest.seq)
+        self._command_seq = out.command_seq
+        if out.mode is not DriveMode.STOPPED or self._driving:
+            # min(): the loop clamps to the supply; the driver's own limit may be lower
+            voltage = max(-self.max_voltage, min(self.max_voltage, out.voltage))
+            self.link.command(lambda core, now: core.drive(voltage, now))
+        self._driving = out.mode is not DriveMode.STOPPED
 
     def log_line(self, level: str, message: str) -> None:
         # One call site per severity: rclpy refuses a call site whose severity changes.

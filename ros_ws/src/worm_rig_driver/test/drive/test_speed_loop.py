@@ -1,4 +1,5 @@
-"""SpeedController on the simulated plant: tracking, anti-windup, feedforward (physics.md sections 6-8)."""
+"""The drive's speed PI: SpeedController (vectorised) and PiLoop (scalar) agree; tracking, anti-windup and
+feedforward on the simulated plant (physics.md sections 6-8)."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -6,11 +7,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from worm_model.physics.efficiency import forward_efficiency
-from worm_model.physics.friction import friction_coefficient
 from worm_model.physics.parameters import load_rig
 from worm_rig_driver.sim.plant import RigPlant
-from worm_rig_driver.drive.speed_loop import PiGains, SpeedController
+from worm_rig_driver.drive.speed_loop import PiGains, PiLoop, SpeedController
 from worm_model.physics.steady_state import balancing_torque as feedforward_torque
 
 RIG = load_rig()
@@ -49,23 +48,6 @@ def _closed_loop(controller: SpeedController, refs, loads, feedforward: bool = F
 
 
 # --- pure functions ---------------------------------------------------------------------------------
-
-def test_feedforward_is_i_d_over_eta_for_resistive_loads_in_both_directions() -> None:
-    omega = np.array([20.0, 150.0, 400.0, -20.0, -150.0, -400.0])
-    tau = np.array([0.05, 0.2, 0.27, -0.05, -0.2, -0.27])  # opposing the motion in every case
-    mu = friction_coefficient(RIG.friction, GB, omega)
-    expected = np.sign(omega) * GB.ratio * np.abs(tau) / forward_efficiency(GB, mu)  # T_min = i D / eta
-    # (r_w/r_g) K_+ = i / eta holds to the geometric consistency of i = r_w tan(lambda) / r_g
-    # (the bundled lead angle is rounded to 1e-6 deg: ~2e-8 relative)
-    assert abs(GB.geometric_ratio / GB.ratio - 1) < 1e-7
-    np.testing.assert_allclose(feedforward_torque(RIG, tau, omega), expected, rtol=1e-6)
-
-
-def test_feedforward_of_nan_load_is_zero() -> None:
-    ff = feedforward_torque(RIG, np.array([np.nan, 0.1, np.nan]), np.array([100.0, 100.0, -50.0]))
-    assert np.all(np.isfinite(ff))
-    assert ff[0] == 0.0 and ff[2] == 0.0 and ff[1] > 0.0
-
 
 def test_output_follows_the_torque_domain_law() -> None:
     ctrl = SpeedController(RIG, GAINS, n=2)
@@ -158,27 +140,26 @@ def test_feedforward_reduces_the_speed_dip_after_a_load_step() -> None:
     assert abs(with_ff[-1, 0] - 150.0) < 0.05
 
 
-# --- which estimate is fed forward (controller_node's rule) -----------------------------------------
-
-def test_feedforward_gate_uses_only_fresh_usable_estimates() -> None:
-    from torque_estimator.estimation.base import EstimateFlags
-    from torque_estimator.control.feedforward import FeedforwardGate
-
-    gate = FeedforwardGate(timeout=0.05)
-    assert gate.load(10.0) is None  # nothing offered yet
-    gate.offer(0.12, 0, stamp=10.0)
-    assert gate.load(10.001) == 0.12
-    assert gate.load(10.049) == 0.12 and gate.load(10.051) is None  # stale beyond the timeout
-    for flag in (EstimateFlags.AMBIGUOUS, EstimateFlags.TRANSIENT):
-        gate.offer(0.1, int(flag), stamp=11.0)
-        assert gate.load(11.0) == 0.1, flag.name  # still the best guess
-    for flag in (EstimateFlags.INVALID_INPUT, EstimateFlags.OUT_OF_CALIBRATION):
-        gate.offer(0.1, int(flag | EstimateFlags.AMBIGUOUS), stamp=12.0)
-        assert gate.load(12.0) is None, flag.name
-    gate.offer(float("nan"), 0, stamp=13.0)
-    assert gate.load(13.0) is None
-    gate.offer(-0.2, 0, stamp=14.0)
-    gate.enabled = False
-    assert gate.load(14.0) is None
-    gate.enabled = True
-    assert gate.load(14.0) == -0.2
+def test_scalar_loop_equals_the_vectorised_controller_step_by_step() -> None:
+    """PiLoop (the live rig's) and SpeedController (batch calibration's) are one law: same outputs
+    to the last bit over set-point steps, saturation both ways, NaN measurements and feedforward."""
+    rng = np.random.default_rng(3)
+    steps = 3000
+    refs = np.repeat(rng.uniform(-450, 450, steps // 100), 100)
+    measured = refs + rng.normal(0, 30, steps)
+    measured[rng.integers(0, steps, 40)] = np.nan
+    ff = rng.normal(0, 0.02, steps)
+    ff[rng.integers(0, steps, 20)] = np.inf
+    vector = SpeedController(RIG, GAINS, voltage_limit=12.0)
+    scalar = PiLoop(RIG, GAINS, voltage_limit=12.0)
+    saturated = 0
+    for k in range(steps):
+        out = vector.update(PERIOD, refs[k], measured[k], ff[k])
+        voltage = scalar.update(PERIOD, float(refs[k]), float(measured[k]), float(ff[k]))
+        assert voltage == float(out.voltage[0]), k
+        assert scalar.integral == float(vector.integral[0]), k
+        assert scalar.saturated == bool(out.saturated[0]), k
+        saturated += scalar.saturated
+    assert 100 < saturated < steps - 100  # the run does exercise the limit and the linear range
+    with pytest.raises(ValueError):
+        PiLoop(RIG, GAINS, voltage_limit=0.0)
