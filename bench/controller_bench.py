@@ -1,25 +1,25 @@
 """Load-step rejection of the speed controller, feedforward off and on (no ROS, deterministic).
 
-    python bench/controller_bench.py [--seed N] [--graph FILE] [--set NODE.PARAM=VALUE ...]
+    python bench/controller_bench.py [--seed N] [--method NAME] [--graph-latency N] [--graph FILE]
+                                     [--set NODE.PARAM=VALUE ...]
 
-Runs the demo's scenario (torque_estimator.experiment.scenario.DEMO_SCENARIO: load steps
-into all three modes at +-150 rad/s) on the live graph's control loop in one
-process (torque_estimator.experiment.closed_loop: SimulatedRig + LiveEstimator +
-FeedforwardGate + SpeedController, the cores sim_node, estimator_node and
-controller_node run), with the PI gains, estimator options and timeouts of
-the installed sim_graph.yaml, on a calibration of the paper's grid.
-Three rigs side by side: feedforward off, on (the k-NN estimate through
-LiveEstimator), and ideal (the applied load itself, one sample late: the
-bound any estimator could reach).
+Runs the demo's scenario (torque_estimator.experiment.scenario.DEMO_SCENARIO:
+load steps into all three modes at +-150 rad/s) on the live graph's control
+loop in one process (torque_estimator.experiment.closed_loop: SimulatedRig with
+the rig's own speed PI, LiveEstimator, FeedforwardGate, the cores sim_node,
+estimator_node and controller_node run), with the PI gains, estimator options
+and timeouts of the installed sim_graph.yaml, on a calibration of the paper's
+grid. Three rigs side by side: feedforward off, on (the estimator the graph
+file selects, or --method), and ideal (the applied load itself, through the
+same timing: the bound any estimator could reach).
 
 Two timings, one table each:
-  firmware  the rig takes each command at the next sample and the controller
-            gets each estimate one sample late (a controller on the rig's own clock);
-  graph     as the node graph runs it: sim_node simulates 5 samples per tick with
-            the last command received (publish_period 5 ms), commands reach it 5
-            samples late, estimates reach the controller 5 samples late (a recorded
-            demo run: 1 to ~40 samples from a sample to the command that acted on
-            it, median ~10; estimates 1 to 13 ms old when used).
+  firmware  the rig's PI on every sample; the estimate of one sample feeds the
+            period after next (the estimator beside the rig, one sample late);
+  graph     as the node graph runs it: the controller gets the estimator's
+            newest estimate once per /rig/samples batch (5 samples) and its speed
+            command drives the rig --graph-latency sample periods after the next
+            one (bench/graph_bench.py measures that latency on the live graph).
 
 Per pure load step (same speed, new load), from the rig's true worm speed
 (tacho noise is not a dip):
@@ -33,9 +33,9 @@ calibrated torque range).
 
 Prints the tables on stderr and, on stdout, over all load steps: the worst
 peak dip, the worst settling time and the summed IAE, for the firmware timing
-  loadstep_peak_dip_ff_off: <x> rad/s          loadstep_peak_dip_ff_on: <x> rad/s
-  loadstep_settling_time_ff_off: <x> s         loadstep_settling_time_ff_on: <x> s
-  loadstep_iae_ff_off: <x> rad                 loadstep_iae_ff_on: <x> rad
+  loadstep_peak_dip_ff_off: <x> rad/s   loadstep_peak_dip_ff_on: <x> rad/s   loadstep_peak_dip_ideal: <x> rad/s
+  loadstep_settling_time_ff_off: <x> s  loadstep_settling_time_ff_on: <x> s  loadstep_settling_time_ideal: <x> s
+  loadstep_iae_ff_off: <x> rad          loadstep_iae_ff_on: <x> rad          loadstep_iae_ideal: <x> rad
 and the same with a _graph suffix (loadstep_iae_ff_on_graph, ...) for the graph timing.
 Never asserts.
 """
@@ -52,14 +52,14 @@ import yaml
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.experiment.closed_loop import run_scenario
 from torque_estimator.graph.runner import default_graph_file
-from torque_estimator.estimation.registry import make_estimator
+from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
 from torque_estimator.experiment.run_analysis import load_step_responses
 from torque_estimator.experiment.scenario import DEMO_SCENARIO, segment_starts
 from worm_rig_driver.drive.speed_loop import PiGains
 from worm_model.physics.parameters import load_rig
 
-MODES = {"off": "ff_off", "estimate": "ff_on", "truth": "ff_ideal"}
-LABELS = {"off": "off", "estimate": "on (k-NN)", "truth": "ideal (true load)"}
+MODES = {"off": "ff_off", "estimate": "ff_on", "truth": "ideal"}
+LABELS = {"off": "off", "estimate": "on", "truth": "ideal (true load)"}
 
 
 def info(text: str) -> None:
@@ -87,8 +87,11 @@ def graph_parameters(path: Path | None, overrides: list[str]) -> dict:
     return params
 
 
-#: name -> (command_period, command_delay, estimate_delay, metric suffix): see the module docstring.
-TIMINGS = {"firmware": (1, 0, 1, ""), "graph": (5, 5, 5, "_graph")}
+#: The graph's speed-command latency [sample periods] from the sample an estimate came from to the
+#: first period its command drives, less the one period that is always there (graph_latency_p50 of
+#: bench/graph_bench.py in ms, minus 1): see --graph-latency.
+GRAPH_LATENCY = 1
+GRAPH_BATCH = 5  # sim_graph.yaml's batch_size
 SETTLE = 0.8  # [s] after a change before the live estimate counts as steady (run_analysis.analyse_run)
 
 
@@ -144,6 +147,11 @@ def report(timing: str, runs: dict, torque_range: float) -> dict[str, tuple[floa
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seed", type=int, default=0, help="seed of calibration and run noise (default 0)")
+    parser.add_argument("--method", choices=sorted(ESTIMATORS), default=None,
+                        help="estimator fed forward (default: estimator_node's method in the graph file)")
+    parser.add_argument("--graph-latency", type=int, default=GRAPH_LATENCY,
+                        help="graph timing: sample periods from the period after an estimate's sample to the "
+                             f"first period its speed command drives (default {GRAPH_LATENCY})")
     parser.add_argument("--graph", type=Path, default=None,
                         help="graph parameter file to take the gains and estimator options from "
                              "(default: the installed sim_graph.yaml)")
@@ -157,25 +165,29 @@ def main(argv: list[str] | None = None) -> int:
 
     start = time.perf_counter()
     db = calibrate_simulated(rig, CalibrationGrid.paper(rig), seed=args.seed)
-    estimator = make_estimator(est_p.get("method", "knn"), db, k=int(est_p.get("k", 4)),
-                               weighting=est_p.get("weighting", "inverse_distance"))
+    method = args.method or est_p.get("method", "knn")
+    options = ({"k": int(est_p.get("k", 4)), "weighting": est_p.get("weighting", "inverse_distance")}
+               if method == "knn" else {})
+    estimator = make_estimator(method, db, **options)
+    LABELS["estimate"] = f"on ({method})"
+    info(f"[controller_bench] feedforward estimator: {method}")
     info(f"[controller_bench] calibration: {len(db)} points in {time.perf_counter() - start:.1f} s")
     options = live_options(est_p)
     info(f"[controller_bench] LiveEstimator options: {options}")
 
     metrics = []
-    for timing, (period, delay, estimate_delay, suffix) in TIMINGS.items():
+    timings = {"firmware": (1, 1, ""), "graph": (GRAPH_BATCH, args.graph_latency, "_graph")}
+    for timing, (batch, latency, suffix) in timings.items():
         start = time.perf_counter()
         runs = run_scenario(rig, DEMO_SCENARIO, tuple(MODES), estimator=estimator, seed=args.seed + 1,
                             gains=PiGains(float(ctl_p["kp"]), float(ctl_p["ki"])),
                             estimate_timeout=float(ctl_p.get("estimate_timeout", 0.05)),
-                            live_options=options, command_period=period, command_delay=delay,
-                            estimate_delay=estimate_delay)
+                            live_options=options, ff_batch=batch, ff_latency=latency)
         duration = sum(s.duration for s in DEMO_SCENARIO)
         info(f"[controller_bench] {timing} timing: {duration:.0f} s scenario x {len(MODES)} rigs simulated in "
              f"{time.perf_counter() - start:.1f} s")
         summary = report(timing, runs, db.torque_range)
-        for mode in ("off", "estimate"):
+        for mode in MODES:
             dip, settle, iae = summary[mode]
             metrics += [(f"loadstep_peak_dip_{MODES[mode]}{suffix}", dip, "rad/s"),
                         (f"loadstep_settling_time_{MODES[mode]}{suffix}", settle, "s"),

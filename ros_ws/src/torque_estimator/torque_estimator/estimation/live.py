@@ -31,6 +31,11 @@ A disturbance observer in front of a quasi-static map. Per sample (ω_w [rad/s],
    (positive opposing positive worm rotation) with an uncertainty and flags;
    a sample taken while |α| > ``transient_acceleration`` is flagged TRANSIENT.
 
+Streaming estimators (those with a ``stream(sample_period)`` method, e.g. the model-based
+observer of observer.py) replace steps 1-3: every sample goes to the stream as it is,
+with the applied drive voltage and the encoder angle (``update``'s ``voltage`` and
+``theta``; a missing voltage is an invalid input), and its estimate is returned.
+
 A NaN/inf input gives an INVALID_INPUT estimate and leaves every state as it
 was. Used by estimator_node and by the controller benchmark, so both run the
 same code. No ROS.
@@ -176,9 +181,17 @@ class LiveEstimator:
         self._previous_speed: float | None = None
         self._omega = math.nan  # [rad/s] filtered speed of the last valid sample
         self.alpha = 0.0  # [rad/s^2] acceleration of the filtered speed, last sample
+        make_stream = getattr(estimator, "stream", None)
+        self.stream = make_stream(sample_period) if callable(make_stream) else None
 
-    def update(self, omega_worm: float, current_drive: float) -> LiveEstimate:
-        """Feed one sample: measured worm speed [rad/s] and drive current [A]."""
+    def update(self, omega_worm: float, current_drive: float, voltage: float | None = None,
+               theta: float | None = None) -> LiveEstimate:
+        """Feed one sample: measured worm speed [rad/s] and drive current [A]; for a streaming
+        estimator also the drive voltage applied during this sample's period [V] and the encoder
+        angle [rad] (None: no encoder)."""
+        if self.stream is not None:
+            est = self.stream.update(math.nan if voltage is None else voltage, current_drive, omega_worm, theta)
+            return LiveEstimate(est.torque, est.uncertainty, est.flags, est.omega_worm, est.current_drive)
         if math.isfinite(omega_worm) and math.isfinite(current_drive):
             omega = self.speed.update(omega_worm)
             current = self.current.update(current_drive)

@@ -13,18 +13,23 @@ from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.base import TorqueEstimator
 from torque_estimator.estimation.extended_model import ExtendedModelEstimator
 from torque_estimator.estimation.knn import KnnEstimator
+from torque_estimator.estimation.observer import ObserverEstimator
 
 
 #: Estimator name → factory ``(database, **options) -> TorqueEstimator``.
+#: "observer" is also a streaming estimator: it has ``stream(sample_period)``, which
+#: LiveEstimator uses (fed voltage and encoder angle per sample) instead of its own filters.
 ESTIMATORS: dict[str, Callable[..., TorqueEstimator]] = {
     "knn": KnnEstimator,
     "extended_model": ExtendedModelEstimator,
+    "observer": ObserverEstimator,
 }
 
 #: Estimator name → the estimator_node parameters passed to its factory as options.
 NODE_OPTIONS: dict[str, tuple[str, ...]] = {
     "knn": ("k", "weighting"),
     "extended_model": ("model_file", "rig_file"),
+    "observer": ("rig_file",),
 }
 
 

@@ -96,9 +96,9 @@ class EstimatorNode(Node):
         self.received += n
         if self.estimator is None or not n:
             return
-        omega, current = batch.omega_worm, batch.current_drive
+        omega, current, voltage, theta = batch.omega_worm, batch.current_drive, batch.voltage_drive, batch.theta_worm
         for k in range(n):
-            est = self.estimator.update(omega[k], current[k])
+            est = self.estimator.update(omega[k], current[k], voltage[k], theta[k])
             if est.flags:
                 for flag in EstimateFlags(est.flags):
                     self.flag_counts[flag.name] += 1

@@ -1,0 +1,78 @@
+"""Figures of the load observer (torque_estimator.estimation.observer) on the simulated rig; no ROS, never asserts.
+
+    python bench/observer_bench.py [--seeds N]
+
+Prints: the step response to a 0 -> 0.2 N m load step at 150 rad/s (ensemble over seeds; a true
+step, and with the rig's 2 ms load loop), the steady noise against the filter's prediction and
+the Cramer-Rao-type bound, the step-size bound (jump_bound), errors over a speed ramp and
+through a +150 -> -150 rad/s reversal, the 17 held-out points streamed, the robustness table
+(observer's model perturbed: mu ±30 %, K_t ±5 %, J ±20 %) and the closed loop of
+controller_bench (firmware timing, seed 1) with feedforward off / observer / ideal.
+"""
+from __future__ import annotations
+
+import argparse
+
+import numpy as np
+
+from torque_estimator.calibration.batch import CalibrationGrid
+from torque_estimator.experiment.closed_loop import run_scenario
+from torque_estimator.experiment.evaluation import held_out_setpoints
+from torque_estimator.estimation.observer import ObserverEstimator, equivalent_window, jump_bound, predicted_noise, \
+    steady_state_bound
+from torque_estimator.experiment.observer_study import held_out_streaming, perturbed_rig, profile_error, step_response
+from torque_estimator.experiment.run_analysis import load_step_responses
+from torque_estimator.experiment.scenario import DEMO_SCENARIO
+from worm_model.physics.parameters import load_rig
+
+RANGE = 0.495
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seeds", type=int, default=12)
+    args = parser.parse_args()
+    rig = load_rig(None)
+    for ideal in (True, False):
+        r = step_response(rig, seeds=args.seeds, ideal_step=ideal)
+        print(f"step 0->0.2 N m at 150 rad/s ({'true step' if ideal else 'rig load loop, 2 ms'}): "
+              f"step90_ms={r.step90_ms:g} (ensemble mean; applied load itself {r.truth90_ms:g}) per seed "
+              f"{sorted(r.per_seed90_ms.astype(int).tolist())} overshoot={r.overshoot_pct:.1f} % "
+              f"5 ms p10/p90={r.spread_5ms[0]:.2f}/{r.spread_5ms[1]:.2f} of the step")
+        if ideal:
+            nominal = r
+    print(f"steady noise at 150 rad/s: measured {nominal.steady_std:.2e} N m, predicted (4-state, constant load) "
+          f"{predicted_noise(rig, 150.0, 0.0):.2e}, bound (steady Kalman, random-walk load) "
+          f"{steady_state_bound(rig, 150.0, 0.0):.2e}; equivalent window {equivalent_window(rig, 150.0, 0.0):.0f} "
+          f"samples")
+    print("jump bound, 1 sigma of a 0.2 N m step after n samples [%]:",
+          " ".join(f"{n + 1}:{100 * v:.0f}" for n, v in enumerate(jump_bound(rig, 150.0, 0.1, 6) / 0.2)))
+    ramp = profile_error(rig, lambda t: 50 + 250 * min(max(t - 0.5, 0.0), 1.0), 0.1, 1.6, start=0.5)
+    print(f"ramp 50->300 rad/s in 1 s at 0.1 N m: mean {100 * ramp[0] / RANGE:.2f} % max {100 * ramp[1] / RANGE:.2f} %")
+    for substeps in (2, 20):
+        for load in (0.1, -0.1):
+            rev = profile_error(rig, lambda t: 150.0 if t < 0.6 else -150.0, load, 1.2, start=0.6,
+                                substeps=substeps)
+            print(f"reversal +150->-150 at {load:+.1f} N m, simulator substeps {substeps}: "
+                  f"mean {100 * rev[0] / RANGE:.2f} % max {100 * rev[1] / RANGE:.1f} %")
+    speeds, torques = held_out_setpoints(CalibrationGrid.paper(rig), 17, 1)
+    est, truth = held_out_streaming(rig, speeds, torques)
+    error = 100 * np.abs(est - truth) / RANGE
+    print(f"17 held-out points streamed: mean {error.mean():.3f} % max {error.max():.3f} % of the range")
+    print("robustness (observer's model perturbed; step90_ms, overshoot %, steady bias N m, steady std N m):")
+    for case in (dict(), dict(mu=1.3), dict(mu=0.7), dict(kt=1.05), dict(kt=0.95), dict(inertia=1.2),
+                 dict(inertia=0.8)):
+        r = step_response(rig, seeds=args.seeds, observer_rig=perturbed_rig(rig, **case))
+        name = ",".join(f"{k} x{v}" for k, v in case.items()) or "nominal"
+        print(f"  {name:14s} {r.step90_ms:5g} {r.overshoot_pct:6.1f} {r.steady_bias:+.4f} {r.steady_std:.5f}  "
+              f"per-seed median {np.median(r.per_seed90_ms):g} max {np.max(r.per_seed90_ms):g}")
+    runs = run_scenario(rig, DEMO_SCENARIO, ("off", "estimate", "truth"), estimator=ObserverEstimator(None), seed=1)
+    for mode, run in runs.items():
+        steps = load_step_responses(DEMO_SCENARIO, run.t, run.omega_true, run.setpoint)
+        print(f"closed loop firmware timing, ff {mode}: worst dip {max(s.peak_dip for s in steps):.2f} rad/s "
+              f"IAE {sum(s.iae for s in steps):.3f} rad")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,195 @@
+"""The model-based load observer (torque_estimator.estimation.observer) on the simulated rig.
+
+Tolerances come from runs over several seeds (bench/observer_bench.py prints them); each
+test says what it measured. The simulator runs the rig file's parameters and, unless said,
+the paper's model exactly, which the observer also uses: its steady accuracy is therefore
+near perfect and the robustness test (the observer's model perturbed) is the one that says
+how it fares with a model error.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from torque_estimator.calibration.batch import CalibrationGrid
+from torque_estimator.experiment.closed_loop import run_scenario
+from torque_estimator.estimation.base import EstimateFlags
+from torque_estimator.estimation.registry import ESTIMATORS, NODE_OPTIONS, make_estimator
+from torque_estimator.experiment.evaluation import held_out_setpoints
+from torque_estimator.estimation.observer import (LoadObserver, ObserverEstimator, StaticLoadMap, jump_bound,
+                                       predicted_noise, steady_state_bound)
+from torque_estimator.experiment.observer_study import (held_out_streaming, perturbed_rig, profile_error, run_observers,
+                                             step_response)
+from torque_estimator.experiment.run_analysis import load_step_responses
+from torque_estimator.experiment.scenario import DEMO_SCENARIO
+from worm_model.physics.parameters import load_rig
+
+RIG = load_rig(None)
+RANGE = 0.495  # [N m] the paper grid's calibrated range (CalibrationGrid.paper: ±0.9 x max load torque)
+
+
+@pytest.fixture(scope="module")
+def nominal_step():
+    return step_response(RIG, seeds=8)
+
+
+def test_registry() -> None:
+    assert "observer" in ESTIMATORS and NODE_OPTIONS["observer"] == ("rig_file",)
+    est = make_estimator("observer", None)
+    assert callable(est.stream) and isinstance(est.stream(0.001), LoadObserver)
+
+
+def test_static_map_round_trip() -> None:
+    """The quasi-static estimate inverts the model's current at alpha = 0 on both flanks and both directions."""
+    est = ObserverEstimator(None)
+    smap = StaticLoadMap(RIG)
+    motor = RIG.drive_motor
+    for omega in (-300.0, -40.0, 40.0, 150.0):
+        for tau in (-0.2, -0.05, -0.004, 0.0, 0.1, 0.24):
+            t_dist, _slope, _flank = smap.worm_torque(omega, tau)
+            current = (t_dist + motor.viscous_drag * omega) / motor.torque_constant
+            result = est.estimate(omega, current)
+            assert float(result.torque) == pytest.approx(tau, abs=1e-9)
+            assert int(result.flags) == 0
+
+
+def test_self_locking_v_is_ambiguous() -> None:
+    """At 2 rad/s the AGMA mu (~0.12) self-locks the box: two loads draw the same current."""
+    est = ObserverEstimator(None)
+    smap = StaticLoadMap(RIG)
+    t_dist, _s, _f = smap.worm_torque(2.0, 0.1)
+    current = (t_dist + RIG.drive_motor.viscous_drag * 2.0) / RIG.drive_motor.torque_constant
+    result = est.estimate(2.0, current)
+    assert int(result.flags) & EstimateFlags.AMBIGUOUS
+    assert float(result.torque) == pytest.approx(0.1, abs=1e-9)  # the driving flank is reported
+    driving, coast, _flags, _chosen = smap.invert(2.0, t_dist)
+    assert float(coast) < 0 and float(result.uncertainty) >= abs(float(coast) - 0.1) - 1e-12
+
+
+def test_step_response(nominal_step) -> None:
+    """A true step 0 -> 0.2 N m at 150 rad/s (the load loop made instantaneous, so the estimator's own
+    delay is measured). Measured over 12 seeds: ensemble-mean 90 % at 3 ms, per seed 2-4 ms with an
+    occasional 11-12 ms (a first jump estimate under 90 %, finished by the filter), overshoot of the
+    ensemble mean 16-38 % for 1-3 ms right after the detection (the jump is estimated from 3-4 samples).
+    The spread is the physics: jump_bound gives 1 sigma = 18 % of the step at 3 samples."""
+    r = nominal_step
+    assert r.step90_ms <= 5
+    assert np.median(r.per_seed90_ms) <= 5
+    assert r.overshoot_pct < 60
+    assert abs(r.steady_bias) < 0.005
+    assert r.steady_std < 0.002  # measured 0.00047 N m
+
+
+def test_jump_bound_is_the_floor() -> None:
+    """Why no observer on these sensors reacts in 1-2 ms: the Cramer-Rao bound on a 0.2 N m step's size."""
+    sigma = jump_bound(RIG, 150.0, 0.1, 6) / 0.2
+    assert sigma[1] > 0.25 and sigma[2] > 0.12  # 2 samples: ~32 %, 3 samples: ~18 %
+    assert sigma[5] < 0.08
+
+
+def test_steady_noise_against_bound(nominal_step) -> None:
+    """Measured steady noise on a constant load vs the filter's predicted noise and the Cramer-Rao-type bound.
+    The predicted noise and bound use the 4-state model (armature equation exact); the observer also
+    estimates the armature-equation error, which costs ~3x in steady noise (measured 4.7e-4 N m against
+    predicted 2.3e-4 and bound 5.0e-4, the bound paying for a random-walk load)."""
+    predicted = predicted_noise(RIG, 150.0, 0.0)
+    bound = steady_state_bound(RIG, 150.0, 0.0)
+    assert predicted < bound
+    assert nominal_step.steady_std < 5 * predicted
+
+
+def test_held_out_points_streaming() -> None:
+    """The 17 held-out points of evaluation.py (seed 1), streamed and averaged over 0.5 s once steady.
+    Measured: mean 0.003 %, max 0.013 % of the range (the simulator runs the observer's model)."""
+    grid = CalibrationGrid.paper(RIG)
+    speeds, torques = held_out_setpoints(grid, 17, 1)
+    est, truth = held_out_streaming(RIG, speeds, torques)
+    error = 100 * np.abs(est - truth) / RANGE
+    assert error.mean() <= 1.0 and error.max() <= 2.0
+
+
+def test_flags_and_invalid_input() -> None:
+    obs = LoadObserver(RIG)
+    assert obs.update(math.nan, 0.1, 10.0, 0.0).flags & EstimateFlags.INVALID_INPUT  # before any valid sample
+    run = run_observers(RIG, lambda t: np.full(1, 150.0), lambda t: np.full(1, 0.1), 1, 0.5)
+    assert abs(run["tau_est"][-1, 0] - 0.1) < 0.01
+    # feed NaNs into a converged observer: held, flagged, no exception
+    obs = LoadObserver(RIG)
+    rng = np.random.default_rng(0)
+    for k in range(300):
+        obs.update(8.5, 0.1 + 0.02 * rng.normal(), 150.0, 0.15 * k)
+    held = obs.x[3]
+    for bad in (math.nan, math.inf):
+        est = obs.update(bad, 0.1, 150.0, 0.15 * 300)
+        assert est.flags & EstimateFlags.INVALID_INPUT and est.torque == held
+    est = obs.update(8.5, 0.1, math.nan, 0.15 * 301)
+    assert est.flags & EstimateFlags.INVALID_INPUT
+    # a load the rig cannot apply is out of calibration
+    big = LoadObserver(RIG)
+    big.update(8.5, 0.1, 150.0, 0.0)
+    big.x[3] = 5.0
+    assert big._estimate(False, 0).flags & EstimateFlags.OUT_OF_CALIBRATION
+
+
+def test_speed_ramp_and_reversal() -> None:
+    """Error while the speed ramps 50 -> 300 rad/s in 1 s at 0.1 N m (measured, 2 seeds: mean 0.3 %, max
+    4.6 % of the range, a short excursion as the ramp starts), and through a +150 -> -150 rad/s reversal at 0.1 N m on a simulator integrated finely
+    enough for a reversal (20 substeps; its default 2 substeps are coarse at ~30000 rad/s², see the
+    report): unflagged samples stay within 4 % of the range (measured 2.1 %; flagged ones are the
+    self-locking V at the zero crossing and the TRANSIENT after a detection)."""
+    ramp_mean, ramp_max = profile_error(RIG, lambda t: 50 + 250 * min(max(t - 0.5, 0.0), 1.0), 0.1, 1.6,
+                                        start=0.5, seeds=2)
+    assert 100 * ramp_mean / RANGE < 1.0 and 100 * ramp_max / RANGE < 8.0
+    run = run_observers(RIG, lambda t: np.full(2, 150.0 if t < 0.6 else -150.0), lambda t: np.full(2, 0.1), 2,
+                        0.8, substeps=20)
+    after = slice(600, None)
+    error = np.abs(run["tau_est"][after] - run["tau_true"][after])
+    unflagged = run["flags"][after] == 0
+    assert 100 * error[unflagged].max() / RANGE < 4.0
+
+
+@pytest.mark.parametrize("perturbation", [dict(mu=1.3), dict(mu=0.7), dict(kt=1.05), dict(kt=0.95),
+                                          dict(inertia=1.2), dict(inertia=0.8)],
+                         ids=lambda p: ",".join(f"{k}x{v}" for k, v in p.items()))
+def test_robustness(perturbation) -> None:
+    """The observer's model perturbed (the simulator keeps the rig file's values). Measured (8 seeds):
+    ensemble-mean 90 % at 3 ms in all but J x0.8 (12 ms: a lighter model reads less torque from the
+    deceleration, the first jump estimate falls short); overshoot up to ~190 % for K_t x0.95 (a short
+    spike), ~40 % for J x1.2; steady bias ~0.02 N m (4 % of the range) for mu ±30 % and K_t ±5 %."""
+    r = step_response(RIG, seeds=6, observer_rig=perturbed_rig(RIG, **perturbation))
+    assert r.step90_ms <= 20
+    assert abs(r.steady_bias) < 0.03
+    assert r.steady_std < 0.002
+
+
+def _closed_loop(seed: int = 1):
+    runs = run_scenario(RIG, DEMO_SCENARIO, ("off", "estimate", "truth"), estimator=ObserverEstimator(None),
+                        seed=seed)
+    out = {}
+    for mode, run in runs.items():
+        steps = load_step_responses(DEMO_SCENARIO, run.t, run.omega_true, run.setpoint)
+        out[mode] = (max(s.peak_dip for s in steps), sum(s.iae for s in steps))
+    return out
+
+
+@pytest.fixture(scope="module")
+def closed_loop():
+    return _closed_loop()
+
+
+def test_closed_loop_feedforward(closed_loop) -> None:
+    """Firmware timing, seed 1 (controller_bench's): measured dip off/on/ideal 4.90/3.0/1.60 rad/s,
+    IAE 2.29/0.80/0.68 rad."""
+    (dip_off, iae_off), (dip_on, iae_on), (dip_ideal, iae_ideal) = (closed_loop[m] for m in
+                                                                     ("off", "estimate", "truth"))
+    assert iae_on <= 1.3 * iae_ideal
+    assert dip_on <= 0.75 * dip_off
+    assert dip_on <= 2.2 * dip_ideal
+
+
+@pytest.mark.xfail(strict=True, reason="dip <= 1.3x ideal needs the load known within ~1 ms of the step; the "
+                                       "jump bound gives 1 sigma = 32 % of a 0.2 N m step after 2 samples")
+def test_closed_loop_dip_target(closed_loop) -> None:
+    assert closed_loop["estimate"][0] <= 1.3 * closed_loop["truth"][0]
