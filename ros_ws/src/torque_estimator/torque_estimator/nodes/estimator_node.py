@@ -23,6 +23,7 @@ from rclpy.node import Node
 from rclpy.time import Time
 from worm_msgs.msg import RigSamples, TorqueEstimate
 
+from worm_model.rig_data.samples import batch_problem
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
@@ -88,10 +89,17 @@ class EstimatorNode(Node):
         self.pub = self.create_publisher(TorqueEstimate, "/torque_estimate", STREAM)
         self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
         self.received = 0
+        self.malformed = 0  # /rig/samples messages refused
         self.flag_counts = {flag.name: 0 for flag in EstimateFlags if flag}
         Diagnostics(self, self.report)
 
     def on_samples(self, batch: RigSamples) -> None:
+        problem = batch_problem(batch, ("omega_worm", "current_drive", "voltage_drive", "theta_worm"))
+        if problem:
+            self.malformed += 1
+            self.get_logger().warning(f"ignored a /rig/samples message (first_seq {batch.first_seq}): {problem}",
+                                      throttle_duration_sec=1.0)
+            return
         n = len(batch.omega_worm)
         self.received += n
         if self.estimator is None or not n:
@@ -115,7 +123,7 @@ class EstimatorNode(Node):
         if self.estimator is None:
             return ERROR, f"no calibration: {self.problem}", {"samples": self.received}
         level = WARN if self.flag_counts["INVALID_INPUT"] else OK
-        return level, "estimating", {"samples": self.received, **self.flag_counts}
+        return level, "estimating", {"samples": self.received, "malformed_batches": self.malformed, **self.flag_counts}
 
 
 def main(args=None) -> int:

@@ -18,6 +18,7 @@ from rclpy.time import Time
 from worm_msgs.msg import GearboxForces, RigSamples
 
 from worm_model.live.live_model import ForceFlags, LiveModel
+from worm_model.rig_data.samples import batch_problem
 from worm_model.ros.diagnostics import OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
@@ -40,11 +41,18 @@ class ModelNode(Node):
         self.pub = self.create_publisher(GearboxForces, "/gearbox/forces", STREAM)
         self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
         self.received = 0
+        self.malformed = 0  # /rig/samples messages refused
         self.invalid = 0
         self.mu_out_of_bound = 0
         Diagnostics(self, self.report)
 
     def on_samples(self, batch: RigSamples) -> None:
+        problem = batch_problem(batch, ("omega_worm", "current_drive", "tau_load"))
+        if problem:
+            self.malformed += 1
+            self.get_logger().warning(f"ignored a /rig/samples message (first_seq {batch.first_seq}): {problem}",
+                                      throttle_duration_sec=1.0)
+            return
         n = len(batch.omega_worm)
         if not n:
             return

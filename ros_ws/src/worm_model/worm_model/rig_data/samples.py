@@ -71,6 +71,20 @@ def stamp_ns(stamp: Any) -> int:
     return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
 
 
+def batch_problem(batch: Any, fields: tuple[str, ...] = FIELDS) -> str:
+    """Why a RigSamples message cannot be used ('' if it can): ``fields`` (and ``command_seq``,
+    if present and not empty) must all hold one value per sample."""
+    lengths = {name: len(getattr(batch, name)) for name in fields}
+    commands = len(getattr(batch, "command_seq", ()))
+    if commands:
+        lengths["command_seq"] = commands
+    if len(set(lengths.values())) > 1:
+        return "fields of unequal length: " + ", ".join(f"{name}[{n}]" for name, n in lengths.items())
+    if not (batch.sample_period > 0):
+        return f"sample_period={batch.sample_period} is not > 0"
+    return ""
+
+
 def unbatch(batch: Any) -> list[Sample]:
     """The samples of one RigSamples message, in order; sample k is stamped first + k * sample_period."""
     columns = [list(getattr(batch, name)) for name in FIELDS]
@@ -129,5 +143,5 @@ def missing_seqs(seqs: Iterator[int]) -> int:
 
 
 __all__ = ["FIELDS", "RIG_SAMPLES_TYPE", "RIG_SAMPLE_TYPE", "SAMPLE_TOPICS", "SAMPLE_TYPES", "Header", "Sample",
-           "command_latencies", "missing_seqs",
+           "batch_problem", "command_latencies", "missing_seqs",
            "Stamp", "iter_samples", "samples_of", "stamp_ns", "unbatch"]

@@ -60,11 +60,13 @@ class SerialLink:
         baud: one of SUPPORTED_BAUDS.
         reconnect_period: [s] between attempts to open a missing port.
         poll_period: [s] longest sleep of the reader (timeouts and keep-alives are checked this often).
+        on_thread_start: called first thing in the reader thread (e.g. to ask for real-time scheduling).
     """
 
     def __init__(self, path: str, core: LinkCore, on_samples: Callable[[list[Sample]], None],
                  on_log: Callable[[str, str], None], baud: int = 1_000_000,
-                 reconnect_period: float = 0.1, poll_period: float = 0.005) -> None:
+                 reconnect_period: float = 0.1, poll_period: float = 0.005,
+                 on_thread_start: Callable[[], None] | None = None) -> None:
         if baud not in SUPPORTED_BAUDS:
             raise ValueError(f"baud={baud} is not one of {SUPPORTED_BAUDS}")
         self.path = path
@@ -74,6 +76,7 @@ class SerialLink:
         self.baud = baud
         self.reconnect_period = reconnect_period
         self.poll_period = poll_period
+        self.on_thread_start = on_thread_start
         self.lock = threading.Lock()
         self._port: serial.Serial | None = None
         self._fd: int | None = None  # the port's descriptor, read with select/os.read
@@ -112,6 +115,8 @@ class SerialLink:
 
     # --- the thread -------------------------------------------------------------------------
     def _run(self) -> None:
+        if self.on_thread_start is not None:
+            self.on_thread_start()
         while not self._stop.is_set():
             if self._fd is None:
                 if not self._try_open():

@@ -37,6 +37,7 @@ import worm_rig_driver.protocol.table as table
 from worm_rig_driver.link.core import CommandLimits, LinkConfig, LinkCore, LinkState, Sample
 from worm_rig_driver.protocol.scaling import RigScaling
 from worm_rig_driver.link.serial_link import SUPPORTED_BAUDS, SerialLink
+from worm_rig_driver.drive.realtime import make_realtime
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 from worm_rig_driver.nodes.rig_topics import FIELDS, RigTopics, speed_command_from_msg, subscribe_commands
@@ -75,6 +76,10 @@ class DriverNode(Node):
         max_torque = declare(self, "max_load_torque", self.rig.max_load_torque,
                              "Largest |LoadCommand.torque| [N m] forwarded; larger ones are refused.", low=0.0)
         self.frame_id = declare(self, "frame_id", "worm_rig", "frame_id of published headers.")
+        priority = declare(self, "reader_priority", 50,
+                           "SCHED_FIFO priority of the serial reader thread, which runs the rig's speed loop "
+                           "(1-99; 0: normal scheduling). Needs CAP_SYS_NICE; without it the thread runs at "
+                           "normal priority.", low=0, high=99)
 
         self.scaling = RigScaling.from_rig(self.rig)
         self.max_voltage = max_voltage
@@ -91,7 +96,9 @@ class DriverNode(Node):
         subscribe_commands(self, self.on_speed_command, self.on_drive_command, self.on_load_command)
 
         self.link = SerialLink(port, core, self.publish_samples, self.log_line, baud=baud,
-                               reconnect_period=reconnect)
+                               reconnect_period=reconnect,
+                               on_thread_start=lambda: self.log_line("info", f"serial reader thread: "
+                                                                             f"{make_realtime(priority)}"))
         Diagnostics(self, self.report)
         self.link.start()
         self.get_logger().info(f"rig '{self.rig.name}' on {port} at {baud} baud, telemetry {rate} Hz")
@@ -104,11 +111,18 @@ class DriverNode(Node):
 
     # --- commands ---------------------------------------------------------------------------
     def _refused(self, what: str, reason: str | None) -> None:
-        if reason:
-            # .warning, not .warn: rclpy keys a call site's throttle filter on its caller, and
-            # .warn (deprecated) is one caller for every site: a throttled and an unthrottled
-            # .warn in one node raise "logging filters cannot be changed" in the second.
-            self.get_logger().warning(f"rejected {what} command: {reason}", throttle_duration_sec=1.0)
+        if not reason:
+            return
+        text, log = f"rejected {what} command: {reason}", self.get_logger()
+        # One call site per kind: rclpy throttles per call site, so a refused speed command must not
+        # silence a refused drive command. (.warning, not .warn: rclpy keys a call site's throttle
+        # filter on its caller, and .warn (deprecated) is one caller for every site.)
+        if what == "speed":
+            log.warning(text, throttle_duration_sec=1.0)
+        elif what == "drive":
+            log.warning(text, throttle_duration_sec=1.0)
+        else:
+            log.warning(text, throttle_duration_sec=1.0)
 
     def on_drive_command(self, msg: DriveCommand) -> None:
         reason = self.link.core.limits.drive_problem(msg.voltage)

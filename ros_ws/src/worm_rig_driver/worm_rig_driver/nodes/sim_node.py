@@ -36,6 +36,7 @@ from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
 
+from worm_rig_driver.drive.realtime import make_realtime
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 from worm_rig_driver.nodes.rig_topics import RigTopics, speed_command_from_msg, subscribe_commands
@@ -67,6 +68,10 @@ class SimNode(Node):
         self.max_catch_up = declare(self, "max_catch_up", 100,
                                     "Most sample periods simulated at once by a tick that woke late; beyond, the "
                                     "rig's time is dilated and the shortfall counted.", low=1, high=100000)
+        self.clock_priority = declare(self, "clock_priority", 50,
+                                      "SCHED_FIFO priority of the rig's clock thread (1-99; 0: normal scheduling). "
+                                      "Needs CAP_SYS_NICE; without it the thread runs at normal priority.",
+                                      low=0, high=99)
         frame_id = declare(self, "frame_id", "worm_rig", "frame_id of published headers.")
 
         self.rig = load_rig(rig_file or None)
@@ -104,11 +109,20 @@ class SimNode(Node):
         """The rig's clock [s since start], the time base of RigLoop."""
         return time.monotonic() - self._start_mono
 
-    def _refused(self, what: str, reason: str) -> None:
-        if reason:
-            self.rejected_commands += 1
-            # .warning, not .warn: a throttled .warn followed by another .warn makes rclpy's logger raise
-            self.get_logger().warning(f"rejected {what} command: {reason}", throttle_duration_sec=1.0)
+    def _refused(self, what: str, reason: str | None) -> None:
+        if not reason:
+            return
+        self.rejected_commands += 1
+        text, log = f"rejected {what} command: {reason}", self.get_logger()
+        # One call site per kind: rclpy throttles per call site, so a refused speed command must not
+        # silence a refused drive command. (.warning, not .warn: a throttled .warn followed by another
+        # .warn makes rclpy's logger raise.)
+        if what == "speed":
+            log.warning(text, throttle_duration_sec=1.0)
+        elif what == "drive":
+            log.warning(text, throttle_duration_sec=1.0)
+        else:
+            log.warning(text, throttle_duration_sec=1.0)
 
     def on_speed_command(self, msg: SpeedCommand) -> None:
         self._refused("speed", self.loop.command_speed(speed_command_from_msg(msg), self._now()))
@@ -124,6 +138,7 @@ class SimNode(Node):
 
     # --- the rig's clock (its own thread) -------------------------------------------------
     def _run_clock(self) -> None:
+        self.get_logger().info(f"rig clock thread: {make_realtime(self.clock_priority)}")
         period = self.period
         while not self._stop.is_set():
             due = int((time.monotonic() - self._start_mono) / period)  # periods ended so far
