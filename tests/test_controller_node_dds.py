@@ -1,33 +1,38 @@
-"""controller_node over real DDS: its output limit and anti-windup, with a probe as the rig.
+"""controller_node and the rig's speed loop over real DDS: the output limit, anti-windup, the watchdog.
 
-controller_node runs alone (its own process, voltage_limit 3 V, feedforward
-off). The probe publishes rig samples of a worm that does not turn (as a
-blocked or unpowered rig would report) and speed set-points, and records the
-drive commands. Asking for 300 rad/s must give exactly the limit, never more;
-after that, asking for 0 rad/s must give ~0 V at once: the integrator did not
-wind up while the output was limited (a plain PI would have integrated
-ki x 300 rad/s x 0.3 s = 1.8 N m and still command the full 3 V).
+controller_node (voltage_limit 3 V, feedforward off) and sim_node run as their own
+processes; the probe commands set-points and reads the rig's samples. The PI runs in
+sim_node on every sample, with the gains and the limit controller_node sends
+(worm_msgs/SpeedCommand). Asking for 300 rad/s (the worm reaches ~55 rad/s at 3 V)
+must apply exactly the limit, flagged STATUS_DRIVE_LIMIT, never more; after that,
+asking for 0 rad/s must bring the voltage to ~0 V at once: the integrator did not wind
+up while the output was limited (a plain PI would have integrated ki x 250 rad/s x 1 s
+= 5 N m and still command the full 3 V). When controller_node is gone, the rig stops
+driving within its command_timeout (0.1 s) of rig time, and says so in its samples.
 
+Timing is judged on the rig's own clock (the samples' seq), not the probe's.
 ROS_DOMAIN_ID: the environment's if set, else a random one in 100..230;
 discovery stays on this host (the ros_env fixture of tests/conftest.py).
 """
 from __future__ import annotations
 
+import signal
 import time
 from collections.abc import Callable
 
-import pytest
-from rclpy.executors import Executor
-from rclpy.node import Node
 from std_msgs.msg import Float64
-from worm_msgs.msg import DriveCommand, RigSample
+from worm_msgs.msg import RigSample, RigSamples
 
 from torque_estimator.graph.runner import Graph
+from worm_model.rig_data.samples import unbatch
 from worm_model.ros.qos import COMMAND, STREAM
 from worm_model.ros.testing import probe_node
 
 LIMIT = 3.0  # [V]
 PARAMS = f"""\
+sim_node:
+  ros__parameters:
+    command_timeout: 0.1
 controller_node:
   ros__parameters:
     voltage_limit: {LIMIT}
@@ -36,62 +41,55 @@ controller_node:
 """
 
 
-@pytest.fixture(scope="module")
-def controller(start_graph: Callable[[str, str], Graph]) -> Graph:
-    """controller_node alone (ros_env and start_graph: tests/conftest.py)."""
-    return start_graph(PARAMS, "controller")
+def test_output_limit_no_windup_and_the_watchdog_over_dds(start_graph: Callable[[str, str], Graph]) -> None:
+    graph = start_graph(PARAMS, "controller")
+    with probe_node("controller_test_probe") as (node, executor):
+        samples: list = []
+        node.create_subscription(RigSamples, "/rig/samples", lambda m: samples.extend(unbatch(m)), STREAM)
+        setpoint = node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND)
 
+        def spin_until(done: Callable[[], bool], timeout: float) -> bool:
+            deadline = time.monotonic() + timeout
+            while not done() and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.01)
+            return done()
 
-class RigProbe:
-    def __init__(self, node: Node, executor: Executor) -> None:
-        self.node = node
-        self.executor = executor
-        self.commands: list[DriveCommand] = []
-        self.node.create_subscription(DriveCommand, "/rig/drive_command", self.commands.append, STREAM)
-        self.samples = self.node.create_publisher(RigSample, "/rig/sample", STREAM)
-        self.setpoint = self.node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND)
-        self.seq = 0
+        def rig_time(seconds: float) -> None:
+            """Spin until the rig's clock has advanced by `seconds` (its samples' seqs)."""
+            assert spin_until(lambda: bool(samples), 10.0), "no samples"
+            start = samples[-1].seq
+            assert spin_until(lambda: samples[-1].seq - start >= seconds * 1000, 30.0), "the rig stopped sampling"
 
-    def spin_until(self, done: Callable[[], bool], timeout: float) -> bool:
-        deadline = time.monotonic() + timeout
-        while not done() and time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.01)
-        return done()
+        assert spin_until(lambda: bool(samples) and setpoint.get_subscription_count() > 0, 30.0), (
+            f"no samples or no controller; logs in {graph.log_dir}")
+        setpoint.publish(Float64(data=300.0))
+        assert spin_until(lambda: samples[-1].voltage_drive == LIMIT, 15.0), "the limit was never reached"
+        samples.clear()
+        rig_time(1.0)  # a worm that cannot reach the set-point
+        assert all(s.voltage_drive == LIMIT for s in samples), sorted({s.voltage_drive for s in samples})
+        assert all(s.status & RigSample.STATUS_DRIVE_LIMIT for s in samples[1:])
 
-    def send_samples(self, count: int, omega: float = 0.0) -> None:
-        """`count` samples of a worm turning at omega [rad/s], 1 ms apart on the sample clock."""
-        for _ in range(count):
-            self.seq += 1
-            sample = RigSample(seq=self.seq, omega_worm=omega, status=RigSample.STATUS_SIMULATED)
-            sample.header.stamp = self.node.get_clock().now().to_msg()
-            self.samples.publish(sample)
-            if self.seq % 20 == 0:  # let the commands in; keep the controller's queue short
-                self.spin_until(lambda: False, 0.005)
+        setpoint.publish(Float64(data=0.0))
+        samples.clear()
+        assert spin_until(lambda: bool(samples) and abs(samples[-1].voltage_drive) < 1.0, 15.0)
+        first_low = next(k for k, s in enumerate(samples) if abs(s.voltage_drive) < 1.0)
+        # the first commands after the set-point change take the voltage down at once (no wound-up
+        # integral to unwind: that would take seconds at ki = 0.02)
+        assert all(abs(s.voltage_drive) < 1.0 for s in samples[first_low:first_low + 50])
 
-
-def test_output_limit_and_no_windup_over_dds(controller: Graph) -> None:
-    with probe_node("controller_test_rig") as (node, executor):
-        probe = RigProbe(node, executor)
-        matched = probe.spin_until(lambda: probe.samples.get_subscription_count() > 0
-                                   and probe.setpoint.get_subscription_count() > 0, 30.0)
-        assert matched, f"controller_node did not subscribe; logs in {controller.log_dir}"
-        probe.setpoint.publish(Float64(data=300.0))
-
-        def taken(speed: float) -> bool:
-            probe.send_samples(5)
-            return any(c.speed_setpoint == speed for c in probe.commands[-5:])
-        assert probe.spin_until(lambda: taken(300.0), 15.0), "controller_node did not take 300 rad/s"
-
-        probe.commands.clear()
-        probe.send_samples(300)  # 0.3 s of a worm at rest against a 300 rad/s set-point
-        probe.spin_until(lambda: False, 0.5)
-        saturated = [c for c in probe.commands if c.speed_setpoint == 300.0]
-        assert len(saturated) > 100, f"only {len(saturated)} drive commands for 300 samples"
-        assert all(c.voltage == LIMIT for c in saturated), sorted({c.voltage for c in saturated})
-
-        probe.setpoint.publish(Float64(data=0.0))
-        assert probe.spin_until(lambda: taken(0.0), 15.0), "controller_node did not take 0 rad/s"
-        after = [c for c in probe.commands if c.speed_setpoint == 0.0]
-        assert after and all(abs(c.voltage) < 0.01 for c in after), [c.voltage for c in after]
-        assert all(abs(c.voltage) <= LIMIT for c in probe.commands)
-    assert not controller.failed(), controller.failed()
+        # the controller dies: the rig stops driving within its command_timeout, on its own clock
+        setpoint.publish(Float64(data=40.0))
+        assert spin_until(lambda: bool(samples) and samples[-1].voltage_drive > 0.5, 15.0)
+        graph.processes["controller_node"].send_signal(signal.SIGKILL)
+        graph.processes["controller_node"].wait(10)
+        samples.clear()
+        rig_time(0.5)
+        stopped = next((s for s in samples if s.status & RigSample.STATUS_WATCHDOG_STOP), None)
+        assert stopped is not None, "the rig kept driving without its controller"
+        assert all(s.voltage_drive == 0.0 for s in samples if s.seq >= stopped.seq)
+        # the rig drove for at most command_timeout after the controller's last command (which came
+        # 20 ms or less before the kill: command_period)
+        driven = [s for s in samples if s.seq < stopped.seq]
+        assert len(driven) <= 100 + 20 + 1, f"the rig drove {len(driven)} ms after its controller died"
+    graph.processes.pop("controller_node")  # killed on purpose: not part of the clean-exit check
+    assert not graph.failed(), graph.failed()
