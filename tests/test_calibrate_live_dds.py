@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from worm_msgs.msg import DriveCommand
+from worm_msgs.msg import SpeedCommand
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import load_database
@@ -68,11 +68,11 @@ def _points(journal: Path) -> int:
         return 0
 
 
-def _last_drive_command(timeout: float = 10.0) -> DriveCommand | None:
-    """The next drive command controller_node publishes (a probe node in this process)."""
-    got: list[DriveCommand] = []
+def _last_speed_command(timeout: float = 10.0) -> SpeedCommand | None:
+    """The next speed command controller_node sends the rig (a probe node in this process)."""
+    got: list[SpeedCommand] = []
     with probe_node("calibrate_test_probe") as (node, executor):
-        node.create_subscription(DriveCommand, "/rig/drive_command", got.append, STREAM)
+        node.create_subscription(SpeedCommand, "/rig/speed_command", got.append, STREAM)
         deadline = time.monotonic() + timeout
         while len(got) < 20 and time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
@@ -98,7 +98,7 @@ def test_live_calibration_interrupted_and_resumed(rig_graph: Graph, ros_env: dic
     before = CalibrationJournal.load(journal, N_POINTS).points
     assert 3 <= len(before) < N_POINTS, f"{len(before)} points before the interruption"
     # calibrate left the rig at rest: controller_node now holds 0 rad/s
-    last = _last_drive_command()
+    last = _last_speed_command()
     assert last is not None and last.speed_setpoint == 0.0, last
     assert not rig_graph.failed(), rig_graph.failed()
 

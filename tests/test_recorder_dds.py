@@ -31,6 +31,7 @@ from worm_model.bags.writer import BagWriter, read_bag_counts, read_messages
 from worm_rig_driver.nodes.recorder_node import TopicRecorder
 
 TOPIC = '/rig/sample'
+DISCOVERED = '/probe/rig_sample'  # recorded by discovery (not excluded)
 RATE_HZ = 1000.0
 DOMAIN_ID = random.randint(100, 200)
 DISCOVERY_TIMEOUT_S = 30.0
@@ -109,7 +110,7 @@ def start_recorder(tmp_path: Path, ros_env: dict[str, str]) -> Iterator[type[Rec
         recorder.kill()
 
 
-def publish_stream(node: Node, recorder: RecorderProcess, n: int) -> None:
+def publish_stream(node: Node, recorder: RecorderProcess, n: int, topic: str = TOPIC) -> None:
     """Publish RigSamples seq 0..n-1 at RATE_HZ once the recorder has subscribed.
 
     The publisher keeps all n samples (KEEP_LAST depth n, RELIABLE), so a
@@ -118,13 +119,13 @@ def publish_stream(node: Node, recorder: RecorderProcess, n: int) -> None:
     qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=n,
                      reliability=ReliabilityPolicy.RELIABLE,
                      durability=DurabilityPolicy.VOLATILE)
-    publisher = node.create_publisher(RigSample, TOPIC, qos)
+    publisher = node.create_publisher(RigSample, topic, qos)
     deadline = time.monotonic() + DISCOVERY_TIMEOUT_S
     while publisher.get_subscription_count() == 0:
         if recorder.process.poll() is not None:
             pytest.fail(f'recorder exited with {recorder.process.returncode}:\n{recorder.output()}')
         if time.monotonic() > deadline:
-            pytest.fail(f'recorder did not subscribe to {TOPIC}:\n{recorder.output()}')
+            pytest.fail(f'recorder did not subscribe to {topic}:\n{recorder.output()}')
         time.sleep(0.05)
 
     period = 1.0 / RATE_HZ
@@ -138,8 +139,9 @@ def publish_stream(node: Node, recorder: RecorderProcess, n: int) -> None:
     assert publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S)), 'recorder did not ack'
 
 
-def assert_bag_holds_stream(recorder: RecorderProcess, n: int) -> None:
-    """The bag holds seq 0..n-1 on TOPIC exactly once each, in receive order."""
+def assert_bag_holds_stream(recorder: RecorderProcess, n: int, topic: str = TOPIC) -> None:
+    """The bag holds seq 0..n-1 on ``topic`` exactly once each, in receive order."""
+    TOPIC = topic  # noqa: N806 (the checks below read as for the default topic)
     counts = read_bag_counts(recorder.bag)
     assert counts.get(TOPIC) == n, (counts, recorder.output())
     received = list(read_messages(recorder.bag, TOPIC))
@@ -169,12 +171,18 @@ def test_records_1khz_stream_without_loss(
 def test_records_discovered_topics_and_stops_on_sigterm(
     publisher_node: Node, start_recorder: type[RecorderProcess]
 ) -> None:
+    """Recording every topic finds a new one; /rig/sample, the rig's per-sample copy of /rig/samples,
+    is left out by default (a publisher on it is there, and not recorded)."""
     n = 300
     recorder = start_recorder('storage:=sqlite3')  # no topics: record all
-    publish_stream(publisher_node, recorder, n)
+    excluded = publisher_node.create_publisher(RigSample, TOPIC, 10)
+    publish_stream(publisher_node, recorder, n, DISCOVERED)
+    excluded.publish(RigSample(seq=1))
 
     assert recorder.stop(signal.SIGTERM) == 0, recorder.output()
-    assert_bag_holds_stream(recorder, n)
+    assert_bag_holds_stream(recorder, n, DISCOVERED)
+    assert TOPIC not in read_bag_counts(recorder.bag)
+    assert f'Recording {TOPIC} ' not in recorder.output()
 
 
 def test_topic_recorder_records_under_the_events_executor(publisher_node: Node, tmp_path: Path) -> None:

@@ -33,7 +33,8 @@ from worm_model.physics.steady_state import balancing_torque
 from worm_model.ros.diagnostics import OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
-from worm_model.ros.qos import COMMAND_IN, STREAM
+from worm_model.ros.commands import subscribe_command
+from worm_model.ros.qos import STREAM
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 
 from torque_estimator.control.feedforward import FeedforwardGate
@@ -65,7 +66,7 @@ class ControllerNode(Node):
 
         self.pub = self.create_publisher(SpeedCommand, "/rig/speed_command", STREAM)
         self.create_subscription(TorqueEstimate, "/torque_estimate", self.on_estimate, STREAM)
-        self.create_subscription(Float64, "/controller/speed_setpoint", self.on_setpoint, COMMAND_IN)
+        subscribe_command(self, Float64, "/controller/speed_setpoint", self.on_setpoint)
         self.create_timer(self.command_period / 2, self.on_timer)
         self.estimate: TorqueEstimate | None = None
         self.last_sent = -math.inf  # [s] node clock

@@ -18,8 +18,8 @@ COMMAND = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
 
 #: Subscriptions to commands and set-points: reliable but volatile, so every ordinary
 #: publisher reaches them (``ros2 topic pub`` offers volatile; a transient-local
-#: subscription would refuse it as incompatible), and a latched publisher still hands
-#: its last value to a late subscriber.
+#: subscription would refuse it as incompatible). A volatile subscription gets no
+#: history: worm_model.ros.commands pairs it with a transient-local one for that.
 COMMAND_IN = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                         reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)

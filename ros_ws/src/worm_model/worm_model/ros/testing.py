@@ -8,6 +8,8 @@
   taken down in the order rclpy needs (see lifecycle.py).
 * :func:`stop_process`: stops a node's process the way Ctrl-C does, and SIGKILLs
   it if it hangs.
+* :func:`rig_samples`: a worm_msgs/RigSamples batch with every field filled, from
+  the values a test cares about (the rest zero), as a rig would publish it.
 """
 from __future__ import annotations
 
@@ -72,3 +74,26 @@ def stop_process(process: subprocess.Popen, grace: float = 15.0) -> int:
     except subprocess.TimeoutExpired:
         process.kill()
         return process.wait()
+
+
+def rig_samples(first_seq: int, n: int, stamp=None, sample_period: float = 1e-3, frame_id: str = "worm_rig",
+                **values: object):
+    """A worm_msgs/RigSamples message of ``n`` samples from ``first_seq``: each keyword is a field,
+    given as a sequence of n values or one value for all; fields not given are 0."""
+    from worm_msgs.msg import RigSamples
+
+    from worm_model.rig_data.samples import FIELDS
+
+    integers = {"count_drive", "count_load_1", "count_load_2", "status", "command_seq"}
+    columns = {}
+    for name in (*FIELDS, "command_seq"):
+        value = values.pop(name, 0)
+        items = list(value) if isinstance(value, (list, tuple)) else [value] * n
+        columns[name] = [int(v) for v in items] if name in integers else [float(v) for v in items]
+    if values:
+        raise TypeError(f"RigSamples has no fields {sorted(values)}")
+    msg = RigSamples(first_seq=first_seq, sample_period=sample_period, **columns)
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    return msg

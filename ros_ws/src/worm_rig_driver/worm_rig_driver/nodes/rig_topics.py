@@ -9,7 +9,8 @@ Out (sensor-data QoS):
 In:
   /rig/speed_command  worm_msgs/SpeedCommand  the rig's own speed loop (drive.rig_loop), sensor-data QoS
   /rig/drive_command  worm_msgs/DriveCommand  a voltage to hold, sensor-data QoS
-  /rig/load_command   worm_msgs/LoadCommand   reliable, volatile: any publisher reaches it
+  /rig/load_command   worm_msgs/LoadCommand   any publisher reaches it; a latched value reaches a rig
+                                              that (re)starts later (worm_model.ros.commands)
 
 Why batches: a 1 kHz topic costs rclpy ~12-15 % of a core per endpoint, whatever the
 message holds; five samples per message cut that five-fold, and the speed loop, the
@@ -31,7 +32,8 @@ from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from worm_msgs.msg import DriveCommand, EncoderCounts, LoadCommand, MotorCurrents, RigSample, RigSamples, SpeedCommand
 
-from worm_model.ros.qos import COMMAND_IN, STREAM
+from worm_model.ros.commands import subscribe_command
+from worm_model.ros.qos import STREAM
 
 from worm_rig_driver.drive.rig_loop import SpeedCommand as LoopCommand
 
@@ -143,7 +145,7 @@ def subscribe_commands(node: Node, on_speed: Callable[[SpeedCommand], None],
     """The rig's command subscriptions, with the QoS every rig uses."""
     node.create_subscription(SpeedCommand, "/rig/speed_command", on_speed, STREAM)
     node.create_subscription(DriveCommand, "/rig/drive_command", on_drive, STREAM)
-    node.create_subscription(LoadCommand, "/rig/load_command", on_load, COMMAND_IN)
+    subscribe_command(node, LoadCommand, "/rig/load_command", on_load)
 
 
 __all__ = ["FIELDS", "RigTopics", "speed_command_from_msg", "subscribe_commands"]
