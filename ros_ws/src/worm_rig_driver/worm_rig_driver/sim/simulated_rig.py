@@ -5,6 +5,13 @@ batch work such as calibration (n rigs side by side, as fast as numpy goes).
 Deterministic for a given seed: the seed drives the sensor noise only; the plant
 and the effects are deterministic.
 
+Two implementations of the same model (issue 13): the vectorised one (plant.RigPlant
++ sensors.SensorModel, numpy over n rigs) and, for one rig, a scalar one in plain
+float math (scalar_plant.ScalarPlant + scalar_sensors.ScalarSensors, ~30x faster:
+for n = 1 numpy's cost per call, not the physics, dominated). n = 1 takes the scalar
+path unless an active effect lacks the float hooks (then the vectorised one); the
+two agree to round-off and draw the same noise for the same seed (test_scalar_path).
+
 Timing of one sample (the firmware's): the tick at the start of the period latches
 the encoders and starts the ADC sequence, each analogue channel is held at its own
 instant inside the period (sensors.AdcChain), and the sample is complete at the
@@ -21,7 +28,10 @@ from worm_model.physics.modes import Flank, Mode
 from worm_model.physics.parameters import Rig
 
 from worm_rig_driver.sim.effects import EffectsConfig
+from worm_rig_driver.sim.effects import as_config
 from worm_rig_driver.sim.plant import STANDSTILL_SPEED, PlantOutputs, RigPlant
+from worm_rig_driver.sim.scalar_plant import ScalarPlant, float_hooks_missing
+from worm_rig_driver.sim.scalar_sensors import ScalarSensors
 from worm_rig_driver.sim.sensors import AdcChain, Measurement, SensorModel, Trajectory
 
 #: plant state fields recorded at every substep boundary for the ADC's sampling instants
@@ -68,21 +78,36 @@ class SimulatedRig:
             (effects.EffectsConfig, an ``effects`` mapping, or a worm_rig_effects
             file); None = the paper's model exactly.
         adc: multiplexer/ADC timing and scaling of the analogue channels.
+        scalar: which implementation steps the rig(s): None (default) = the scalar
+            one for n = 1 when every active effect has float hooks (all of
+            effects.EFFECTS do), else the vectorised one; True = scalar (n must be
+            1); False = vectorised. ``self.scalar`` tells which one runs. Both
+            expose the same ``plant`` (state, fx, inertias, ...) and ``sensors``.
 
     Raises:
-        ValueError: substeps < 1, or the ADC sequence does not fit in a sample period.
+        ValueError: substeps < 1, the ADC sequence does not fit in a sample period,
+            or scalar=True with n != 1 or with an effect that has no float hooks.
         effects.EffectsError: a bad effects file or mapping.
     """
 
     def __init__(self, rig: Rig, n: int = 1, seed: int = 0, substeps: int = 2,
-                 effects: EffectsConfig | dict | str | None = None, adc: AdcChain = AdcChain()) -> None:
+                 effects: EffectsConfig | dict | str | None = None, adc: AdcChain = AdcChain(),
+                 scalar: bool | None = None) -> None:
         if substeps < 1:
             raise ValueError(f"substeps must be >= 1, got {substeps}")
         self.rig = rig
         self.n = n
-        self.plant = RigPlant(rig, n, effects=effects)
+        effects = as_config(effects)
+        if scalar is None:
+            scalar = n == 1 and not float_hooks_missing(effects)
+        elif scalar and n != 1:
+            raise ValueError(f"the scalar path simulates one rig, got n={n}")
+        #: True when the scalar (float) implementation runs, False for the vectorised one
+        self.scalar = bool(scalar)
+        self.plant = ScalarPlant(rig, effects=effects) if self.scalar else RigPlant(rig, n, effects=effects)
         self.effects = self.plant.effects
         self.sensors = SensorModel(rig, np.random.default_rng(seed), self.plant.fx, adc)
+        self._scalar_sensors = ScalarSensors(self.sensors, substeps) if self.scalar else None
         self.sample_period = 1.0 / rig.sensors.sample_rate_hz
         self.substeps = substeps
         self.seq = 0
@@ -90,6 +115,7 @@ class SimulatedRig:
         self.voltage_drive = np.zeros(n)
         self.load_torque = np.zeros(n)
         self._last: PlantOutputs | None = None
+        self._stepped = False
 
     def command(self, voltage_drive=None, load_torque=None) -> None:
         """Set the drive voltage [V] and/or the load torque [N m] held until changed."""
@@ -100,6 +126,8 @@ class SimulatedRig:
 
     def sample(self) -> Measurement:
         """Advance one sample period and return what the sensors read during it."""
+        if self.scalar:
+            return self._sample_scalar()
         dt = self.sample_period / self.substeps
         state = self.plant.state
         history = {name: np.empty((self.substeps + 1, self.n)) for name in _RECORDED}
@@ -115,12 +143,40 @@ class SimulatedRig:
         self.time = self.seq * self.sample_period
         return self.sensors.measure_period(Trajectory(self.sample_period, history), self._last, tick)
 
+    def _sample_scalar(self) -> Measurement:
+        """sample() on the scalar path: the same steps and readings in float math."""
+        plant = self.plant
+        if plant._exported:
+            plant._sync()  # state arrays handed out (and maybe written into) since the last step
+        dt = self.sample_period / self.substeps
+        voltage, load = float(self.voltage_drive[0]), float(self.load_torque[0])
+        history = [(plant.current_drive, plant.current_load, plant.omega_worm, plant.theta_worm, plant.omega_gear,
+                    plant.theta_gear)]
+        for _ in range(self.substeps):
+            plant.step(dt, voltage, load)
+            history.append((plant.current_drive, plant.current_load, plant.omega_worm, plant.theta_worm,
+                            plant.omega_gear, plant.theta_gear))
+        self._stepped = True
+        tick = self.time
+        self.seq += 1
+        self.time = self.seq * self.sample_period
+        return self._scalar_sensors.measure(history, plant.voltage_drive, plant.drive_saturated, tick)
+
+    def _last_outputs(self, what: str) -> PlantOutputs:
+        if self.scalar:
+            if not self._stepped:
+                raise RuntimeError(f"{what} needs at least one sample()")
+            return self.plant.outputs()
+        if self._last is None:
+            raise RuntimeError(f"{what} needs at least one sample()")
+        return self._last
+
     @property
     def applied_load_torque(self) -> np.ndarray:
         """Load torque [N m] the load motors applied in the last step (cheap part of the truth)."""
-        if self._last is None:
-            raise RuntimeError("applied_load_torque needs at least one sample()")
-        return self._last.tau_load
+        if self.scalar and self._stepped:
+            return np.array([self.plant.tau_load])
+        return self._last_outputs("applied_load_torque").tau_load
 
     def truth(self) -> Truth:
         """Ground truth at the end of the last sample period (call after sample()).
@@ -129,9 +185,7 @@ class SimulatedRig:
         (effects included) and the true inertias; while the teeth are apart in the
         backlash, N = F_f = 0, mu = NaN and the flank is NONE.
         """
-        if self._last is None:
-            raise RuntimeError("truth() needs at least one sample()")
-        out, state = self._last, self.plant.state
+        out, state = self._last_outputs("truth()"), self.plant.state
         forces = internal_forces(self.rig.gearbox, out.tau_in, out.gear_load, state.omega_worm,
                                  out.alpha_worm, worm_inertia=self.plant.worm_inertia,
                                  gear_inertia=self.plant.gear_inertia)
