@@ -29,6 +29,7 @@ RigPlant.
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numpy as np
 
@@ -143,7 +144,7 @@ class ScalarPlant:
         self.backlash = self.fx.backlash
         self._eq28 = Eq28(rig, self.worm_inertia, self.gear_inertia)
         self._on_flank = self._eq28.on_flank
-        self._mu_law = FLOAT_FRICTION_MODELS[rig.friction.model]
+        self._mu_law = partial(FLOAT_FRICTION_MODELS[rig.friction.model], rig.friction)  # mu(v_sliding)
         self._has_effects = bool(self.fx.effects)
         fx = self.fx.effects
         self._worm_fx = [e.worm_torque_float for e in fx if "worm_torque" in type(e).hooks()]
@@ -164,9 +165,12 @@ class ScalarPlant:
         self._kt, self._b, self._c = motor.torque_constant, motor.viscous_drag, motor.coulomb_drag
         self._r, self._ke = motor.resistance, motor.back_emf_constant
         self._count, self._kt_load = rig.load_motor_count, load.torque_constant
+        self._load_scale = self._count * self._kt_load  # [N m/A] all load motors together
         self._load_b, self._load_c = load.viscous_drag, load.coulomb_drag
-        self._decay = {}  # dt -> exp(-R dt / L), through numpy's exp as exact_current_step
-        self._blend = {}  # (dt, time constant) -> 1 - exp(-dt / tau)
+        self._supply, self._max_load = rig.supply_voltage, rig.max_load_torque
+        # exp(-R dt/L) of the armature and 1 - exp(-dt/tau) of the load current, for the last
+        # (dt, tau) (virtual_rig sets tau after construction); numpy's exp, as RigPlant's
+        self._dt = self._tau = self._decay = self._blend = math.nan
 
         # State (PlantState.at_rest; teeth mid-gap with backlash).
         self.current_drive = self.omega_worm = self.theta_worm = self.current_load = 0.0
@@ -214,7 +218,7 @@ class ScalarPlant:
         gear_load = tau_load + self._count * (self._load_b * g
                                               + self._load_c * (1.0 if g > 0.0 else (-1.0 if g < 0.0 else 0.0)))
         v_sliding = 0.0 if static else abs(w) * self._r_w / self._cos_lead
-        mu = self._mu_law(self.rig.friction, v_sliding)
+        mu = self._mu_law(v_sliding)
         if not self._has_effects:
             return tau_in, gear_load, mu, None, None
         mesh_load = abs(gear_load) if (engaged is None or engaged) else 0.0
@@ -256,18 +260,12 @@ class ScalarPlant:
                 return sigma, alpha, flank
         return 0.0, 0.0, 0
 
-    def _coefficients(self, dt: float) -> tuple[float, float]:
-        """(armature decay exp(-R dt/L), load-current blend 1 - exp(-dt/tau)) through numpy's exp, as RigPlant."""
-        decay = self._decay.get(dt)
-        if decay is None:
-            motor = self.rig.drive_motor
-            decay = self._decay[dt] = float(np.exp(-motor.resistance * np.asarray(dt, dtype=float)
-                                                   / motor.inductance))
-        key = (dt, self.load_current_time_constant)  # (virtual_rig sets the time constant after construction)
-        blend = self._blend.get(key)
-        if blend is None:
-            blend = self._blend[key] = float(1.0 - np.exp(-dt / self.load_current_time_constant))
-        return decay, blend
+    def _set_step(self, dt: float) -> None:
+        """The step's exponential factors, computed as RigPlant computes them (numpy's exp: same bits)."""
+        motor = self.rig.drive_motor
+        self._decay = float(np.exp(-motor.resistance * np.asarray(dt, dtype=float) / motor.inductance))
+        self._blend = float(1.0 - np.exp(-dt / self.load_current_time_constant))
+        self._dt, self._tau = dt, self.load_current_time_constant
 
     # --- public API ---------------------------------------------------------------------------------------
     def step(self, dt: float, voltage_drive: float, load_torque_command: float) -> None:
@@ -281,28 +279,28 @@ class ScalarPlant:
         """
         if self._exported:
             self._sync()
-        rig = self.rig
-        supply = rig.supply_voltage
+        if dt != self._dt or self.load_current_time_constant != self._tau:
+            self._set_step(dt)
+        supply = self._supply
         requested = voltage_drive
         voltage = -supply if requested < -supply else (supply if requested > supply else requested)
         self.drive_saturated = abs(requested) > supply
-        for f in self._voltage_fx:
-            voltage = f(voltage, supply)
+        if self._voltage_fx:
+            for f in self._voltage_fx:
+                voltage = f(voltage, supply)
         self.voltage_drive = voltage
-        decay, blend = self._coefficients(dt)
 
         # Load motors: current-controlled, sharing the commanded torque equally.
-        limit = rig.max_load_torque
+        limit = self._max_load
         command = -limit if load_torque_command < -limit else (limit if load_torque_command > limit
                                                                else load_torque_command)
-        target = command / (self._count * self._kt_load)
-        self.current_load = current_load = self.current_load + (target - self.current_load) * blend
-        tau_load = self._count * self._kt_load * current_load
-        self.tau_load = tau_load
+        target = command / self._load_scale
+        self.current_load = current_load = self.current_load + (target - self.current_load) * self._blend
+        self.tau_load = tau_load = self._load_scale * current_load
 
         # Drive motor armature (Eq. 29), exact over dt with the speed held (motor.exact_current_step).
         i_ss = (voltage - self._ke * self.omega_worm) / self._r
-        self.current_drive = i_ss + (self.current_drive - i_ss) * decay
+        self.current_drive = i_ss + (self.current_drive - i_ss) * self._decay
 
         if self.backlash > 0:
             self._step_with_backlash(dt, tau_load)
@@ -324,7 +322,8 @@ class ScalarPlant:
             alpha, flank = self._acceleration(tau_in, gear_load, omega, mu)
             sigma = 1.0 if omega > 0.0 else -1.0
             new_omega = omega + alpha * dt
-            if _reverses(omega, new_omega):  # would reverse inside the step: stop at zero
+            # would reverse inside the step: stop at zero (_reverses, written out on this hot path)
+            if (not new_omega > 0.0) if omega > 0.0 else (not new_omega < 0.0):
                 new_omega = 0.0
         else:
             sigma, alpha, flank = self._breakaway(self.current_drive, tau_load)
@@ -338,14 +337,11 @@ class ScalarPlant:
         self.omega_gear, self.theta_gear = ratio * new_omega, ratio * self.theta_worm
         if sigma != 0.0:
             self.contact = int(sigma) * flank
-        self._outputs(tau_in, tau_load, gear_load, alpha, ratio * alpha, mu, self.contact, worm_fx, gear_fx, 0.0)
-
-    def _outputs(self, tau_in, tau_load, gear_load, alpha_w, alpha_g, mu, contact, worm_fx, gear_fx,
-                 impact_loss) -> None:
-        self.tau_in, self.tau_load, self.gear_load, self.alpha_worm, self.alpha_gear = (
-            tau_in, tau_load, gear_load, alpha_w, alpha_g)
-        self.mu, self.contact_out, self.worm_effect_torque, self.gear_effect_torque = mu, contact, worm_fx, gear_fx
-        self.impact_loss = impact_loss
+        # outputs (tau_load is set by step)
+        self.tau_in, self.gear_load, self.alpha_worm, self.alpha_gear, self.mu = (
+            tau_in, gear_load, alpha, ratio * alpha, mu)
+        self.contact_out, self.worm_effect_torque, self.gear_effect_torque, self.impact_loss = (
+            self.contact, worm_fx, gear_fx, 0.0)
 
     # --- mesh with a dead zone ----------------------------------------------------------------------------
     def _step_with_backlash(self, dt: float, tau_load: float) -> None:
@@ -450,8 +446,10 @@ class ScalarPlant:
         self.theta_worm, self.omega_worm = theta_w, new_w
         self.theta_gear, self.omega_gear = theta_g, new_g
         self.contact = contact
-        self._outputs(tau_in, tau_load, gear_load, alpha_w, alpha_g, mu, contact if engaged else 0, worm_fx,
-                      gear_fx, impact_loss)
+        self.tau_in, self.gear_load, self.alpha_worm, self.alpha_gear, self.mu = (
+            tau_in, gear_load, alpha_w, alpha_g, mu)
+        self.contact_out, self.worm_effect_torque, self.gear_effect_torque, self.impact_loss = (
+            contact if engaged else 0, worm_fx, gear_fx, impact_loss)
 
     def _advance_in_contact(self, dt, tau_load, omega, moving, alpha, tau_in, gear_load, mu, worm_fx,
                             gear_fx) -> None:
@@ -466,7 +464,10 @@ class ScalarPlant:
         self.omega_worm = new_omega
         self.omega_gear = ratio * new_omega
         self.theta_gear = ratio * self.theta_worm - self.contact * (0.5 * self.backlash)
-        self._outputs(tau_in, tau_load, gear_load, alpha, ratio * alpha, mu, self.contact, worm_fx, gear_fx, 0.0)
+        self.tau_in, self.gear_load, self.alpha_worm, self.alpha_gear, self.mu = (
+            tau_in, gear_load, alpha, ratio * alpha, mu)
+        self.contact_out, self.worm_effect_torque, self.gear_effect_torque, self.impact_loss = (
+            self.contact, worm_fx, gear_fx, 0.0)
 
     def _heat(self, omega, omega_g, tau_in, gear_load, alpha_w, alpha_g, engaged: bool) -> float:
         """RigPlant._heat for floats: mesh friction power (while touching) + dissipative shaft effects [W]."""

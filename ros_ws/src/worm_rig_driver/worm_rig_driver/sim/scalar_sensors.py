@@ -38,14 +38,7 @@ BLOCK = 1000
 #: index of each quantity in a history entry (the plant's state at one substep boundary)
 CURRENT_DRIVE, CURRENT_LOAD, OMEGA_WORM, THETA_WORM, OMEGA_GEAR, THETA_GEAR = range(6)
 
-_empty, _float64, _int32, _uint32 = np.empty, np.float64, np.int32, np.uint32
-
-
-def _array(x) -> np.ndarray:
-    """A (1,) float array holding x (cheaper than np.array([x]) for one element)."""
-    a = _empty(1)
-    a[0] = x
-    return a
+_empty, _int32, _uint32 = np.empty, np.int32, np.uint32
 
 
 class ScalarSensors:
@@ -75,11 +68,14 @@ class ScalarSensors:
             k = min(int(x), substeps - 1)
             return k, x - k
 
-        self._at = {signal: where(signal) for signal in model.sample_time}
+        #: (k, frac) of each channel in sensors.SIGNALS order: current_drive, current_load_1,
+        #: current_load_2, tacho_drive, tacho_load_1, tacho_load_2
+        self._instants = tuple(where(signal) for signal in ("current_drive", "current_load_1", "current_load_2",
+                                                             "tacho_drive", "tacho_load_1", "tacho_load_2"))
         self._ripple = sensors.tacho_ripple
         self._half = model.adc.codes // 2
-        self._current_lsb = sensors.current_lsb
-        self._tacho_lsb = model.tacho_lsb
+        self._lsb = (sensors.current_lsb,) * 3 + tuple(model.tacho_lsb[k] for k in
+                                                      ("tacho_drive", "tacho_load_1", "tacho_load_2"))
         self._cpr = model.counts_per_rev
         self._rad_per_count = 2.0 * np.pi / model.counts_per_rev
         self._load_torque_scale = rig.load_motor.torque_constant  # tau_load = K_t (i_1 + i_2) count / 2
@@ -94,23 +90,15 @@ class ScalarSensors:
         self._noise = (0.0 + np.asarray(self._std) * z).ravel().tolist()  # = rng.normal(0.0, std)
         self._next = 0
 
-    # --- one channel -------------------------------------------------------------------------------
+    # --- one channel (the slow path: a diverged plant's NaN or inf) ---------------------------------
     def _quantise(self, signal: float, lsb: float) -> float:
-        """SensorModel._adc: nearest code (ties to even, as np.round), clipped to the converter's range."""
-        try:
-            code = round(signal / lsb)
-        except (ValueError, OverflowError):  # NaN / inf: a diverged plant; numpy's answer
-            return float(np.minimum(np.maximum(np.round(signal / lsb), -self._half), self._half - 1) * lsb)
-        half = self._half
-        return (-half if code < -half else (half - 1 if code > half - 1 else code)) * lsb
+        """SensorModel._adc on any float, through numpy (NaN stays NaN)."""
+        return float(np.minimum(np.maximum(np.round(signal / lsb), -self._half), self._half - 1) * lsb)
 
-    def _encoder(self, theta: float) -> tuple[int, float]:
-        """SensorModel._encoder: (count wrapped to int32, the angle the unwrapped count resolves [rad])."""
-        try:
-            count = math.floor(theta * self._cpr / (2.0 * math.pi))
-        except (ValueError, OverflowError):  # NaN / inf: a diverged plant; numpy's answer
-            count = int(np.floor(np.float64(theta) * self._cpr / (2.0 * np.pi)).astype(np.int64))
-        return (count + 2**31) % 2**32 - 2**31, count * self._rad_per_count
+    def _count(self, theta: float) -> int:
+        """SensorModel._encoder's unwrapped count on any float, through numpy."""
+        with np.errstate(invalid="ignore"):
+            return int(np.floor(np.float64(theta) * self._cpr / (2.0 * np.pi)).astype(np.int64))
 
     # --- a whole sample -------------------------------------------------------------------------------
     def measure(self, history: list[tuple[float, ...]], voltage_drive: float, saturated: bool,
@@ -124,63 +112,102 @@ class ScalarSensors:
             saturated: whether the requested voltage exceeded the supply.
             tick: [s] sim time of the period's start.
         """
-        at = self._at
+        # Each channel at its own instant: Trajectory.at, a + frac (b - a) between the boundaries
+        # around it. Written out channel by channel: a helper call each costs more than the arithmetic.
+        (k0, f0), (k1, f1), (k2, f2), (k3, f3), (k4, f4), (k5, f5) = self._instants
+        a, b = history[k0], history[k0 + 1]
+        current_drive = a[0] + f0 * (b[0] - a[0]) if f0 else a[0]
+        a, b = history[k1], history[k1 + 1]
+        load_1 = a[1] + f1 * (b[1] - a[1]) if f1 else a[1]
+        a, b = history[k2], history[k2 + 1]
+        load_2 = a[1] + f2 * (b[1] - a[1]) if f2 else a[1]
+        # tachos: omega (1 + ripple sin(TACHO_RIPPLE_ORDER theta)) of their own shaft
+        ripple = self._ripple
+        a, b = history[k3], history[k3 + 1]
+        omega, theta = (a[2] + f3 * (b[2] - a[2]), a[3] + f3 * (b[3] - a[3])) if f3 else (a[2], a[3])
+        tacho_drive = omega * (1.0 + ripple * math.sin(TACHO_RIPPLE_ORDER * theta))
+        a, b = history[k4], history[k4 + 1]
+        omega, theta = (a[4] + f4 * (b[4] - a[4]), a[5] + f4 * (b[5] - a[5])) if f4 else (a[4], a[5])
+        tacho_load_1 = omega * (1.0 + ripple * math.sin(TACHO_RIPPLE_ORDER * theta))
+        a, b = history[k5], history[k5 + 1]
+        omega, theta = (a[4] + f5 * (b[4] - a[4]), a[5] + f5 * (b[5] - a[5])) if f5 else (a[4], a[5])
+        tacho_load_2 = omega * (1.0 + ripple * math.sin(TACHO_RIPPLE_ORDER * theta))
 
-        def value(signal: str, index: int) -> float:  # Trajectory.at
-            k, frac = at[signal]
-            a = history[k][index]
-            return a + frac * (history[k + 1][index] - a) if frac else a
-
-        def tacho(signal: str, omega: int, theta: int) -> float:
-            return value(signal, omega) * (1.0 + self._ripple * math.sin(TACHO_RIPPLE_ORDER * value(signal, theta)))
-
-        signals = {
-            "current_drive": value("current_drive", CURRENT_DRIVE),
-            "current_load_1": value("current_load_1", CURRENT_LOAD),
-            "current_load_2": value("current_load_2", CURRENT_LOAD),
-            "tacho_drive": tacho("tacho_drive", OMEGA_WORM, THETA_WORM),
-            "tacho_load_1": tacho("tacho_load_1", OMEGA_GEAR, THETA_GEAR),
-            "tacho_load_2": tacho("tacho_load_2", OMEGA_GEAR, THETA_GEAR),
-        }
         if self._sense:
+            signals = {"current_drive": current_drive, "current_load_1": load_1, "current_load_2": load_2,
+                       "tacho_drive": tacho_drive, "tacho_load_1": tacho_load_1, "tacho_load_2": tacho_load_2}
             context = SenseContext({k: tick + v for k, v in self.model.sample_time.items()}, voltage_drive,
                                    self._supply)
             for sense in self._sense:
                 sense(signals, context)
+            current_drive, load_1, load_2 = signals["current_drive"], signals["current_load_1"], \
+                signals["current_load_2"]
+            tacho_drive, tacho_load_1, tacho_load_2 = signals["tacho_drive"], signals["tacho_load_1"], \
+                signals["tacho_load_2"]
 
+        # Noise, then the ADC: nearest code (round(): ties to even, as np.round) within the range.
         if self._next == len(self._noise):
             self._draw()
         j = self._next
         self._next = j + 6
-        n = self._noise
-        quantise, lsb, tacho_lsb = self._quantise, self._current_lsb, self._tacho_lsb
-        current_drive = quantise(signals["current_drive"] + n[j], lsb)
-        load_1 = quantise(signals["current_load_1"] + n[j + 1], lsb)
-        load_2 = quantise(signals["current_load_2"] + n[j + 2], lsb)
-        tacho_drive = quantise(signals["tacho_drive"] + n[j + 3], tacho_lsb["tacho_drive"])
-        tacho_load_1 = quantise(signals["tacho_load_1"] + n[j + 4], tacho_lsb["tacho_load_1"])
-        tacho_load_2 = quantise(signals["tacho_load_2"] + n[j + 5], tacho_lsb["tacho_load_2"])
-        count_drive, theta_worm = self._encoder(history[0][THETA_WORM])  # latched at the tick
-        count_load, theta_gear = self._encoder(history[0][THETA_GEAR])
+        noise = self._noise
+        lsb = self._lsb
+        low, high = -self._half, self._half - 1
+        values = (current_drive + noise[j], load_1 + noise[j + 1], load_2 + noise[j + 2],
+                  tacho_drive + noise[j + 3], tacho_load_1 + noise[j + 4], tacho_load_2 + noise[j + 5])
+        try:
+            c0, c1, c2, c3, c4, c5 = (round(values[0] / lsb[0]), round(values[1] / lsb[1]),
+                                      round(values[2] / lsb[2]), round(values[3] / lsb[3]),
+                                      round(values[4] / lsb[4]), round(values[5] / lsb[5]))
+        except (ValueError, OverflowError):  # NaN or inf: a diverged plant
+            c0, c1, c2, c3, c4, c5 = (self._quantise(v, q) / q for v, q in zip(values, lsb))
+        current_drive = (low if c0 < low else (high if c0 > high else c0)) * lsb[0]
+        load_1 = (low if c1 < low else (high if c1 > high else c1)) * lsb[1]
+        load_2 = (low if c2 < low else (high if c2 > high else c2)) * lsb[2]
+        tacho_drive = (low if c3 < low else (high if c3 > high else c3)) * lsb[3]
+        tacho_load_1 = (low if c4 < low else (high if c4 > high else c4)) * lsb[4]
+        tacho_load_2 = (low if c5 < low else (high if c5 > high else c5)) * lsb[5]
 
-        counts = _empty(3, _int32)
-        counts[0], counts[1], counts[2] = count_drive, count_load, count_load
+        # Encoders, latched at the tick: floor of the counts, wrapped to int32 as the counter does.
+        theta_worm, theta_gear = history[0][3], history[0][5]
+        try:
+            count_drive = math.floor(theta_worm * self._cpr / (2.0 * math.pi))
+            count_load = math.floor(theta_gear * self._cpr / (2.0 * math.pi))
+        except (ValueError, OverflowError):
+            count_drive, count_load = self._count(theta_worm), self._count(theta_gear)
+
+        # (1-element arrays: empty + item assignment is the cheapest way numpy makes them; a call
+        # per array would cost as much again)
+        wrap = 2**31
+        c_d = _empty(1, _int32)
+        c_d[0] = (count_drive + wrap) % 2**32 - wrap
+        c_l1 = _empty(1, _int32)
+        c_l1[0] = (count_load + wrap) % 2**32 - wrap
+        c_l2 = _empty(1, _int32)
+        c_l2[0] = c_l1[0]
         status = _empty(1, _uint32)
         status[0] = (STATUS_DRIVE_LIMIT if saturated else 0) | STATUS_SIMULATED
-        return Measurement(
-            current_drive=_array(current_drive),
-            current_load_1=_array(load_1),
-            current_load_2=_array(load_2),
-            omega_worm=_array(tacho_drive),
-            omega_gear=_array(0.5 * (tacho_load_1 + tacho_load_2)),
-            theta_worm=_array(theta_worm),
-            theta_gear=_array(theta_gear),
-            count_drive=counts[0:1],
-            count_load_1=counts[1:2],
-            count_load_2=counts[2:3],
-            voltage_drive=_array(voltage_drive),
-            tau_load=_array(self._load_torque_scale * (load_1 + load_2) * self._load_count / 2.0),
-            status=status,
-            tacho_load_1=_array(tacho_load_1),
-            tacho_load_2=_array(tacho_load_2),
-        )
+        i_d = _empty(1)
+        i_d[0] = current_drive
+        i_l1 = _empty(1)
+        i_l1[0] = load_1
+        i_l2 = _empty(1)
+        i_l2[0] = load_2
+        w_d = _empty(1)
+        w_d[0] = tacho_drive
+        w_l1 = _empty(1)
+        w_l1[0] = tacho_load_1
+        w_l2 = _empty(1)
+        w_l2[0] = tacho_load_2
+        w_g = _empty(1)
+        w_g[0] = 0.5 * (tacho_load_1 + tacho_load_2)
+        th_w = _empty(1)
+        th_w[0] = count_drive * self._rad_per_count
+        th_g = _empty(1)
+        th_g[0] = count_load * self._rad_per_count
+        volts = _empty(1)
+        volts[0] = voltage_drive
+        tau = _empty(1)
+        tau[0] = self._load_torque_scale * (load_1 + load_2) * self._load_count / 2.0
+        # (positional, in the field order: keywords cost a dataclass 3x as much)
+        return Measurement(i_d, i_l1, i_l2, w_d, w_g, th_w, th_g, c_d, c_l1, c_l2, volts, tau, status, w_l1, w_l2)
