@@ -178,6 +178,8 @@ class ScalarPlant:
         self.contact = 0 if self.backlash > 0 else 1
         self._exported: dict[str, np.ndarray] = {}
         self.state = ScalarPlantState(self)
+        self._target = 0.0  # [A] per load motor, the current loop's target (see _command)
+        self._mechanics = self._step_with_backlash if self.backlash > 0 else self._step_rigid
 
         # Outputs of the last step.
         self.tau_in = self.tau_load = self.gear_load = self.alpha_worm = self.alpha_gear = self.mu = 0.0
@@ -277,8 +279,31 @@ class ScalarPlant:
             load_torque_command: requested load torque on the gear shaft [N m], positive
                 opposing positive rotation, clamped to +-rig.max_load_torque.
         """
+        self._command(dt, voltage_drive, load_torque_command)
+        self._substep(dt)
+
+    def advance(self, dt: float, steps: int, voltage_drive: float,
+                load_torque_command: float) -> list[tuple[float, float, float, float, float, float]]:
+        """`steps` calls of step(dt, ...) with the commands held: one sample period of SimulatedRig.
+
+        Returns:
+            the state (current_drive, current_load, omega_worm, theta_worm, omega_gear,
+            theta_gear) before the first step and after each, steps + 1 entries (what
+            ScalarSensors.measure samples the channels from).
+        """
+        self._command(dt, voltage_drive, load_torque_command)
+        history = [(self.current_drive, self.current_load, self.omega_worm, self.theta_worm, self.omega_gear,
+                    self.theta_gear)]
+        for _ in range(steps):
+            self._substep(dt)
+            history.append((self.current_drive, self.current_load, self.omega_worm, self.theta_worm,
+                            self.omega_gear, self.theta_gear))
+        return history
+
+    def _command(self, dt: float, voltage_drive: float, load_torque_command: float) -> None:
+        """What step() does before integrating, the same for every step with the same commands."""
         if self._exported:
-            self._sync()
+            self._sync()  # state arrays handed out (and maybe written into) since the last step
         if dt != self._dt or self.load_current_time_constant != self._tau:
             self._set_step(dt)
         supply = self._supply
@@ -289,23 +314,23 @@ class ScalarPlant:
             for f in self._voltage_fx:
                 voltage = f(voltage, supply)
         self.voltage_drive = voltage
-
         # Load motors: current-controlled, sharing the commanded torque equally.
         limit = self._max_load
         command = -limit if load_torque_command < -limit else (limit if load_torque_command > limit
                                                                else load_torque_command)
-        target = command / self._load_scale
-        self.current_load = current_load = self.current_load + (target - self.current_load) * self._blend
+        self._target = command / self._load_scale  # [A] per load motor
+
+    def _substep(self, dt: float) -> None:
+        """One step of dt with the commands _command set."""
+        # load currents approach the target with the current loop's time constant
+        self.current_load = current_load = self.current_load + (self._target - self.current_load) * self._blend
         self.tau_load = tau_load = self._load_scale * current_load
 
         # Drive motor armature (Eq. 29), exact over dt with the speed held (motor.exact_current_step).
-        i_ss = (voltage - self._ke * self.omega_worm) / self._r
+        i_ss = (self.voltage_drive - self._ke * self.omega_worm) / self._r
         self.current_drive = i_ss + (self.current_drive - i_ss) * self._decay
 
-        if self.backlash > 0:
-            self._step_with_backlash(dt, tau_load)
-        else:
-            self._step_rigid(dt, tau_load)
+        self._mechanics(dt, tau_load)
         if self._needs_heat:
             for f in self._advance_fx:
                 f(dt, self.heat)
@@ -336,7 +361,7 @@ class ScalarPlant:
         self.omega_worm = new_omega
         self.omega_gear, self.theta_gear = ratio * new_omega, ratio * self.theta_worm
         if sigma != 0.0:
-            self.contact = int(sigma) * flank
+            self.contact = flank if sigma > 0.0 else -flank  # sigma * flank
         # outputs (tau_load is set by step)
         self.tau_in, self.gear_load, self.alpha_worm, self.alpha_gear, self.mu = (
             tau_in, gear_load, alpha, ratio * alpha, mu)

@@ -39,6 +39,7 @@ BLOCK = 1000
 CURRENT_DRIVE, CURRENT_LOAD, OMEGA_WORM, THETA_WORM, OMEGA_GEAR, THETA_GEAR = range(6)
 
 _empty, _int32, _uint32 = np.empty, np.int32, np.uint32
+_TWO_PI = 2.0 * math.pi  # (= sensors' 2.0 * np.pi)
 
 
 class ScalarSensors:
@@ -81,6 +82,9 @@ class ScalarSensors:
         self._load_torque_scale = rig.load_motor.torque_constant  # tau_load = K_t (i_1 + i_2) count / 2
         self._load_count = rig.load_motor_count
         self._supply = rig.supply_voltage
+        # what measure() reads every sample, unpacked there in one go (attribute loads add up)
+        self._constants = (self._instants, self._ripple, self._lsb, -self._half, self._half - 1, self._cpr,
+                           self._rad_per_count, self._load_torque_scale, self._load_count)
         fx: EffectStack | None = model.effects
         self._sense = [e.sense_float for e in fx.effects if "sense" in type(e).hooks()] if fx is not None else []
 
@@ -114,7 +118,8 @@ class ScalarSensors:
         """
         # Each channel at its own instant: Trajectory.at, a + frac (b - a) between the boundaries
         # around it. Written out channel by channel: a helper call each costs more than the arithmetic.
-        (k0, f0), (k1, f1), (k2, f2), (k3, f3), (k4, f4), (k5, f5) = self._instants
+        instants, ripple, lsb, low, high, cpr, rad_per_count, load_scale, load_count = self._constants
+        (k0, f0), (k1, f1), (k2, f2), (k3, f3), (k4, f4), (k5, f5) = instants
         a, b = history[k0], history[k0 + 1]
         current_drive = a[0] + f0 * (b[0] - a[0]) if f0 else a[0]
         a, b = history[k1], history[k1 + 1]
@@ -122,7 +127,6 @@ class ScalarSensors:
         a, b = history[k2], history[k2 + 1]
         load_2 = a[1] + f2 * (b[1] - a[1]) if f2 else a[1]
         # tachos: omega (1 + ripple sin(TACHO_RIPPLE_ORDER theta)) of their own shaft
-        ripple = self._ripple
         a, b = history[k3], history[k3 + 1]
         omega, theta = (a[2] + f3 * (b[2] - a[2]), a[3] + f3 * (b[3] - a[3])) if f3 else (a[2], a[3])
         tacho_drive = omega * (1.0 + ripple * math.sin(TACHO_RIPPLE_ORDER * theta))
@@ -151,8 +155,6 @@ class ScalarSensors:
         j = self._next
         self._next = j + 6
         noise = self._noise
-        lsb = self._lsb
-        low, high = -self._half, self._half - 1
         values = (current_drive + noise[j], load_1 + noise[j + 1], load_2 + noise[j + 2],
                   tacho_drive + noise[j + 3], tacho_load_1 + noise[j + 4], tacho_load_2 + noise[j + 5])
         try:
@@ -171,20 +173,24 @@ class ScalarSensors:
         # Encoders, latched at the tick: floor of the counts, wrapped to int32 as the counter does.
         theta_worm, theta_gear = history[0][3], history[0][5]
         try:
-            count_drive = math.floor(theta_worm * self._cpr / (2.0 * math.pi))
-            count_load = math.floor(theta_gear * self._cpr / (2.0 * math.pi))
+            count_drive = math.floor(theta_worm * cpr / _TWO_PI)
+            count_load = math.floor(theta_gear * cpr / _TWO_PI)
         except (ValueError, OverflowError):
             count_drive, count_load = self._count(theta_worm), self._count(theta_gear)
 
         # (1-element arrays: empty + item assignment is the cheapest way numpy makes them; a call
         # per array would cost as much again)
-        wrap = 2**31
+        # wrap_int32 (skipped inside the range: big-int arithmetic is not free); the angles come
+        # from the unwrapped counts, as SensorModel._encoder's
         c_d = _empty(1, _int32)
-        c_d[0] = (count_drive + wrap) % 2**32 - wrap
+        c_d[0] = count_drive if -2147483648 <= count_drive < 2147483648 else \
+            (count_drive + 2147483648) % 4294967296 - 2147483648
+        wrapped = count_load if -2147483648 <= count_load < 2147483648 else \
+            (count_load + 2147483648) % 4294967296 - 2147483648
         c_l1 = _empty(1, _int32)
-        c_l1[0] = (count_load + wrap) % 2**32 - wrap
+        c_l1[0] = wrapped
         c_l2 = _empty(1, _int32)
-        c_l2[0] = c_l1[0]
+        c_l2[0] = wrapped
         status = _empty(1, _uint32)
         status[0] = (STATUS_DRIVE_LIMIT if saturated else 0) | STATUS_SIMULATED
         i_d = _empty(1)
@@ -202,12 +208,12 @@ class ScalarSensors:
         w_g = _empty(1)
         w_g[0] = 0.5 * (tacho_load_1 + tacho_load_2)
         th_w = _empty(1)
-        th_w[0] = count_drive * self._rad_per_count
+        th_w[0] = count_drive * rad_per_count
         th_g = _empty(1)
-        th_g[0] = count_load * self._rad_per_count
+        th_g[0] = count_load * rad_per_count
         volts = _empty(1)
         volts[0] = voltage_drive
         tau = _empty(1)
-        tau[0] = self._load_torque_scale * (load_1 + load_2) * self._load_count / 2.0
+        tau[0] = load_scale * (load_1 + load_2) * load_count / 2.0
         # (positional, in the field order: keywords cost a dataclass 3x as much)
         return Measurement(i_d, i_l1, i_l2, w_d, w_g, th_w, th_g, c_d, c_l1, c_l2, volts, tau, status, w_l1, w_l2)

@@ -146,16 +146,8 @@ class SimulatedRig:
     def _sample_scalar(self) -> Measurement:
         """sample() on the scalar path: the same steps and readings in float math."""
         plant = self.plant
-        if plant._exported:
-            plant._sync()  # state arrays handed out (and maybe written into) since the last step
-        dt = self.sample_period / self.substeps
-        voltage, load = float(self.voltage_drive[0]), float(self.load_torque[0])
-        history = [(plant.current_drive, plant.current_load, plant.omega_worm, plant.theta_worm, plant.omega_gear,
-                    plant.theta_gear)]
-        for _ in range(self.substeps):
-            plant.step(dt, voltage, load)
-            history.append((plant.current_drive, plant.current_load, plant.omega_worm, plant.theta_worm,
-                            plant.omega_gear, plant.theta_gear))
+        history = plant.advance(self.sample_period / self.substeps, self.substeps, self.voltage_drive.item(0),
+                                self.load_torque.item(0))
         self._stepped = True
         tick = self.time
         self.seq += 1
