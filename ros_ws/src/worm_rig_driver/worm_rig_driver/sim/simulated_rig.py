@@ -19,11 +19,12 @@ period's end, which is when sample() returns it. truth() is the plant at that en
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from worm_model.physics.internal_forces import internal_forces
+from worm_model.physics.internal_forces import internal_forces, internal_forces_float
 from worm_model.physics.modes import Flank, Mode
 from worm_model.physics.parameters import Rig
 
@@ -64,6 +65,16 @@ def true_mode(flank: np.ndarray, tau_load: np.ndarray, omega_worm: np.ndarray) -
     mode = np.where(flank < 0, Mode.ASSISTIVE,
                     np.where(load_in_frame >= 0, Mode.RESISTIVE, Mode.PSEUDO_RESISTIVE))
     return np.where(np.abs(omega_worm) > STANDSTILL_SPEED, mode, Mode.STANDSTILL).astype(np.int8)
+
+
+def true_mode_float(flank: int, tau_load: float, omega_worm: float) -> int:
+    """true_mode for one sample of floats (the scalar path's truth)."""
+    if not abs(omega_worm) > STANDSTILL_SPEED:
+        return int(Mode.STANDSTILL)
+    if flank < 0:
+        return int(Mode.ASSISTIVE)
+    load_in_frame = (1.0 if omega_worm > 0.0 else -1.0) * tau_load
+    return int(Mode.RESISTIVE if load_in_frame >= 0 else Mode.PSEUDO_RESISTIVE)
 
 
 class SimulatedRig:
@@ -177,6 +188,8 @@ class SimulatedRig:
         (effects included) and the true inertias; while the teeth are apart in the
         backlash, N = F_f = 0, mu = NaN and the flank is NONE.
         """
+        if self.scalar:
+            return self._truth_scalar()
         out, state = self._last_outputs("truth()"), self.plant.state
         forces = internal_forces(self.rig.gearbox, out.tau_in, out.gear_load, state.omega_worm,
                                  out.alpha_worm, worm_inertia=self.plant.worm_inertia,
@@ -195,4 +208,31 @@ class SimulatedRig:
             flank=flank.astype(np.int8), omega_gear=state.omega_gear.copy(), theta_worm=state.theta_worm.copy(),
             theta_gear=state.theta_gear.copy(), contact=np.asarray(out.contact).copy(),
             effects=self.plant.fx.observe(),
+        )
+
+    def _truth_scalar(self) -> Truth:
+        """truth() on the scalar path: the same quantities from the plant's floats (no array passes)."""
+        if not self._stepped:
+            raise RuntimeError("truth() needs at least one sample()")
+        p = self.plant
+        p._sync()  # (state arrays written into since the last step count, as on RigPlant)
+        omega = p.omega_worm
+        normal, friction, mu, flank = internal_forces_float(self.rig.gearbox, p.tau_in, p.gear_load, omega,
+                                                            p.alpha_worm, worm_inertia=p.worm_inertia,
+                                                            gear_inertia=p.gear_inertia)
+        apart = p.contact_out == 0
+        if apart:
+            normal, friction, mu = 0.0, 0.0, math.nan
+        if apart or not abs(omega) > STANDSTILL_SPEED:
+            flank = int(Flank.NONE)
+
+        def one(x, dtype=float):
+            return np.array([x], dtype=dtype)
+
+        return Truth(
+            tau_load=one(p.tau_load), tau_in=one(p.tau_in), omega_worm=one(omega), current_drive=one(p.current_drive),
+            normal_force=one(normal), friction_force=one(friction), mu=one(mu),
+            mode=one(true_mode_float(flank, p.tau_load, omega), np.int8), flank=one(flank, np.int8),
+            omega_gear=one(p.omega_gear), theta_worm=one(p.theta_worm), theta_gear=one(p.theta_gear),
+            contact=one(p.contact_out, np.int8), effects=p.fx.observe(),
         )
