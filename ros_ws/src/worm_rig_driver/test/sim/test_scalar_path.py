@@ -24,6 +24,7 @@ from worm_model.physics.modes import Flank, Mode
 from worm_model.physics.parameters import load_rig
 from worm_rig_driver.sim import effects as effects_module
 from worm_rig_driver.sim.effects import EFFECTS, EffectBase, EffectsConfig
+from worm_rig_driver.sim.plant import RigPlant
 from worm_rig_driver.sim.scalar_plant import ScalarPlant, float_hooks_missing
 from worm_rig_driver.sim.scalar_sensors import BLOCK
 from worm_rig_driver.sim.sensors import STATUS_DRIVE_LIMIT
@@ -250,6 +251,29 @@ def test_float_friction_laws_are_the_array_laws(model: str) -> None:
     floats = np.array([FLOAT_FRICTION_MODELS[model](friction, float(x)) for x in v])
     np.testing.assert_allclose(floats, array, rtol=4e-16, atol=0)
     assert np.isnan(FLOAT_FRICTION_MODELS[model](friction, float("nan")))
+
+
+@pytest.mark.parametrize("key", ["none", "backlash", "all_effects"])
+def test_scalar_plant_step_is_rig_plant_step(key: str) -> None:
+    """ScalarPlant.step (one step, as RigPlant.step) and its outputs() over reversals, rest and gap crossings."""
+    fast, slow = ScalarPlant(RIG, effects=CONFIGS[key]), RigPlant(RIG, 1, effects=CONFIGS[key])
+    dt = 2.5e-4
+    for k in range(4000):
+        volts, load = [(15.0, 0.2), (15.0, -0.2), (-30.0, 0.1), (0.0, 0.25), (0.0, -0.25)][k // 800]
+        fast.step(dt, volts, load)
+        out = slow.step(dt, volts, load)
+    mine = fast.outputs()
+    for name in ("tau_in", "tau_load", "gear_load", "alpha_worm", "alpha_gear", "mu", "voltage_drive",
+                 "worm_effect_torque", "gear_effect_torque", "impact_loss", "heat"):
+        a, b = getattr(mine, name), getattr(out, name)
+        assert (a is None) == (b is None), name
+        if b is not None:
+            np.testing.assert_allclose(a, b, rtol=RTOL, atol=1e-15, err_msg=name)
+    np.testing.assert_array_equal(mine.contact, out.contact)
+    np.testing.assert_array_equal(mine.drive_saturated, out.drive_saturated)
+    for name in ("current_drive", "omega_worm", "theta_worm", "current_load", "omega_gear", "theta_gear", "contact"):
+        np.testing.assert_allclose(getattr(fast.state, name), getattr(slow.state, name), rtol=RTOL, atol=1e-15,
+                                   err_msg=name)
 
 
 def test_scalar_plant_matches_the_rig_plant_attributes() -> None:

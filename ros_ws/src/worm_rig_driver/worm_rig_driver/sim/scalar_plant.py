@@ -117,7 +117,7 @@ for _name, _cast in _STATE_FIELDS.items():
 class ScalarPlant:
     """One rig's motor + gearbox + load motors (+ backlash), Eqs 28-30, in float math.
 
-    Same constructor arguments and the same public attributes as RigPlant with n = 1
+    RigPlant's constructor arguments but n, and its public attributes with n = 1
     (rig, n, load_current_time_constant, effects, fx, state, worm_inertia,
     gear_inertia, backlash). :meth:`step` takes and leaves floats; the outputs of
     the last step are float attributes (tau_in, tau_load, gear_load, alpha_worm,
@@ -168,6 +168,9 @@ class ScalarPlant:
         self._load_scale = self._count * self._kt_load  # [N m/A] all load motors together
         self._load_b, self._load_c = load.viscous_drag, load.coulomb_drag
         self._supply, self._max_load = rig.supply_voltage, rig.max_load_torque
+        # what _forces reads, unpacked there in one go (attribute loads add up on this hot path)
+        self._force_constants = (self._kt, self._b, self._c, self._ratio, self._count, self._load_b, self._load_c,
+                                 self._r_w, self._cos_lead)
         # exp(-R dt/L) of the armature and 1 - exp(-dt/tau) of the load current, for the last
         # (dt, tau) (virtual_rig sets tau after construction); numpy's exp, as RigPlant's
         self._dt = self._tau = self._decay = self._blend = math.nan
@@ -212,14 +215,15 @@ class ScalarPlant:
     def _forces(self, omega_worm: float, omega_gear: float, current: float, tau_load: float,
                 engaged: bool | None = None, static: bool = False):
         """(tau_in, gear_load, mu, worm effect torque, gear effect torque): RigPlant._forces for floats."""
+        kt, b, c, ratio, count, load_b, load_c, r_w, cos_lead = self._force_constants
         w = omega_worm
-        tau_in = self._kt * current - self._b * w - self._c * (1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0))
+        # motor.shaft_torque: K_t i - b w - c sign(w)
+        tau_in = kt * current - b * w - c * (1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0))
         # gear_side_load(rig, tau_load, omega_gear / ratio): the drag at ratio * (omega_gear / ratio)
-        ratio = self._ratio
         g = ratio * (omega_gear / ratio)
-        gear_load = tau_load + self._count * (self._load_b * g
-                                              + self._load_c * (1.0 if g > 0.0 else (-1.0 if g < 0.0 else 0.0)))
-        v_sliding = 0.0 if static else abs(w) * self._r_w / self._cos_lead
+        gear_load = tau_load + count * (load_b * g + load_c * (1.0 if g > 0.0 else (-1.0 if g < 0.0 else 0.0)))
+        # friction.sliding_velocity: |w| r_w / cos(lambda)
+        v_sliding = 0.0 if static else abs(w) * r_w / cos_lead
         mu = self._mu_law(v_sliding)
         if not self._has_effects:
             return tau_in, gear_load, mu, None, None
@@ -362,7 +366,7 @@ class ScalarPlant:
         self.omega_gear, self.theta_gear = ratio * new_omega, ratio * self.theta_worm
         if sigma != 0.0:
             self.contact = flank if sigma > 0.0 else -flank  # sigma * flank
-        # outputs (tau_load is set by step)
+        # outputs (tau_load is set by _substep)
         self.tau_in, self.gear_load, self.alpha_worm, self.alpha_gear, self.mu = (
             tau_in, gear_load, alpha, ratio * alpha, mu)
         self.contact_out, self.worm_effect_torque, self.gear_effect_torque, self.impact_loss = (
