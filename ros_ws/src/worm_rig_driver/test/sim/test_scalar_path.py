@@ -276,6 +276,23 @@ def test_scalar_plant_step_is_rig_plant_step(key: str) -> None:
                                    err_msg=name)
 
 
+def test_the_written_out_rigid_step_is_the_general_one_bit_for_bit() -> None:
+    """_step_rigid_plain (moving, no effects: the live simulator's common case) against _step_rigid."""
+    rng = np.random.default_rng(12)
+    plants = ScalarPlant(RIG), ScalarPlant(RIG)
+    names = ("omega_worm", "theta_worm", "omega_gear", "theta_gear", "contact", "tau_in", "gear_load", "alpha_worm",
+             "alpha_gear", "mu", "contact_out", "impact_loss")
+    for _ in range(5000):
+        omega = [rng.normal(0, 200), rng.normal(0, 2e-3), 0.0][rng.integers(3)]  # moving, creeping, at rest
+        state = (float(rng.normal(0, 2.0)), float(omega), float(rng.normal(0, 50)))
+        tau_load, dt = float(rng.normal(0, 0.2)), [1e-4, 5e-4, 1e-3][rng.integers(3)]
+        for plant in plants:
+            plant.current_drive, plant.omega_worm, plant.theta_worm = state
+        plants[0]._step_rigid_plain(dt, tau_load)
+        plants[1]._step_rigid(dt, tau_load)
+        assert [getattr(plants[0], n) for n in names] == [getattr(plants[1], n) for n in names]
+
+
 def test_scalar_plant_matches_the_rig_plant_attributes() -> None:
     plant = ScalarPlant(RIG, effects=EffectsConfig.defaults("inertia_error", "backlash"))
     assert plant.worm_inertia == pytest.approx(1.2 * RIG.total_worm_inertia)

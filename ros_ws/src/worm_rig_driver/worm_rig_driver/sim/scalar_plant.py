@@ -182,7 +182,10 @@ class ScalarPlant:
         self._exported: dict[str, np.ndarray] = {}
         self.state = ScalarPlantState(self)
         self._target = 0.0  # [A] per load motor, the current loop's target (see _command)
-        self._mechanics = self._step_with_backlash if self.backlash > 0 else self._step_rigid
+        if self.backlash > 0:
+            self._mechanics = self._step_with_backlash
+        else:
+            self._mechanics = self._step_rigid if self._has_effects else self._step_rigid_plain
 
         # Outputs of the last step.
         self.tau_in = self.tau_load = self.gear_load = self.alpha_worm = self.alpha_gear = self.mu = 0.0
@@ -371,6 +374,44 @@ class ScalarPlant:
             tau_in, gear_load, alpha, ratio * alpha, mu)
         self.contact_out, self.worm_effect_torque, self.gear_effect_torque, self.impact_loss = (
             self.contact, worm_fx, gear_fx, 0.0)
+
+    def _step_rigid_plain(self, dt: float, tau_load: float) -> None:
+        """_step_rigid without effects, for a moving worm written out (else it calls _step_rigid).
+
+        The live sim_node's common case: inlining _forces and _acceleration here saves
+        ~6 % of a sample. Same operations in the same order as the general methods
+        (test_scalar_path pins the two bit for bit); Eq. 28 is still Eq28.on_flank.
+        """
+        omega = self.omega_worm
+        if not abs(omega) > STANDSTILL_SPEED:
+            return self._step_rigid(dt, tau_load)  # at rest: breakaway
+        kt, b, c, ratio, count, load_b, load_c, r_w, cos_lead = self._force_constants
+        sigma = 1.0 if omega > 0.0 else -1.0
+        # _forces(omega, ratio * omega, ...)
+        tau_in = kt * self.current_drive - b * omega - c * sigma
+        g = ratio * ((ratio * omega) / ratio)
+        gear_load = tau_load + count * (load_b * g + load_c * (1.0 if g > 0.0 else (-1.0 if g < 0.0 else 0.0)))
+        mu = self._mu_law(abs(omega) * r_w / cos_lead)
+        # _acceleration: Eq. 28 with the self-consistent flank
+        T, D = sigma * tau_in, sigma * gear_load
+        a, ok = self._on_flank(mu, T, D, 1.0)
+        flank = 1
+        if not ok:
+            a_m, ok_m = self._on_flank(mu, T, D, -1.0)
+            if ok_m or not D >= 0.0:
+                a, flank = a_m, -1
+        alpha = sigma * a
+        new_omega = omega + alpha * dt
+        if (not new_omega > 0.0) if omega > 0.0 else (not new_omega < 0.0):  # _reverses: stop at zero
+            new_omega = 0.0
+        self.theta_worm = self.theta_worm + 0.5 * (omega + new_omega) * dt
+        self.omega_worm = new_omega
+        self.omega_gear, self.theta_gear = ratio * new_omega, ratio * self.theta_worm
+        self.contact = flank if sigma > 0.0 else -flank
+        self.tau_in, self.gear_load, self.alpha_worm, self.alpha_gear, self.mu = (
+            tau_in, gear_load, alpha, ratio * alpha, mu)
+        self.contact_out, self.worm_effect_torque, self.gear_effect_torque, self.impact_loss = (
+            self.contact, None, None, 0.0)
 
     # --- mesh with a dead zone ----------------------------------------------------------------------------
     def _step_with_backlash(self, dt: float, tau_load: float) -> None:
