@@ -9,7 +9,8 @@ Prints to stdout, in this order:
                                          the path SimulatedRig picks for n=1 as the live sim_node does:
                                          the scalar one (issue 13)
   sim_vectorised_n1_realtime_factor: <x> the same on the vectorised path (scalar=False), for comparison
-  sim_effects_realtime_factor: <x>       sim_realtime_factor with every effect plug-in on (config/effects_all.yaml)
+  sim_effects_realtime_factor: <x>       sim_realtime_factor with every effect plug-in on (config/effects_all.yaml;
+                                         every effect has float hooks, so also the scalar path)
   sim_ensemble_realtime_factor: <x>      rig-seconds per wall s, 544 rigs stepped together
   knn_estimate_latency_p50: <x> us       one KnnEstimator.estimate(omega, i) call on the calibration database
   model_forces_throughput: <x> samples/s internal_forces on 10^6 samples

@@ -7,8 +7,8 @@ and the effects are deterministic.
 
 Two implementations of the same model (issue 13): the vectorised one (plant.RigPlant
 + sensors.SensorModel, numpy over n rigs) and, for one rig, a scalar one in plain
-float math (scalar_plant.ScalarPlant + scalar_sensors.ScalarSensors, ~30x faster:
-for n = 1 numpy's cost per call, not the physics, dominated). n = 1 takes the scalar
+float math (scalar_plant.ScalarPlant + scalar_sensors.ScalarSensors, ~10 us instead
+of ~300 us per sample: for n = 1 numpy's cost per call, not the physics, dominated). n = 1 takes the scalar
 path unless an active effect lacks the float hooks (then the vectorised one); the
 two agree to round-off and draw the same noise for the same seed (test_scalar_path).
 
@@ -28,8 +28,7 @@ from worm_model.physics.internal_forces import internal_forces, internal_forces_
 from worm_model.physics.modes import Flank, Mode
 from worm_model.physics.parameters import Rig
 
-from worm_rig_driver.sim.effects import EffectsConfig
-from worm_rig_driver.sim.effects import as_config
+from worm_rig_driver.sim.effects import EffectsConfig, as_config
 from worm_rig_driver.sim.plant import STANDSTILL_SPEED, PlantOutputs, RigPlant
 from worm_rig_driver.sim.scalar_plant import ScalarPlant, float_hooks_missing
 from worm_rig_driver.sim.scalar_sensors import ScalarSensors
@@ -93,7 +92,9 @@ class SimulatedRig:
             one for n = 1 when every active effect has float hooks (all of
             effects.EFFECTS do), else the vectorised one; True = scalar (n must be
             1); False = vectorised. ``self.scalar`` tells which one runs. Both
-            expose the same ``plant`` (state, fx, inertias, ...) and ``sensors``.
+            expose the same ``plant`` (state, fx, inertias, ...) and ``sensors``;
+            the scalar path draws the noise from sensors.rng in blocks of
+            scalar_sensors.BLOCK samples (same numbers, drawn ahead).
 
     Raises:
         ValueError: substeps < 1, the ADC sequence does not fit in a sample period,
