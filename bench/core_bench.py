@@ -5,8 +5,12 @@
 Prints to stdout, in this order:
   calibration_grid_time: <x> s           full 17 x 16 x 2 calibration on the simulated rig
   sim_realtime_factor: <x>               simulated s per wall s, one SimulatedRig (n=1) stepped in a loop
-                                         (batch mode: as fast as it goes, no pacing)
-  sim_effects_realtime_factor: <x>       the same with every effect plug-in on (config/effects_all.yaml)
+                                         (batch mode: as fast as it goes, no pacing; best of 3 runs), on
+                                         the path SimulatedRig picks for n=1 as the live sim_node does:
+                                         the scalar one (issue 13)
+  sim_vectorised_n1_realtime_factor: <x> the same on the vectorised path (scalar=False), for comparison
+  sim_effects_realtime_factor: <x>       sim_realtime_factor with every effect plug-in on (config/effects_all.yaml;
+                                         every effect has float hooks, so also the scalar path)
   sim_ensemble_realtime_factor: <x>      rig-seconds per wall s, 544 rigs stepped together
   knn_estimate_latency_p50: <x> us       one KnnEstimator.estimate(omega, i) call on the calibration database
   model_forces_throughput: <x> samples/s internal_forces on 10^6 samples
@@ -46,19 +50,27 @@ def bench_calibration(rig):
     return db
 
 
-def step_rate(rig, n: int, sim_seconds: float, effects=None) -> float:
-    """Simulated seconds per wall second of n rigs (at a speed, under load) stepped sample by sample."""
-    sim = SimulatedRig(rig, n=n, seed=0, effects=effects)
+def step_rate(rig, n: int, sim_seconds: float, effects=None, scalar: bool | None = None, repeats: int = 1) -> float:
+    """Simulated seconds per wall second of n rigs (at a speed, under load) stepped sample by sample.
+
+    scalar: SimulatedRig's switch (None: the path it picks). The best of `repeats`
+    runs of sim_seconds each (the machine may be shared).
+    """
+    sim = SimulatedRig(rig, n=n, seed=0, effects=effects, scalar=scalar)
     sim.command(voltage_drive=np.full(n, 6.0), load_torque=np.full(n, 0.1))
     for _ in range(50):  # warm-up
         sim.sample()
     steps = int(round(sim_seconds / sim.sample_period))
-    start = time.perf_counter()
-    for _ in range(steps):
-        sim.sample()
-    wall = time.perf_counter() - start
-    info(f"SimulatedRig n={n}, substeps={sim.substeps}, effects: {', '.join(sim.effects.names) or 'none'}: "
-         f"{steps} samples in {wall:.2f} s")
+    walls = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        for _ in range(steps):
+            sim.sample()
+        walls.append(time.perf_counter() - start)
+    wall = min(walls)
+    info(f"SimulatedRig n={n}, substeps={sim.substeps}, {'scalar' if sim.scalar else 'vectorised'} path, "
+         f"effects: {', '.join(sim.effects.names) or 'none'}: {steps} samples in {wall:.3f} s "
+         f"({wall / steps * 1e6:.1f} us per sample; best of {repeats})")
     return steps * sim.sample_period / wall
 
 
@@ -100,8 +112,10 @@ def bench_forces(rig, n: int = 10**6) -> float:
 def main() -> int:
     rig = load_rig(None)
     db = bench_calibration(rig)
-    metric("sim_realtime_factor", step_rate(rig, 1, 5.0), "", ".2f")
-    metric("sim_effects_realtime_factor", step_rate(rig, 1, 5.0, EffectsConfig.defaults(*EFFECTS)), "", ".2f")
+    metric("sim_realtime_factor", step_rate(rig, 1, 20.0, repeats=3), "", ".2f")
+    metric("sim_vectorised_n1_realtime_factor", step_rate(rig, 1, 5.0, scalar=False), "", ".2f")
+    metric("sim_effects_realtime_factor", step_rate(rig, 1, 10.0, EffectsConfig.defaults(*EFFECTS), repeats=3),
+           "", ".2f")
     metric("sim_ensemble_realtime_factor", len(db) * step_rate(rig, len(db), 1.0), "", ".1f")
     metric("knn_estimate_latency_p50", bench_knn(db), "us", ".1f")
     metric("model_forces_throughput", bench_forces(rig), "samples/s", ".3g")

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from worm_model.physics.dynamics import disturbance_from_gear_axis
-from worm_model.physics.internal_forces import internal_forces, switching_torque
+from worm_model.physics.internal_forces import internal_forces, internal_forces_float, switching_torque
 from worm_model.physics.modes import Flank, Mode, classify_mode, motion_sign
 from worm_model.physics.parameters import load_rig
 
@@ -149,3 +149,20 @@ def test_mesh_power_balance_with_accelerations_every_mode() -> None:
     p_out = (tau_d + JG * alpha_g) * GB.geometric_ratio * omega
     p_friction = res.friction_force * sliding_velocity(GB, omega)
     assert np.allclose(p_in, p_out + p_friction, rtol=1e-9, atol=1e-12)
+
+
+def test_the_float_form_is_the_array_form_bit_for_bit() -> None:
+    """internal_forces_float (one sample, plain math) against internal_forces, incl. standstill, N = 0, NaN."""
+    rng = np.random.default_rng(8)
+    n = 3000
+    tau_in, tau_d = rng.normal(0, 0.05, n), rng.normal(0, 0.3, n)
+    omega, alpha = rng.normal(0, 100, n), rng.normal(0, 500, n)
+    omega[:200] = 0.0  # standstill: sigma from tau_in
+    tau_in[200:300], tau_d[200:300], alpha[200:300] = 0.0, 0.0, 0.0  # N = F_f = 0: mu NaN
+    tau_d[300], omega[301] = np.nan, np.inf
+    jw, jg = 2e-5, 3e-4
+    ref = internal_forces(GB, tau_in, tau_d, omega, alpha, worm_inertia=jw, gear_inertia=jg)
+    got = np.array([internal_forces_float(GB, *map(float, x), worm_inertia=jw, gear_inertia=jg)
+                    for x in zip(tau_in, tau_d, omega, alpha)])
+    for k, name in enumerate(("normal_force", "friction_force", "mu", "flank")):
+        np.testing.assert_array_equal(got[:, k], getattr(ref, name), err_msg=name)

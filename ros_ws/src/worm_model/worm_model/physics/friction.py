@@ -6,6 +6,7 @@ Models are a registry (:data:`FRICTION_MODELS`): ``Friction.model`` names one.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from typing import Protocol
 
@@ -31,6 +32,13 @@ class Gearbox(Protocol):
 
 #: 1 ft/min in m/s
 FT_PER_MIN = 0.3048 / 60.0
+
+# AGMA fit (see agma_friction_coefficient), V_s in ft/min: f at rest; up to the break
+# A exp(-B V^E); above it A exp(-B V^E) + C. Shared by the array and the float form.
+_AGMA_REST = 0.15
+_AGMA_BREAK = 10.0
+_AGMA_LOW_A, _AGMA_LOW_B, _AGMA_LOW_E = 0.124, 0.074, 0.645
+_AGMA_HIGH_A, _AGMA_HIGH_B, _AGMA_HIGH_E, _AGMA_HIGH_C = 0.103, 0.110, 0.450, 0.012
 
 
 def sliding_velocity(gearbox: Gearbox, omega_worm: ArrayLike) -> FloatArray:
@@ -61,9 +69,24 @@ def agma_friction_coefficient(v_sliding: ArrayLike) -> FloatArray:
         mu [-].
     """
     v = np.abs(np.asarray(v_sliding, dtype=float)) / FT_PER_MIN
-    low = 0.124 * np.exp(-0.074 * v**0.645)
-    high = 0.103 * np.exp(-0.110 * v**0.450) + 0.012
-    return np.where(v == 0.0, 0.15, np.where(v <= 10.0, low, high))
+    low = _AGMA_LOW_A * np.exp(-_AGMA_LOW_B * v**_AGMA_LOW_E)
+    high = _AGMA_HIGH_A * np.exp(-_AGMA_HIGH_B * v**_AGMA_HIGH_E) + _AGMA_HIGH_C
+    return np.where(v == 0.0, _AGMA_REST, np.where(v <= _AGMA_BREAK, low, high))
+
+
+def agma_friction_coefficient_float(v_sliding: float) -> float:
+    """:func:`agma_friction_coefficient` for one float, in plain math (no numpy): for per-sample loops.
+
+    Same coefficients and branches; only the one branch needed is evaluated. numpy's
+    vectorised exp and pow may differ from libm's in the last bit, so the two agree to
+    round-off (about 1e-16 relative), not always bit for bit.
+    """
+    v = abs(v_sliding) / FT_PER_MIN
+    if v == 0.0:
+        return _AGMA_REST
+    if v <= _AGMA_BREAK:
+        return _AGMA_LOW_A * math.exp(-_AGMA_LOW_B * v**_AGMA_LOW_E)
+    return _AGMA_HIGH_A * math.exp(-_AGMA_HIGH_B * v**_AGMA_HIGH_E) + _AGMA_HIGH_C
 
 
 def _agma(friction: Friction, v_sliding: FloatArray) -> FloatArray:
@@ -78,6 +101,22 @@ def _constant(friction: Friction, v_sliding: FloatArray) -> FloatArray:
 FRICTION_MODELS: dict[str, Callable[[Friction, FloatArray], FloatArray]] = {
     "agma": _agma,
     "constant": _constant,
+}
+
+
+def _agma_float(friction: Friction, v_sliding: float) -> float:
+    return friction.scale * agma_friction_coefficient_float(v_sliding)
+
+
+def _constant_float(friction: Friction, v_sliding: float) -> float:
+    return math.nan if v_sliding != v_sliding else friction.mu_constant
+
+
+#: the same models for one float (plain math; the simulator's scalar fast path):
+#: model name -> mu(friction parameters, sliding velocity [m/s] as a float) as a float
+FLOAT_FRICTION_MODELS: dict[str, Callable[[Friction, float], float]] = {
+    "agma": _agma_float,
+    "constant": _constant_float,
 }
 
 

@@ -18,6 +18,7 @@ these functions; the textbook's W_x, W_r, W_t are :func:`mesh_force_components`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -136,13 +137,8 @@ def internal_forces(
         *(np.asarray(x, dtype=float) for x in (tau_in, tau_d, omega_worm, alpha_worm, alpha_g_in, tsw_in, jw_in, jg_in))
     )
     sigma = motion_sign(w, t_in, eps)
-    D = sigma * t_d
-    A = (sigma * t_in - jw * sigma * a_w) / gearbox.worm_pitch_radius
-    B = (D + jg * sigma * a_g) / gearbox.gear_pitch_radius
-    sl, cl = np.sin(gearbox.lead_angle), np.cos(gearbox.lead_angle)
-    signed_n = (A * sl + B * cl) / np.cos(gearbox.normal_pressure_angle)  # s N, Eq. 21
+    D, signed_n, friction = _frame_forces(gearbox, sigma, t_in, t_d, a_w, a_g, jw, jg, *_trigonometry(gearbox))
     normal = np.abs(signed_n)
-    friction = A * cl - B * sl  # Eq. 22
     with np.errstate(divide="ignore", invalid="ignore"):
         mu = friction / normal  # Eq. 23
 
@@ -164,3 +160,54 @@ def internal_forces(
         mu_valid=np.asarray(mu_valid),
         valid=np.asarray(valid),
     )
+
+
+def _trigonometry(gearbox: Gearbox) -> tuple[float, float, float]:
+    """(sin(lambda), cos(lambda), cos(phi_n)) as floats (numpy's values, so both forms below agree)."""
+    return (float(np.sin(gearbox.lead_angle)), float(np.cos(gearbox.lead_angle)),
+            float(np.cos(gearbox.normal_pressure_angle)))
+
+
+def _frame_forces(gearbox: Gearbox, sigma, tau_in, tau_d, alpha_worm, alpha_gear, worm_inertia, gear_inertia,
+                  sl: float, cl: float, cphi: float):
+    """Eqs 21-22 in the frame of motion: (D, s N, F_f). Plain arithmetic: floats or arrays.
+
+    With A = (T - J_w a_w)/r_w and B = (D + J_g a_g)/r_g (T, D, a in the frame of motion
+    sigma): s N = (A sin(lambda) + B cos(lambda)) / cos(phi_n), F_f = A cos(lambda) - B sin(lambda).
+    Shared by :func:`internal_forces` (arrays) and :func:`internal_forces_float` (one sample).
+    """
+    D = sigma * tau_d
+    A = (sigma * tau_in - worm_inertia * sigma * alpha_worm) / gearbox.worm_pitch_radius
+    B = (D + gear_inertia * sigma * alpha_gear) / gearbox.gear_pitch_radius
+    return D, (A * sl + B * cl) / cphi, A * cl - B * sl
+
+
+def internal_forces_float(
+    gearbox: Gearbox, tau_in: float, tau_d: float, omega_worm: float, alpha_worm: float, *,
+    worm_inertia: float, gear_inertia: float, eps: float = 1e-9,
+) -> tuple[float, float, float, int]:
+    """:func:`internal_forces` for one sample of floats, in plain math: (N, F_f, mu, flank).
+
+    alpha_gear is the kinematic ratio * alpha_worm (the default of internal_forces).
+    Same operations in the same order (shared :func:`_frame_forces`), so the two agree
+    bit for bit; mu = F_f / N is +-inf or NaN where N == 0, as numpy's division.
+    Non-finite input: (NaN, NaN, NaN, Flank.NONE). For per-sample loops (the
+    simulator's scalar truth), where the array form costs ~100 us per call.
+    """
+    values = (tau_in, tau_d, omega_worm, alpha_worm, worm_inertia, gear_inertia)
+    if not all(math.isfinite(x) for x in values):
+        return math.nan, math.nan, math.nan, int(Flank.NONE)
+    if abs(omega_worm) >= eps:  # motion_sign
+        sigma = 1.0 if omega_worm > 0.0 else -1.0
+    else:
+        sigma = -1.0 if tau_in < 0.0 else 1.0
+    alpha_gear = gearbox.ratio * alpha_worm
+    _, signed_n, friction = _frame_forces(gearbox, sigma, tau_in, tau_d, alpha_worm, alpha_gear, worm_inertia,
+                                          gear_inertia, *_trigonometry(gearbox))
+    normal = abs(signed_n)
+    if normal != 0.0:
+        mu = friction / normal
+    else:  # x / +0.0 as numpy: +-inf, NaN for 0 / 0
+        mu = math.nan if friction == 0.0 or friction != friction else math.copysign(math.inf, friction)
+    flank = 1 if signed_n > 0.0 else (-1 if signed_n < 0.0 else 0)
+    return normal, friction, mu, flank

@@ -15,6 +15,13 @@ and implements only the hooks it needs:
   sense         what the sensors read (gain, offset, PWM ripple), before the ADC
   observe       its own state, for the ground truth
 
+Float twins (the scalar fast path for one rig, sim/scalar_plant.py): the hooks
+that run every step have a twin ``<hook>_float`` taking and returning plain floats
+(shaft state as six positional floats, see :data:`FLOAT_SHAFT`), computed with the
+same floating-point operations as the array hook, so that both paths agree to
+round-off. An effect without the twin of a hook it changes still works: the
+simulator then steps that rig with the vectorised plant (scalar_plant.float_hooks_missing).
+
 The simulator switches effects on from a YAML file (:func:`load_effects`); the
 model (worm_model) is not told: the effects are *undeclared*, the test bed for
 closing the loop between model and measurements.
@@ -175,6 +182,18 @@ class Effect(Protocol):
 HOOKS = ("worm_torque", "gear_torque", "friction", "inertia", "backlash", "drive_voltage", "advance", "sense",
          "observe")
 
+#: the float twins' shaft state, ShaftState's fields as positional floats in this order:
+#: worm_torque_float(omega_worm, theta_worm, omega_gear, theta_gear, current_drive, mesh_load) -> float,
+#: gear_torque_float(same) -> float, friction_float(mu, v_sliding, same) -> float,
+#: drive_voltage_float(voltage, supply) -> float, advance_float(dt, heat) -> None, and
+#: sense_float(signals: dict of floats, context with a float voltage_drive) -> None.
+FLOAT_SHAFT = ("omega_worm", "theta_worm", "omega_gear", "theta_gear", "current_drive", "mesh_load")
+
+
+def _sign(x: float) -> float:
+    """np.sign of one float (NaN -> 0.0 rather than NaN: a diverged plant is reported elsewhere)."""
+    return 1.0 if x > 0.0 else (-1.0 if x < 0.0 else 0.0)
+
 
 class EffectBase:
     """Identity implementation of every hook; an effect overrides the ones it changes.
@@ -222,14 +241,19 @@ class EffectBase:
     def observe(self) -> dict[str, np.ndarray]:
         return {}
 
+    # float twins (module docstring): None = not provided; an effect defines those of the hooks it changes
+    worm_torque_float = gear_torque_float = friction_float = drive_voltage_float = None
+    advance_float = sense_float = None
+
     @classmethod
     def hooks(cls) -> frozenset[str]:
         """The hooks this effect overrides: what it changes in the simulator."""
         return frozenset(h for h in HOOKS if getattr(cls, h) is not getattr(EffectBase, h))
 
 
-def _ripple(amplitude: float, load_fraction: float, load: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    return (amplitude + load_fraction * load) * np.sin(angle)
+def _ripple(amplitude: float, load_fraction: float, load, sine):
+    """(amplitude + load_fraction * load) * sine: a load-dependent ripple; floats or arrays (sine given)."""
+    return (amplitude + load_fraction * load) * sine
 
 
 # --- the effects -----------------------------------------------------------------------------------
@@ -258,6 +282,12 @@ class BearingCoulomb(EffectBase):
     def gear_torque(self, s: ShaftState) -> np.ndarray:
         return self.p["gear_torque"] * np.sign(s.omega_gear)
 
+    def worm_torque_float(self, omega_worm, theta_worm, omega_gear, theta_gear, current, mesh_load) -> float:
+        return -self.p["worm_torque"] * _sign(omega_worm)
+
+    def gear_torque_float(self, omega_worm, theta_worm, omega_gear, theta_gear, current, mesh_load) -> float:
+        return self.p["gear_torque"] * _sign(omega_gear)
+
 
 class ViscousDrag(EffectBase):
     """Viscous and oil-churning drag: T(omega) = T_ref (|omega| / omega_ref)^exponent sign(omega).
@@ -284,11 +314,21 @@ class ViscousDrag(EffectBase):
         x = np.abs(worm_speed) / self.p["reference_speed"]
         return torque * np.sign(worm_speed) * (x if self.p["exponent"] == 1.0 else x ** self.p["exponent"])
 
+    def _law_float(self, torque: float, worm_speed: float) -> float:
+        x = abs(worm_speed) / self.p["reference_speed"]
+        return torque * _sign(worm_speed) * (x if self.p["exponent"] == 1.0 else x ** self.p["exponent"])
+
     def worm_torque(self, s: ShaftState) -> np.ndarray:
         return -self._law(self.p["worm_torque"], s.omega_worm)
 
     def gear_torque(self, s: ShaftState) -> np.ndarray:
         return self._law(self.p["gear_torque"], s.omega_gear / self.rig.gearbox.ratio)
+
+    def worm_torque_float(self, omega_worm, theta_worm, omega_gear, theta_gear, current, mesh_load) -> float:
+        return -self._law_float(self.p["worm_torque"], omega_worm)
+
+    def gear_torque_float(self, omega_worm, theta_worm, omega_gear, theta_gear, current, mesh_load) -> float:
+        return self._law_float(self.p["gear_torque"], omega_gear / self.rig.gearbox.ratio)
 
 
 class SpeedDependentMu(EffectBase):
@@ -311,6 +351,10 @@ class SpeedDependentMu(EffectBase):
     def friction(self, mu: np.ndarray, v_sliding: np.ndarray, s: ShaftState) -> np.ndarray:
         return mu * (1.0 + self.p["low_speed_gain"] * np.exp(-v_sliding / self.p["stribeck_speed"]))
 
+    def friction_float(self, mu, v_sliding, omega_worm, theta_worm, omega_gear, theta_gear, current,
+                       mesh_load) -> float:
+        return mu * (1.0 + self.p["low_speed_gain"] * math.exp(-v_sliding / self.p["stribeck_speed"]))
+
 
 class LoadDependentMu(EffectBase):
     """Mesh friction that depends on the load the mesh carries.
@@ -331,6 +375,11 @@ class LoadDependentMu(EffectBase):
     def friction(self, mu: np.ndarray, v_sliding: np.ndarray, s: ShaftState) -> np.ndarray:
         factor = 1.0 + self.p["sensitivity"] * s.mesh_load / self.p["reference_torque"]
         return mu * np.maximum(factor, 0.1)
+
+    def friction_float(self, mu, v_sliding, omega_worm, theta_worm, omega_gear, theta_gear, current,
+                       mesh_load) -> float:
+        factor = 1.0 + self.p["sensitivity"] * mesh_load / self.p["reference_torque"]
+        return mu * (0.1 if factor < 0.1 else factor)  # np.maximum(factor, 0.1), NaN kept
 
 
 class OilTemperature(EffectBase):
@@ -367,6 +416,16 @@ class OilTemperature(EffectBase):
         steady = self.p["ambient"] + self.p["thermal_resistance"] * heat
         self.temperature = steady + (self.temperature - steady) * math.exp(-dt / self.p["time_constant"])
 
+    # (n = 1: the temperature stays a (1,) array, written in place, so that observe() is unchanged)
+    def friction_float(self, mu, v_sliding, omega_worm, theta_worm, omega_gear, theta_gear, current,
+                       mesh_load) -> float:
+        factor = 1.0 + self.p["mu_per_kelvin"] * (float(self.temperature[0]) - self.p["ambient"])
+        return mu * (0.1 if factor < 0.1 else factor)
+
+    def advance_float(self, dt: float, heat: float) -> None:
+        steady = self.p["ambient"] + self.p["thermal_resistance"] * heat
+        self.temperature[0] = steady + (float(self.temperature[0]) - steady) * math.exp(-dt / self.p["time_constant"])
+
     def observe(self) -> dict[str, np.ndarray]:
         return {"oil_temperature": self.temperature.copy()}
 
@@ -392,7 +451,11 @@ class WormRunout(EffectBase):
 
     def worm_torque(self, s: ShaftState) -> np.ndarray:
         return -_ripple(self.p["amplitude"], self.p["load_fraction"], self.rig.gearbox.ratio * s.mesh_load,
-                        s.theta_worm + self.p["phase"])
+                        np.sin(s.theta_worm + self.p["phase"]))
+
+    def worm_torque_float(self, omega_worm, theta_worm, omega_gear, theta_gear, current, mesh_load) -> float:
+        return -_ripple(self.p["amplitude"], self.p["load_fraction"], self.rig.gearbox.ratio * mesh_load,
+                        math.sin(theta_worm + self.p["phase"]))
 
 
 class ToothPass(EffectBase):
@@ -415,7 +478,11 @@ class ToothPass(EffectBase):
 
     def gear_torque(self, s: ShaftState) -> np.ndarray:
         return _ripple(self.p["amplitude"], self.p["load_fraction"], s.mesh_load,
-                       self.rig.gearbox.gear_teeth * s.theta_gear + self.p["phase"])
+                       np.sin(self.rig.gearbox.gear_teeth * s.theta_gear + self.p["phase"]))
+
+    def gear_torque_float(self, omega_worm, theta_worm, omega_gear, theta_gear, current, mesh_load) -> float:
+        return _ripple(self.p["amplitude"], self.p["load_fraction"], mesh_load,
+                       math.sin(self.rig.gearbox.gear_teeth * theta_gear + self.p["phase"]))
 
 
 class GearRunout(EffectBase):
@@ -436,7 +503,11 @@ class GearRunout(EffectBase):
     }
 
     def gear_torque(self, s: ShaftState) -> np.ndarray:
-        return _ripple(self.p["amplitude"], self.p["load_fraction"], s.mesh_load, s.theta_gear + self.p["phase"])
+        return _ripple(self.p["amplitude"], self.p["load_fraction"], s.mesh_load,
+                       np.sin(s.theta_gear + self.p["phase"]))
+
+    def gear_torque_float(self, omega_worm, theta_worm, omega_gear, theta_gear, current, mesh_load) -> float:
+        return _ripple(self.p["amplitude"], self.p["load_fraction"], mesh_load, math.sin(theta_gear + self.p["phase"]))
 
 
 class MotorCogging(EffectBase):
@@ -458,6 +529,9 @@ class MotorCogging(EffectBase):
 
     def worm_torque(self, s: ShaftState) -> np.ndarray:
         return -self.p["amplitude"] * np.sin(self.p["order"] * s.theta_worm + self.p["phase"])
+
+    def worm_torque_float(self, omega_worm, theta_worm, omega_gear, theta_gear, current, mesh_load) -> float:
+        return -self.p["amplitude"] * math.sin(self.p["order"] * theta_worm + self.p["phase"])
 
 
 class Backlash(EffectBase):
@@ -504,6 +578,8 @@ class SensorGain(EffectBase):
                           ("tacho_load_1", "load_tacho"), ("tacho_load_2", "load_tacho")):
             signals[key] = signals[key] * (1.0 + self.p[gain])
 
+    sense_float = sense  # plain arithmetic: the same code serves floats
+
 
 class SensorOffset(EffectBase):
     """Zero offsets of the Hall current sensors and tachos: reading = true + offset.
@@ -526,6 +602,8 @@ class SensorOffset(EffectBase):
                             ("current_load_2", "load_current"), ("tacho_drive", "drive_tacho"),
                             ("tacho_load_1", "load_tacho"), ("tacho_load_2", "load_tacho")):
             signals[key] = signals[key] + self.p[offset]
+
+    sense_float = sense  # plain arithmetic: the same code serves floats
 
 
 class InertiaError(EffectBase):
@@ -573,6 +651,12 @@ class Pwm(EffectBase):
             return voltage
         return np.round(voltage / supply * levels) / levels * supply
 
+    def drive_voltage_float(self, voltage: float, supply: float) -> float:
+        levels = self.p["duty_levels"]
+        if levels == 0 or voltage != voltage:
+            return voltage
+        return round(voltage / supply * levels) / levels * supply  # (round: ties to even, as np.round)
+
     def sense(self, signals: dict[str, np.ndarray], context: SenseContext) -> None:
         f = self.p["frequency"]
         duty = np.clip(np.abs(context.voltage_drive) / context.supply_voltage, 0.0, 1.0)
@@ -584,6 +668,19 @@ class Pwm(EffectBase):
             shape = np.where(rising, -0.5 + phase / duty, 0.5 - (phase - duty) / (1.0 - duty))
         shape = np.where((duty <= 0.0) | (duty >= 1.0), 0.0, shape)
         signals["current_drive"] = signals["current_drive"] + np.sign(context.voltage_drive) * attenuation \
+            * ripple_pp * shape
+
+    def sense_float(self, signals: dict[str, float], context: SenseContext) -> None:
+        f = self.p["frequency"]
+        duty = abs(context.voltage_drive) / context.supply_voltage
+        duty = 0.0 if duty < 0.0 else (1.0 if duty > 1.0 else duty)
+        if duty <= 0.0 or duty >= 1.0:
+            return  # no ripple at 0 % or 100 % duty (signal + 0.0, as the array hook)
+        ripple_pp = context.supply_voltage * duty * (1.0 - duty) / (self.rig.drive_motor.inductance * f)
+        attenuation = 1.0 / math.sqrt(1.0 + (f / self.p["filter_cutoff"]) ** 2)
+        phase = (context.channel_time["current_drive"] * f) % 1.0
+        shape = -0.5 + phase / duty if phase < duty else 0.5 - (phase - duty) / (1.0 - duty)
+        signals["current_drive"] = signals["current_drive"] + _sign(context.voltage_drive) * attenuation \
             * ripple_pp * shape
 
 

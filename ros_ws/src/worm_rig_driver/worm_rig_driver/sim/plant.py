@@ -127,23 +127,35 @@ class Eq28:
 
     def __init__(self, rig: Rig, worm_inertia: float, gear_inertia: float) -> None:
         gb = rig.gearbox
-        cphi = np.cos(gb.normal_pressure_angle)
-        self.sl, self.cl = np.sin(gb.lead_angle), np.cos(gb.lead_angle)
+        # plain floats (same values as numpy's): the scalar plant runs on_flank on floats,
+        # where numpy scalars would cost more than the arithmetic
+        cphi = float(np.cos(gb.normal_pressure_angle))
+        self.sl, self.cl = float(np.sin(gb.lead_angle)), float(np.cos(gb.lead_angle))
         self.cs, self.cc = cphi * self.sl, cphi * self.cl
         self.k, self.ratio = gb.radius_ratio, gb.ratio
         self.jw, self.jg = worm_inertia, gear_inertia
+        self.jg_i = self.jg * self.ratio  # J_g i [kg m^2]
+        self.jg_i_k = self.jg_i * self.k  # J_g i (r_w/r_g) [kg m^2]
+
+    def on_flank(self, mu, T, D, s):
+        """Eq. 28 on flank s (+1.0 driving / -1.0 coast) in the frame of motion: (a_w [rad/s^2], N >= 0?).
+
+        T, D: input and load torque in the frame of motion [N m]. The flank is
+        consistent where the contact force it implies, N = (J_g i a_w + D) / (r_g
+        (s cos(phi_n) cos(lambda) - mu sin(lambda))), is >= 0. Floats or arrays: the
+        vectorised plant (__call__) and the scalar one (scalar_plant) share this algebra.
+        """
+        den = s * self.cc - mu * self.sl
+        K = (s * self.cs + mu * self.cl) / den  # flank factor K_s(mu)
+        a = (T - self.k * K * D) / (self.jw + self.jg_i_k * K)
+        return a, (self.jg_i * a + D) * den >= 0.0
 
     def __call__(self, mu, tau_in, tau_d, omega_worm) -> tuple[np.ndarray, np.ndarray]:
         """(alpha_worm [rad/s^2], flank int8) in the fixed frame; sigma = sign(omega), +1 at 0."""
         sigma = np.where(omega_worm < 0.0, -1.0, 1.0)
         T, D = sigma * tau_in, sigma * tau_d
-        mu_c, mu_s = mu * self.cl, mu * self.sl
-        den_p, den_m = self.cc - mu_s, -self.cc - mu_s
-        K_p, K_m = (self.cs + mu_c) / den_p, (mu_c - self.cs) / den_m
-        a_p = (T - self.k * K_p * D) / (self.jw + self.jg * self.ratio * self.k * K_p)
-        a_m = (T - self.k * K_m * D) / (self.jw + self.jg * self.ratio * self.k * K_m)
-        ok_p = (self.jg * self.ratio * a_p + D) * den_p >= 0.0
-        ok_m = (self.jg * self.ratio * a_m + D) * den_m >= 0.0
+        a_p, ok_p = self.on_flank(mu, T, D, 1.0)
+        a_m, ok_m = self.on_flank(mu, T, D, -1.0)
         flank = np.where(ok_p, 1, np.where(ok_m, -1, np.where(D >= 0.0, 1, -1))).astype(np.int8)
         return sigma * np.where(flank == 1, a_p, a_m), flank
 
