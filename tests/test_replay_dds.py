@@ -34,6 +34,7 @@ REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
 TOPICS = ("/rig/samples", ESTIMATE_TOPIC, FORCES_TOPIC)
 BATCH = 5  # sim_graph.yaml's batch_size: the nodes answer each batch once
+METHOD = "observer"  # sim_graph.yaml's estimator_node method
 RECORD_S = 7.0  # [s] of recording once all three topics are recorded
 WARMUP_S = 3.0  # [s] filter start-up left out of the comparison (60 time constants of the estimator)
 START_TIMEOUT = 60.0  # [s]
@@ -86,7 +87,7 @@ def test_replay_equals_live_to_round_off(recorded: tuple[Path, list[str], str]) 
     assert result.samples > 0.8 * RECORD_S * 1000
     assert result.speed_factor > 0  # the figure itself goes to the report/bench, not an assertion
 
-    estimates = compare(bag, ESTIMATE_TOPIC, result.estimates["knn"], ESTIMATE_FIELDS, WARMUP_S, "knn")
+    estimates = compare(bag, ESTIMATE_TOPIC, result.estimates[METHOD], ESTIMATE_FIELDS, WARMUP_S, METHOD)
     forces = compare(bag, FORCES_TOPIC, result.model, FORCE_FIELDS, WARMUP_S)
     assert estimates is not None and forces is not None
     for comparison in (estimates, forces):

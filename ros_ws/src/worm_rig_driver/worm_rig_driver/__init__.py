@@ -14,6 +14,10 @@ Map (dependencies point up this list; only ``nodes`` and ``fil.commander_node`` 
               model lacks, as plug-ins), ``simulated_rig`` (all of it on the sample
               clock), ``virtual_rig`` (the simulated rig behind a pty speaking the
               firmware protocol)
+``drive``     the rig's 1 kHz speed loop, run where the rig is (sim_node's clock thread,
+              driver_node's serial reader): the PI law (``speed_loop``), the command
+              modes, watchdog and latency accounting (``rig_loop``), real-time
+              scheduling (``realtime``)
 ``fil``       the real firmware in simavr, closed through the simulated plant
               (``harness``, ``run`` = ``make fil``, ``commander_node``)
 ``nodes``     sim_node, driver_node, recorder_node: the executables' ROS shells

@@ -33,13 +33,17 @@ NODE_OPTIONS: dict[str, tuple[str, ...]] = {
 }
 
 
+#: Estimators that work without a calibration database (their ranges come from the rig file).
+CALIBRATION_OPTIONAL: frozenset[str] = frozenset({"observer"})
+
+
 def node_options(name: str, parameters: Mapping[str, Any]) -> dict[str, Any]:
     """The options of estimator ``name`` taken from estimator_node's parameters (node and replay alike)."""
     return {option: parameters[option] for option in NODE_OPTIONS.get(name, ())}
 
 
-def make_estimator(name: str, database: CalibrationDatabase, **options: Any) -> TorqueEstimator:
-    """Build the estimator registered as ``name`` over ``database``.
+def make_estimator(name: str, database: CalibrationDatabase | None, **options: Any) -> TorqueEstimator:
+    """Build the estimator registered as ``name`` over ``database`` (None: only for CALIBRATION_OPTIONAL ones).
 
     Raises:
         ValueError: no estimator of that name (the message lists the known ones).
@@ -49,10 +53,13 @@ def make_estimator(name: str, database: CalibrationDatabase, **options: Any) -> 
         factory = ESTIMATORS[name]
     except KeyError:
         raise ValueError(f"unknown estimator {name!r}; known: {sorted(ESTIMATORS)}") from None
+    if database is None and name not in CALIBRATION_OPTIONAL:
+        raise ValueError(f"estimator {name!r} needs a calibration database")
     return factory(database, **options)
 
 
 __all__ = [
+    "CALIBRATION_OPTIONAL",
     "ESTIMATORS",
     "make_estimator",
     "NODE_OPTIONS",

@@ -66,7 +66,7 @@ from worm_model.rig_data.bags import find_sample_topic
 from worm_model.rig_data.samples import samples_of
 
 from torque_estimator.estimation.database import CalibrationError, load_database
-from torque_estimator.estimation.registry import ESTIMATORS, make_estimator, node_options
+from torque_estimator.estimation.registry import CALIBRATION_OPTIONAL, ESTIMATORS, make_estimator, node_options
 from torque_estimator.graph.runner import GraphError, default_graph_file, parse_overrides
 from torque_estimator.estimation.live import LiveEstimator
 from worm_model.cli.progress import ProgressBar
@@ -188,13 +188,15 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
     names = list(estimators) if estimators else [str(est_p["method"])]
     if unknown := [n for n in names if n not in ESTIMATORS]:
         raise ReplayError(f"unknown estimator(s) {unknown}; registry: {sorted(ESTIMATORS)}")
-    if not est_p["calibration_file"]:
-        raise ReplayError("estimator_node.calibration_file is not set: pass --set estimator_node.calibration_file=FILE "
-                          "(or set it in the parameter file)")
-    try:
-        database = load_database(est_p["calibration_file"])
-    except CalibrationError as err:
-        raise ReplayError(f"estimator_node.calibration_file: {err}") from None
+    database = None
+    if est_p["calibration_file"]:
+        try:
+            database = load_database(est_p["calibration_file"])
+        except CalibrationError as err:
+            raise ReplayError(f"estimator_node.calibration_file: {err}") from None
+    elif needing := [n for n in names if n not in CALIBRATION_OPTIONAL]:
+        raise ReplayError(f"estimator_node.calibration_file is not set and {', '.join(needing)} need(s) one: pass "
+                          "--set estimator_node.calibration_file=FILE (or set it in the parameter file)")
     start = time.perf_counter()
     model = LiveModel(load_rig(model_p["rig_file"] or None), bool(model_p["use_acceleration"]),
                       float(model_p["acceleration_filter"]))

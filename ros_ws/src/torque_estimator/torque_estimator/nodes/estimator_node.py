@@ -32,7 +32,7 @@ from worm_model.physics.parameters import ParameterError, load_rig
 
 from torque_estimator.estimation.database import CalibrationError, load_database
 from torque_estimator.estimation.base import EstimateFlags
-from torque_estimator.estimation.registry import ESTIMATORS, make_estimator, node_options
+from torque_estimator.estimation.registry import CALIBRATION_OPTIONAL, ESTIMATORS, make_estimator, node_options
 from torque_estimator.estimation.live import LiveEstimator
 
 
@@ -44,7 +44,8 @@ class EstimatorNode(Node):
             self, "inertia_compensation", True,
             "Remove the current that accelerates the rig's inertia (Eq. 28) before the quasi-static lookup.")
         self.calibration_file = declare(self, "calibration_file", "",
-                                        "Calibration database (JSON written by `calibrate`).")
+                                        "Calibration database (JSON written by `calibrate`); the observer can do "
+                                        "without one (its ranges then come from the rig file).")
         self.method = declare(self, "method", "knn", "Estimator.", choices=tuple(ESTIMATORS))
         k = declare(self, "k", 4, "Neighbours averaged by the k-NN estimator.", low=1, high=64)
         weighting = declare(self, "weighting", "inverse_distance", "k-NN weighting of the neighbours.",
@@ -72,7 +73,8 @@ class EstimatorNode(Node):
         self.estimator: LiveEstimator | None = None
         self.problem = ""
         try:
-            database = load_database(self.calibration_file)
+            database = (None if not self.calibration_file and self.method in CALIBRATION_OPTIONAL
+                        else load_database(self.calibration_file))
             options = node_options(self.method, {"k": k, "weighting": weighting, "model_file": model_file,
                                                  "rig_file": rig_file})
             self.estimator = LiveEstimator(self.rig, make_estimator(self.method, database, **options),
@@ -80,8 +82,9 @@ class EstimatorNode(Node):
                                            inertia_compensation=self.inertia_compensation,
                                            transient_acceleration=self.transient_acceleration,
                                            estimate_filter=estimate_filter, change_threshold=change_threshold)
-            self.get_logger().info(f"{self.method} estimator on {len(database)} calibration points "
-                                   f"from {self.calibration_file}")
+            self.get_logger().info(f"{self.method} estimator on {len(database)} calibration points from "
+                                   f"{self.calibration_file}" if database is not None else
+                                   f"{self.method} estimator without a calibration (ranges from the rig file)")
         except (CalibrationError, ParameterError) as err:
             self.problem = str(err)
             self.get_logger().error(f"no estimates: {err}")

@@ -82,14 +82,13 @@ def rig_samples(first_seq: int, n: int, stamp=None, sample_period: float = 1e-3,
     given as a sequence of n values or one value for all; fields not given are 0."""
     from worm_msgs.msg import RigSamples
 
-    from worm_model.rig_data.samples import FIELDS
-
-    integers = {"count_drive", "count_load_1", "count_load_2", "status", "command_seq"}
     columns = {}
-    for name in (*FIELDS, "command_seq"):
+    for name, kind in RigSamples.get_fields_and_field_types().items():
+        if not kind.startswith("sequence<"):
+            continue
         value = values.pop(name, 0)
         items = list(value) if isinstance(value, (list, tuple)) else [value] * n
-        columns[name] = [int(v) for v in items] if name in integers else [float(v) for v in items]
+        columns[name] = [float(v) for v in items] if "double" in kind else [int(v) for v in items]
     if values:
         raise TypeError(f"RigSamples has no fields {sorted(values)}")
     msg = RigSamples(first_seq=first_seq, sample_period=sample_period, **columns)

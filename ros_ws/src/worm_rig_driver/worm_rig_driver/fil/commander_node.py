@@ -10,7 +10,10 @@ phase the mean speed and load torque over the samples with the motors running
 
 Profile (wall seconds after the first sample): 0-1 s 0 V; 1-4 s 8 V; 4-7 s 10 V
 with 0.1 N m of load; then -8 V with 0.05 N m; the drive command is repeated at
-`command_rate` Hz, as a speed controller would. The worm stays below ~170 rad/s
+`command_rate` Hz. With `speed_mode` the same profile is run by the rig's own speed
+loop instead (worm_msgs/SpeedCommand at `command_rate` Hz, set-points SPEEDS): the
+driver then runs the PI on every telemetry frame and sends the firmware a new drive
+duty each millisecond. The worm stays below ~170 rad/s
 (54k encoder edges/s): the firmware keeps up with ~64k edges/s on the drive
 encoder while it streams at 1 kHz (see firmware/README.md).
 """
@@ -21,16 +24,19 @@ import time
 from pathlib import Path
 
 from rclpy.node import Node
-from worm_msgs.msg import DriveCommand, LoadCommand, RigSample, RigSamples
+from worm_msgs.msg import DriveCommand, LoadCommand, RigSample, RigSamples, SpeedCommand
 
 from worm_model.rig_data.samples import unbatch
 
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
 from worm_model.ros.qos import COMMAND, STREAM
+from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 
 #: (start [s], drive voltage [V], load torque [N m])
 PROFILE = ((0.0, 0.0, 0.0), (1.0, 8.0, 0.0), (4.0, 10.0, 0.1), (7.0, -8.0, 0.05))
+#: speed_mode: the worm speed [rad/s] asked for instead of each voltage of PROFILE
+SPEEDS = {0.0: 0.0, 8.0: 120.0, 10.0: 150.0, -8.0: -120.0}
 
 
 def profile_at(t: float) -> tuple[float, float]:
@@ -47,7 +53,10 @@ class FilCommander(Node):
         super().__init__("fil_commander")
         rate = declare(self, "command_rate", 50.0, "Drive commands per second [Hz].", low=1.0, high=1000.0)
         self.report_file = declare(self, "report_file", "", "Write the JSON summary here at shutdown (empty: no file).")
+        self.speed_mode = declare(self, "speed_mode", False,
+                                  "Run the profile with the rig's speed loop (SpeedCommand) instead of voltages.")
         self.drive = self.create_publisher(DriveCommand, "/rig/drive_command", STREAM)
+        self.speed = self.create_publisher(SpeedCommand, "/rig/speed_command", STREAM)
         self.load = self.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
         self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
         self.create_timer(1.0 / rate, self.on_tick)
@@ -87,9 +96,15 @@ class FilCommander(Node):
         if self.start is None:
             return
         voltage, torque = profile_at(time.monotonic() - self.start)
-        msg = DriveCommand(voltage=voltage)
-        msg.header.stamp = self.get_clock().now().to_msg()
-        self.drive.publish(msg)
+        if self.speed_mode:
+            msg = SpeedCommand(speed_setpoint=SPEEDS[voltage], kp=DEFAULT_GAINS.kp, ki=DEFAULT_GAINS.ki,
+                               voltage_limit=12.0)
+            msg.header.stamp = self.get_clock().now().to_msg()
+            self.speed.publish(msg)
+        else:
+            msg = DriveCommand(voltage=voltage)
+            msg.header.stamp = self.get_clock().now().to_msg()
+            self.drive.publish(msg)
         if torque != self.torque:
             self.torque = torque
             self.load.publish(LoadCommand(torque=torque))

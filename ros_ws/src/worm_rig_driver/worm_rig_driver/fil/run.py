@@ -53,6 +53,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
                    help="where the pty link, the nodes' logs and the commander's report go (default out/fil)")
     p.add_argument("--rig-file", default="", help="rig parameter YAML; empty = the bundled NMRV030 rig")
     p.add_argument("--seed", type=int, default=0, help="seed of the plant's sensor noise (default 0)")
+    p.add_argument("--speed-mode", action="store_true",
+                   help="run the profile with the rig's speed loop (driver_node's PI on every frame, a new duty "
+                        "to the firmware each millisecond) instead of held voltages")
     p.add_argument("--domain-id", type=int, default=None,
                    help="ROS_DOMAIN_ID of the run (default: random in 100..230; discovery stays on this host)")
     p.add_argument("--link-timeout", type=float, default=60.0,
@@ -70,7 +73,7 @@ def say(message: str) -> None:
 class Nodes:
     """driver_node and fil_commander as child processes with their logs."""
 
-    def __init__(self, log_dir: Path, link: str, env: dict[str, str]) -> None:
+    def __init__(self, log_dir: Path, link: str, env: dict[str, str], speed_mode: bool = False) -> None:
         self.log_dir = log_dir
         self.report = log_dir / "commander.json"
         if self.report.exists():
@@ -85,7 +88,8 @@ class Nodes:
                           "-p", "clock_max_drift:=1.0"], stdout=out, stderr=subprocess.STDOUT, env=env)
         with open(self.commander_log, "w") as out:
             self.commander = subprocess.Popen(
-                common + ["worm_rig_driver.fil.commander_node", "--ros-args", "-p", f"report_file:={self.report}"],
+                common + ["worm_rig_driver.fil.commander_node", "--ros-args", "-p", f"report_file:={self.report}",
+                          "-p", f"speed_mode:={str(speed_mode).lower()}"],
                 stdout=out, stderr=subprocess.STDOUT, env=env)
 
     def failed(self) -> str | None:
@@ -136,7 +140,7 @@ def run(args: argparse.Namespace) -> int:
     loop = FirmwareInTheLoop(harness, FilPlant(rig, seed=args.seed))
     say(f"firmware {args.elf} in simavr, UART on {link}; ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}; "
         f"logs in {args.log_dir}")
-    nodes = Nodes(args.log_dir, link, env)
+    nodes = Nodes(args.log_dir, link, env, speed_mode=args.speed_mode)
     try:
         return closed_loop(args, loop, nodes)
     except FilError as err:

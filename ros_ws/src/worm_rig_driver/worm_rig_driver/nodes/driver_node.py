@@ -92,7 +92,9 @@ class DriverNode(Node):
                             seq_period=tick)
         self.topics = RigTopics(self, self.frame_id, tick, batch_size, decimation, self.scaling.counts_per_rev)
         self._command_seq = 0  # the speed command in force for the next frame (its source seq)
-        self._driving = False
+        self._sent_voltage = 0.0  # [V] the last drive voltage sent to the rig
+        self._sent_at = 0.0  # [s] time.monotonic() it was sent
+        self.command_timeout = command_timeout
         subscribe_commands(self, self.on_speed_command, self.on_drive_command, self.on_load_command)
 
         self.link = SerialLink(port, core, self.publish_samples, self.log_line, baud=baud,
@@ -153,11 +155,17 @@ class DriverNode(Node):
         newest = samples[-1]
         out = self.loop.step(time.monotonic(), newest.omega_worm, newest.seq)
         self._command_seq = out.command_seq
-        if out.mode is not DriveMode.STOPPED or self._driving:
-            # min(): the loop clamps to the supply; the driver's own limit may be lower
-            voltage = max(-self.max_voltage, min(self.max_voltage, out.voltage))
+        # The rig holds the last voltage it was sent (the link keeps its watchdog fed): send a new one
+        # when it changes, which in speed mode is every frame.
+        voltage = max(-self.max_voltage, min(self.max_voltage, out.voltage))  # the driver's own limit
+        if voltage != self._sent_voltage or (out.mode is not DriveMode.STOPPED and self._stale_drive()):
             self.link.command(lambda core, now: core.drive(voltage, now))
-        self._driving = out.mode is not DriveMode.STOPPED
+            self._sent_voltage = voltage
+            self._sent_at = time.monotonic()
+
+    def _stale_drive(self) -> bool:
+        """The link's own drive watchdog would drop a voltage held this long without a command."""
+        return time.monotonic() - self._sent_at > 0.5 * self.command_timeout
 
     def log_line(self, level: str, message: str) -> None:
         # One call site per severity: rclpy refuses a call site whose severity changes.
