@@ -68,7 +68,8 @@ def start_hog() -> subprocess.Popen:
                             "_ROS_WHEELS_BOOTSTRAP_COMPLETE": "1"})
 
 
-def run_phase(calibration: Path, work: Path, window: float, hog: bool) -> dict[str, float]:
+def run_phase(calibration: Path, work: Path, window: float, hog: bool, together: list[list[str]],
+              method: str, priority: int = 0) -> dict[str, float]:
     """One measurement; returns the figures by name (without suffix)."""
     import rclpy
     from rclpy.context import Context
@@ -97,8 +98,8 @@ def run_phase(calibration: Path, work: Path, window: float, hog: bool) -> dict[s
         executor.spin_until_future_complete(Future(executor=executor), timeout_sec=seconds)
 
     overrides = parse_overrides([f"estimator_node.calibration_file={calibration}",
-                                 f"controller_node.speed_setpoint={SPEED_SETPOINT}"])
-    graph = Graph(GRAPH_FILE, overrides, work / f"logs_{tag}")
+                                 f"controller_node.speed_setpoint={SPEED_SETPOINT}", f"estimator_node.method={method}"])
+    graph = Graph(GRAPH_FILE, overrides, work / f"logs_{tag}", together=together, priority=priority)
     recorder = hog_proc = None
     try:
         hog_proc = start_hog() if hog else None
@@ -119,15 +120,15 @@ def run_phase(calibration: Path, work: Path, window: float, hog: bool) -> dict[s
         node.create_publisher(LoadCommand, "/rig/load_command", COMMAND).publish(LoadCommand(torque=LOAD))
         info(f"{tag}: graph up; {SPEED_SETPOINT:g} rad/s, load {LOAD:+g} N m; settling {SETTLE:g} s")
         spin_for(SETTLE)
-        pids = {name: graph.processes[name].pid for name in NODES}
+        pids = {name: proc.pid for name, proc in graph.processes.items()}
         before = {name: cpu_seconds(pid) for name, pid in pids.items()}
         t0, wall0 = time.monotonic(), time.time_ns()
         spin_for(window)
         t1, wall1 = time.monotonic(), time.time_ns()
         after = {name: cpu_seconds(pid) for name, pid in pids.items()}
-        for name in NODES:
+        for name in pids:  # a node alone, or a group "a+b+..." in one process
             figures[f"cpu_{name}"] = (after[name] - before[name]) / (t1 - t0)
-        figures["cpu_cores"] = sum(figures[f"cpu_{n}"] for n in NODES)
+        figures["cpu_cores"] = sum(figures[f"cpu_{n}"] for n in pids)
         if graph.failed():
             raise RuntimeError(f"nodes exited during the run: {graph.failed()}")
     finally:
@@ -173,6 +174,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--window", type=float, default=60.0, help="measuring window [s] of each run")
     parser.add_argument("--skip-load", action="store_true", help="only the run without the CPU hog")
+    parser.add_argument("--together", action="append", default=[], metavar="NODE,NODE,...",
+                        help="run these nodes in one process (as run_graph --together; repeatable)")
+    parser.add_argument("--method", default="observer", help="estimator_node's method (default: observer)")
+    parser.add_argument("--priority", type=int, default=0, help="SCHED_FIFO priority of the graph's processes")
     args = parser.parse_args(argv)
     os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(100, 230)))
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -185,14 +190,16 @@ def main(argv: list[str] | None = None) -> int:
     units = {"cpu": "cores", "latency": "ms"}
     for hog in (False,) if args.skip_load else (False, True):
         try:
-            figures = run_phase(calibration, work, args.window, hog)
+            figures = run_phase(calibration, work, args.window, hog,
+                                [[n for n in g.split(",") if n] for g in args.together], args.method, args.priority)
         except Exception as err:  # a benchmark reports, it does not assert
             info(f"failed: {err!r}")
             figures = {}
             code = 1
         suffix = "_under_load" if hog else ""
-        for name in ("cpu_cores", *(f"cpu_{n}" for n in NODES), "latency_p50", "latency_p99", "lost_samples",
-                     "sim_skipped_samples"):
+        names = ("cpu_cores", *sorted(n for n in figures if n.startswith("cpu_") and n != "cpu_cores"),
+                 "latency_p50", "latency_p99", "lost_samples", "sim_skipped_samples")
+        for name in names:
             value = figures.get(name, float("nan"))
             unit = units.get(name.split("_")[0], "")
             text = f"{value:.3f}" if unit == "cores" else f"{value:.2f}" if unit == "ms" else f"{value:g}"

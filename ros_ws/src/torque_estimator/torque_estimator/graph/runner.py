@@ -4,6 +4,8 @@
 node named at the top level of a standard parameter file as its own process,
 exactly as `ros2 run <pkg> <node> --ros-args --params-file <file>` would,
 and stops them all cleanly (SIGINT, then SIGKILL after a grace period).
+Nodes named in a group (``together``) share one process and executor instead
+(graph.composed), with the same parameters.
 Executables are found where `ros2 run` finds them: <prefix>/lib/<pkg>/<exe>
 for every prefix of AMENT_PREFIX_PATH.
 """
@@ -11,6 +13,8 @@ from __future__ import annotations
 
 import signal
 import subprocess
+import sys
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,6 +22,7 @@ from pathlib import Path
 import yaml
 
 from worm_model.ros.ament import ament_prefixes, find_executable
+from worm_rig_driver.drive.realtime import realtime_permitted
 
 
 class GraphError(RuntimeError):
@@ -67,6 +72,10 @@ class Graph:
     overrides: dict[str, list[str]] = field(default_factory=dict)
     log_dir: Path | None = None
     processes: dict[str, subprocess.Popen] = field(default_factory=dict)
+    together: list[list[str]] = field(default_factory=list)
+    """Groups of nodes that run in one process each; a group's process is keyed "a+b+..."."""
+    priority: int = 0
+    """SCHED_FIFO priority (1-99) for every process of the graph (``chrt -f``); 0: normal scheduling."""
 
     def command(self, node: str) -> list[str]:
         try:
@@ -78,18 +87,44 @@ class Graph:
             cmd += ["-p", assignment]
         return cmd
 
+    def composed_command(self, group: list[str]) -> list[str]:
+        """One process for ``group``: the overrides are merged into a parameter file of its own."""
+        data = yaml.safe_load(Path(self.params_file).read_text(encoding="utf-8"))
+        for node, assignments in self.overrides.items():
+            section = data.setdefault(node, {}).setdefault("ros__parameters", {})
+            for assignment in assignments:
+                name, _, value = assignment.partition(":=")
+                section[name] = yaml.safe_load(value)
+        merged = (self.log_dir or Path(tempfile.mkdtemp(prefix="graph_"))) / f"{'+'.join(group)}.params.yaml"
+        merged.parent.mkdir(parents=True, exist_ok=True)
+        merged.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+        return [sys.executable, "-m", "torque_estimator.graph.composed", "--params-file", str(merged), *group]
+
     def start(self) -> "Graph":
         nodes = graph_nodes(self.params_file)
         unknown = set(self.overrides) - set(nodes)
         if unknown:
             raise GraphError(f"overrides name nodes not in {self.params_file}: {sorted(unknown)}")
-        for node in nodes:
+        grouped = [n for group in self.together for n in group]
+        if stray := sorted(set(grouped) - set(nodes)):
+            raise GraphError(f"groups name nodes not in {self.params_file}: {stray}")
+        if len(grouped) != len(set(grouped)):
+            raise GraphError(f"a node is in more than one group: {self.together}")
+        units = [group for group in self.together if group] + [[n] for n in nodes if n not in grouped]
+        if self.priority and not realtime_permitted(self.priority):
+            print(f"graph: SCHED_FIFO {self.priority} is not permitted here (needs CAP_SYS_NICE or an rtprio "
+                  "limit): the nodes run at normal priority", file=sys.stderr)
+            self.priority = 0
+        for unit in units:
+            name = "+".join(unit)
             out = None
             if self.log_dir is not None:
                 self.log_dir.mkdir(parents=True, exist_ok=True)
-                out = open(self.log_dir / f"{node}.log", "wb")
-            self.processes[node] = subprocess.Popen(self.command(node), stdout=out, stderr=subprocess.STDOUT
-                                                    if out else None)
+                out = open(self.log_dir / f"{name}.log", "wb")
+            command = self.command(unit[0]) if len(unit) == 1 else self.composed_command(unit)
+            if self.priority:
+                command = ["chrt", "-f", str(self.priority), *command]
+            self.processes[name] = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT if out else None)
         return self
 
     def failed(self) -> dict[str, int]:

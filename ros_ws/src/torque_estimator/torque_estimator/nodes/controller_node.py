@@ -67,7 +67,7 @@ class ControllerNode(Node):
         self.pub = self.create_publisher(SpeedCommand, "/rig/speed_command", STREAM)
         self.create_subscription(TorqueEstimate, "/torque_estimate", self.on_estimate, STREAM)
         subscribe_command(self, Float64, "/controller/speed_setpoint", self.on_setpoint)
-        self.create_timer(self.command_period / 2, self.on_timer)
+        self.create_timer(self.command_period, self.on_timer)
         self.estimate: TorqueEstimate | None = None
         self.last_sent = -math.inf  # [s] node clock
         self.commands = 0
@@ -95,7 +95,7 @@ class ControllerNode(Node):
 
     def on_timer(self) -> None:
         now = self.get_clock().now().nanoseconds * 1e-9
-        if now - self.last_sent >= self.command_period:
+        if now - self.last_sent >= 0.5 * self.command_period:
             self.send(now)
 
     def send(self, now: float) -> None:

@@ -12,7 +12,7 @@ import faulthandler
 import signal
 import sys
 import threading
-from typing import Callable
+from collections.abc import Callable, Sequence
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -27,6 +27,14 @@ except ImportError:  # Humble
 
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
     """rclpy.init, build the node, spin until SIGINT/SIGTERM, clean up; returns an exit code."""
+    return run_nodes([make_node], args)
+
+
+def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = None) -> int:
+    """:func:`run_node` for several nodes in this one process, on one executor (a composed graph).
+
+    Each node takes its own section of a ``--params-file`` by its name, as it would alone.
+    """
     stop = threading.Event()
     # A node that does not exit after SIGINT can be asked where it is stuck: SIGUSR1 prints every
     # thread's Python stack to stderr (run_graph and the tests do this before SIGKILL).
@@ -35,11 +43,12 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> in
         signal.signal(signum, lambda *_: stop.set())
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     executor = _Executor()
-    node = None
+    nodes: list[Node] = []
     code = 0
     try:
-        node = make_node()
-        executor.add_node(node)
+        for make_node in makers:
+            nodes.append(make_node())
+            executor.add_node(nodes[-1])
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
     except ExternalShutdownException:
@@ -49,7 +58,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> in
         code = 2
     finally:
         executor.shutdown()
-        if node is not None:
+        for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
     return code

@@ -36,4 +36,23 @@ def make_realtime(priority: int) -> str:
     return f"SCHED_FIFO priority {priority}"
 
 
-__all__ = ["SWITCH_INTERVAL", "make_realtime"]
+def realtime_permitted(priority: int) -> bool:
+    """Whether this process may ask for SCHED_FIFO at ``priority`` (tried in a throwaway thread)."""
+    import threading
+
+    allowed: list[bool] = []
+
+    def attempt() -> None:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+            allowed.append(True)
+        except (OSError, AttributeError):
+            allowed.append(False)
+
+    thread = threading.Thread(target=attempt)
+    thread.start()
+    thread.join()
+    return allowed[0]
+
+
+__all__ = ["SWITCH_INTERVAL", "make_realtime", "realtime_permitted"]

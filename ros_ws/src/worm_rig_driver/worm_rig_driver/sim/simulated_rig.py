@@ -131,6 +131,10 @@ class SimulatedRig:
 
     def command(self, voltage_drive=None, load_torque=None) -> None:
         """Set the drive voltage [V] and/or the load torque [N m] held until changed."""
+        if self.n == 1 and isinstance(voltage_drive, float) and load_torque is None:
+            # the live rig's loop sets one float every sample: skip numpy's broadcasting for it
+            self.voltage_drive = np.array((voltage_drive,))
+            return
         if voltage_drive is not None:
             self.voltage_drive = np.broadcast_to(np.asarray(voltage_drive, float), (self.n,)).copy()
         if load_torque is not None:
