@@ -1,15 +1,20 @@
 """Benchmark of the live node graph over DDS: CPU, command latency, lost samples; idle and under load.
 
-    python bench/graph_bench.py [--window 60] [--skip-load]   (run_all.py runs it with its own ROS_DOMAIN_ID)
+    python bench/graph_bench.py [--window 60] [--skip-load] [--separate-window 20]
+                                 (run_all.py runs it with its own ROS_DOMAIN_ID)
 
-Twice (the second time while a CPU hog started here holds one core busy):
-starts the graph of sim_graph.yaml (calibration written first) and the recorder
-(`ros2 run worm_rig_driver recorder`, every topic) beside it, commands 150 rad/s
-and a resistive load of +0.15 N m, lets it settle, then measures for --window
-seconds and prints to stdout:
+The graph of sim_graph.yaml (its estimator method, the observer; calibration written
+first) runs as a rig computer runs it: sim_node, model_node, estimator_node and
+controller_node in one process at SCHED_FIFO 40 (`run_graph sim_graph.yaml --together
+<all> --priority 40`; graph.runner.rig_computer), the recorder (`ros2 run worm_rig_driver
+recorder`, the graph's streams /rig/samples, /torque_estimate, /gearbox/forces,
+/rig/speed_command) beside it at normal priority. Twice (the second time while a CPU
+hog started here holds one core busy at normal priority): commands 150 rad/s and a
+resistive load of +0.15 N m, lets it settle, then measures for --window seconds and
+prints to stdout:
 
   graph_cpu_cores: <x> cores          CPU of sim_node + model_node + estimator_node + controller_node
-  graph_cpu_<node>: <x> cores         each of them (process CPU time over the window / window)
+  graph_cpu_<process>: <x> cores      each process of the graph (process CPU time over the window / window)
   graph_latency_p50: <x> ms           newest rig sample a speed command was computed from (its stamp)
   graph_latency_p99: <x> ms           -> that command in force at the rig, per command, read from the
                                       recorded /rig/samples' own clock (seq, command_seq): the time from
@@ -19,7 +24,10 @@ seconds and prints to stdout:
   graph_lost_samples: <n>             seqs missing from the recorded /rig/samples over the window
   graph_sim_skipped_samples: <n>      sample periods sim_node never simulated (it fell behind real time)
 
-and the same with an ``_under_load`` suffix for the loaded run. Progress on stderr.
+and the same with an ``_under_load`` suffix for the loaded run; then, for comparison,
+the graph as `run_graph sim_graph.yaml` starts it by default (one process per node,
+normal priority), idle, for --separate-window seconds: the same lines with a
+``_separate`` suffix. Progress on stderr.
 Never asserts: a failure prints nan figures and exits 1.
 """
 from __future__ import annotations
@@ -35,6 +43,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from torque_estimator.graph.runner import rig_computer
+
 SETTLE = 5.0  # [s] after the commands, before the window
 SPEED_SETPOINT = 150.0  # [rad/s]
 LOAD = 0.15  # [N m], resistive at positive speed
@@ -42,6 +52,7 @@ START_TIMEOUT = 45.0  # [s]
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
 NODES = ("sim_node", "model_node", "estimator_node", "controller_node")
+RECORDED = ("/rig/samples", "/torque_estimate", "/gearbox/forces", "/rig/speed_command", "/diagnostics")
 HZ = os.sysconf("SC_CLK_TCK")
 
 
@@ -84,10 +95,10 @@ def run_phase(calibration: Path, work: Path, window: float, hog: bool, together:
     from worm_model.ros.ament import find_executable
     from worm_model.ros.qos import COMMAND
 
-    tag = "under_load" if hog else "idle"
+    tag = ("under_load" if hog else "idle") + ("" if together else "_separate")
     bag = work / f"bag_{tag}"
-    figures = {name: float("nan") for name in ("cpu_cores", *(f"cpu_{n}" for n in NODES), "latency_p50",
-                                               "latency_p99", "lost_samples", "sim_skipped_samples")}
+    figures = {name: float("nan") for name in ("cpu_cores", "latency_p50", "latency_p99", "lost_samples",
+                                               "sim_skipped_samples")}
     context = Context()
     rclpy.init(context=context)
     node = rclpy.create_node("graph_bench_probe", context=context)
@@ -104,7 +115,8 @@ def run_phase(calibration: Path, work: Path, window: float, hog: bool, together:
     try:
         hog_proc = start_hog() if hog else None
         graph.start()
-        recorder = subprocess.Popen([str(find_executable("recorder")), "--ros-args", "-p", f"output:={bag}"],
+        recorder = subprocess.Popen([str(find_executable("recorder")), "--ros-args", "-p", f"output:={bag}",
+                                     "-p", f"topics:=[{','.join(RECORDED)}]"],
                                     stdout=open(work / f"recorder_{tag}.log", "wb"), stderr=subprocess.STDOUT)
         seen = []
         from worm_msgs.msg import RigSamples
@@ -127,8 +139,9 @@ def run_phase(calibration: Path, work: Path, window: float, hog: bool, together:
         t1, wall1 = time.monotonic(), time.time_ns()
         after = {name: cpu_seconds(pid) for name, pid in pids.items()}
         for name in pids:  # a node alone, or a group "a+b+..." in one process
-            figures[f"cpu_{name}"] = (after[name] - before[name]) / (t1 - t0)
-        figures["cpu_cores"] = sum(figures[f"cpu_{n}"] for n in pids)
+            label = "one_process" if name.count("+") == len(NODES) - 1 else name.replace("+", "__")
+            figures[f"cpu_{label}"] = (after[name] - before[name]) / (t1 - t0)
+        figures["cpu_cores"] = sum((after[n] - before[n]) / (t1 - t0) for n in pids)
         if graph.failed():
             raise RuntimeError(f"nodes exited during the run: {graph.failed()}")
     finally:
@@ -174,10 +187,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--window", type=float, default=60.0, help="measuring window [s] of each run")
     parser.add_argument("--skip-load", action="store_true", help="only the run without the CPU hog")
-    parser.add_argument("--together", action="append", default=[], metavar="NODE,NODE,...",
-                        help="run these nodes in one process (as run_graph --together; repeatable)")
-    parser.add_argument("--method", default="observer", help="estimator_node's method (default: observer)")
-    parser.add_argument("--priority", type=int, default=0, help="SCHED_FIFO priority of the graph's processes")
+    parser.add_argument("--separate-window", type=float, default=20.0,
+                        help="window [s] of the comparison run with one process per node (0: skip it)")
     args = parser.parse_args(argv)
     os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(100, 230)))
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
@@ -188,15 +199,17 @@ def main(argv: list[str] | None = None) -> int:
                     "--quiet"], check=True, stdout=sys.stderr)
     code = 0
     units = {"cpu": "cores", "latency": "ms"}
-    for hog in (False,) if args.skip_load else (False, True):
+    rig = rig_computer(GRAPH_FILE)
+    runs = [("", False, rig, args.window)] + ([] if args.skip_load else [("_under_load", True, rig, args.window)])
+    if args.separate_window > 0:
+        runs.append(("_separate", False, {"together": [], "priority": 0}, args.separate_window))
+    for suffix, hog, options, window in runs:
         try:
-            figures = run_phase(calibration, work, args.window, hog,
-                                [[n for n in g.split(",") if n] for g in args.together], args.method, args.priority)
+            figures = run_phase(calibration, work, window, hog, options["together"], "observer", options["priority"])
         except Exception as err:  # a benchmark reports, it does not assert
             info(f"failed: {err!r}")
             figures = {}
             code = 1
-        suffix = "_under_load" if hog else ""
         names = ("cpu_cores", *sorted(n for n in figures if n.startswith("cpu_") and n != "cpu_cores"),
                  "latency_p50", "latency_p99", "lost_samples", "sim_skipped_samples")
         for name in names:

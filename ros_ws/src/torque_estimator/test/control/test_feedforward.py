@@ -24,3 +24,11 @@ def test_feedforward_gate_uses_only_fresh_usable_estimates() -> None:
     assert gate.load(14.0) is None
     gate.enabled = True
     assert gate.load(14.0) == -0.2
+
+
+def test_feedforward_gate_refuses_implausible_loads() -> None:
+    gate = FeedforwardGate(timeout=0.05, max_load=0.4)
+    gate.offer(0.39, 0, stamp=1.0)
+    assert gate.load(1.0) == 0.39
+    gate.offer(-0.41, int(EstimateFlags.TRANSIENT), stamp=2.0)
+    assert gate.load(2.0) is None

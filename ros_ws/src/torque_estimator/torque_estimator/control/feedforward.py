@@ -25,14 +25,18 @@ class FeedforwardGate:
     (the sample being controlled): a stalled estimator must not leave a stale
     torque in the loop. Otherwise the PI alone holds the speed.
     AMBIGUOUS and TRANSIENT estimates are used: the nearest branch is the best
-    guess, and a transient estimate still points the right way.
+    guess, and a transient estimate still points the right way. An estimate of a
+    load larger than ``max_load`` [N m] (what the rig can meet; the estimator may
+    not have flagged it) is not used either: an implausible torque must not reach
+    the drive as a command.
     """
 
     UNUSABLE = EstimateFlags.INVALID_INPUT | EstimateFlags.OUT_OF_CALIBRATION
 
-    def __init__(self, timeout: float, enabled: bool = True) -> None:
+    def __init__(self, timeout: float, enabled: bool = True, max_load: float = math.inf) -> None:
         self.timeout = timeout
         self.enabled = enabled
+        self.max_load = max_load
         self._torque: float | None = None
         self._flags = 0
         self._stamp = 0.0
@@ -44,7 +48,8 @@ class FeedforwardGate:
     def load(self, now: float) -> float | None:
         """The usable held τ_d [N m] for a control period at time ``now`` [s], or None."""
         torque = self._torque
-        if not self.enabled or torque is None or self._flags & self.UNUSABLE or not math.isfinite(torque):
+        if (not self.enabled or torque is None or self._flags & self.UNUSABLE or not math.isfinite(torque)
+                or abs(torque) > self.max_load):
             return None
         return torque if now - self._stamp <= self.timeout else None
 

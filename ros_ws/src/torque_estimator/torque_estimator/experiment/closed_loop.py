@@ -95,7 +95,8 @@ def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...]
     sim = SimulatedRig(rig, n=n, seed=seed)
     dt = sim.sample_period
     controller = SpeedController(rig, gains, n=n)
-    gates = [FeedforwardGate(estimate_timeout, enabled=mode != "off") for mode in modes]
+    gates = [FeedforwardGate(estimate_timeout, enabled=mode != "off", max_load=1.5 * rig.max_load_torque)
+             for mode in modes]
     live = {i: LiveEstimator(rig, estimator, dt, **(live_options or {}))
             for i, mode in enumerate(modes) if mode == "estimate"}
     pending: deque = deque()  # (first period driven, feedforward torque per rig) on their way to the rig

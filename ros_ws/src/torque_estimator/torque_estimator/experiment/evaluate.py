@@ -12,6 +12,15 @@ error %), writes held_out_deviation.png (like Figure 13), and, unless
 --no-sweeps, error_sweeps.png: the error against k (both weightings), grid
 density and sensor noise, each on --sweep-points held-out points.
 
+Then, unless --no-transient, every estimator of the registry side by side:
+its held-out figures and how it follows a load step, a speed ramp and a
+reversal, streamed as estimator_node runs it (experiment.transient), one line
+each
+    transient: method=<m> step90_ms=<x> overshoot_pct=<x> ramp_err_pct=<x> reversal_err_pct=<x>
+and the observer's steady noise against the best any estimator can do from these
+sensors at its bandwidth (observer.steady_state_bound, a Cramér-Rao-type bound)
+    noise: method=observer std=<x> bound=<x> N m ratio=<x>
+
 Errors are |estimated - true| in % of the calibrated torque range (max - min
 of the database's τ_d). The last line printed is
     <method>: mae_pct=<mean error> max_pct=<largest error> points=<n>
@@ -32,6 +41,11 @@ from torque_estimator.estimation.database import CalibrationError, load_database
 from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
 from torque_estimator.experiment.evaluation import format_table, measure_held_out, score, sweep_grid_density, sweep_k, sweep_noise
 from torque_estimator.estimation.knn import WEIGHTINGS
+from torque_estimator.estimation.observer import steady_state_bound
+from torque_estimator.experiment.transient import STEP_SPEED, transient_figures
+
+#: seeds of the step experiment (the ramp and the reversal take a third)
+TRANSIENT_SEEDS = 12
 from torque_estimator.experiment.plots import held_out_deviation, sweeps
 from worm_model.cli.progress import ProgressBar
 
@@ -85,6 +99,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--torques", type=int, default=16, help="torques of the calibration grid (default 16)")
     sweep = p.add_argument_group("sweeps")
     sweep.add_argument("--no-sweeps", action="store_true", help="only the table and the deviation plot")
+    sweep.add_argument("--no-transient", action="store_true",
+                       help="leave out the estimators side by side (held-out, step, ramp, reversal)")
     sweep.add_argument("--sweep-points", type=int, default=68,
                        help="held-out points each sweep value is scored on (default 68)")
     sweep.add_argument("--ks", type=_int_list, default=[1, 2, 3, 4, 6, 8, 12, 16],
@@ -141,9 +157,35 @@ def main(argv: list[str] | None = None) -> int:
                 cells = "  ".join(f"{v:g}: {m:.2f}/{x:.2f}" for v, m, x in
                                   zip(result.values, mae, result.max_pct[label]))
                 print(f"  {result.name} [{label}]  {cells}")
+    if not args.no_transient:
+        side_by_side(args, rig, grid, db)
     print(f"\nevaluate: wrote {', '.join(str(p) for p in pngs)} in {time.monotonic() - start:.1f} s")
     print(f"{args.method}: mae_pct={ev.mae_pct:.2f} max_pct={ev.max_pct:.2f} points={len(ev.tau_true)}")
     return 0
+
+
+def side_by_side(args, rig, grid, db) -> None:
+    """Every registered estimator: held-out figures, transient lines, the observer's noise against its bound."""
+    measured = measure_held_out(rig, grid, args.points, args.seed + 1)
+    print(f"\nEstimators side by side ({args.points} held-out points; transients streamed as estimator_node runs "
+          f"them, {TRANSIENT_SEEDS} seeds; % of the torque range)")
+    lines = []
+    with ProgressBar(len(ESTIMATORS), "estimators", enabled=not args.quiet) as bar:
+        for i, method in enumerate(ESTIMATORS):
+            options = {"k": args.k, "weighting": args.weighting} if method == "knn" else {}
+            estimator = make_estimator(method, db, **options)
+            ev = score(estimator, measured, db.torque_range)
+            figures = transient_figures(rig, method, estimator, db.torque_range, seeds=TRANSIENT_SEEDS,
+                                        seed=args.seed)
+            print(f"  {method:15s} held-out mean {ev.mae_pct:.2f} % max {ev.max_pct:.2f} %; steady noise "
+                  f"{figures.steady_std:.2e} N m")
+            lines.append(figures.line())
+            if method == "observer":
+                bound = steady_state_bound(rig, STEP_SPEED, 0.0)
+                lines.append(f"noise: method=observer std={figures.steady_std:.2e} bound={bound:.2e} N m "
+                             f"ratio={figures.steady_std / bound:.2f}")
+            bar.update_to(i + 1)
+    print("\n".join(lines))
 
 
 def run_sweeps(args, rig, grid, db, options) -> list:

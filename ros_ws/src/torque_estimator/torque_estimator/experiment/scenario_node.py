@@ -1,4 +1,4 @@
-"""The demo's live run: start the graph, play a scenario on it, record every topic.
+"""The demo's live run: start the graph as a rig computer runs it, play a scenario on it, record every topic.
 
 The ROS shell of the demo: a node that publishes the scenario's speed
 set-points and load torques on schedule while a TopicRecorder writes every
@@ -19,7 +19,7 @@ from worm_model.ros.qos import COMMAND
 from worm_model.bags.writer import BagWriter
 from worm_rig_driver.nodes.recorder_node import TopicRecorder
 
-from torque_estimator.graph.runner import Graph
+from torque_estimator.graph.runner import Graph, rig_computer
 from torque_estimator.experiment.scenario import DEMO_SCENARIO, segment_at
 
 
@@ -30,7 +30,7 @@ def live_run(graph_file: Path, calibration: Path, feedforward: bool, bag: Path, 
     """Run the scenario on the live graph, recording every topic to `bag`; returns the start stamp [s]."""
     overrides = {"estimator_node": [f"calibration_file:={calibration}"],
                  "controller_node": [f"feedforward:={str(feedforward).lower()}", "speed_setpoint:=0.0"]}
-    with Graph(graph_file, overrides, log_dir=log_dir) as graph:
+    with Graph(graph_file, overrides, log_dir=log_dir, **rig_computer(graph_file)) as graph:
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
         node = rclpy.create_node("demo_scenario")
         executor = EventsExecutor()

@@ -52,6 +52,17 @@ def graph_nodes(params_file: Path) -> list[str]:
     return [name for name in data if name != "/**"]
 
 
+#: SCHED_FIFO priority of a rig computer's graph process (below the rig loop thread's 50)
+RIG_COMPUTER_PRIORITY = 40
+
+
+def rig_computer(params_file: Path) -> dict:
+    """Graph options of a rig computer: every node of the file in one process, at
+    RIG_COMPUTER_PRIORITY (``run_graph FILE --together <all> --priority 40``); what the
+    demo and the graph benchmark run."""
+    return {"together": [graph_nodes(params_file)], "priority": RIG_COMPUTER_PRIORITY}
+
+
 def parse_overrides(items: list[str]) -> dict[str, list[str]]:
     """'node.param=value' strings -> {node: ['param:=value', ...]} for --ros-args -p."""
     overrides: dict[str, list[str]] = {}

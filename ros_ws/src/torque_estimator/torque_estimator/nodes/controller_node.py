@@ -58,10 +58,13 @@ class ControllerNode(Node):
                                       low=-1000.0, high=1000.0)
         estimate_timeout = declare(self, "estimate_timeout", 0.05,
                                    "Estimates older than this [s] are not used.", low=0.0, high=10.0)
+        max_load = declare(self, "max_load", 1.5 * self.rig.max_load_torque,
+                           "Estimates of a larger load [N m] are not fed forward (implausible; default 1.5 x the "
+                           "rig file's max_load_torque).", low=0.0, high=1e6)
         self.command_period = declare(self, "command_period", 0.02,
                                       "Longest time [s] between speed commands when no estimate arrives "
                                       "(keep it well below the rig's command_timeout).", low=0.001, high=1.0)
-        self.gate = FeedforwardGate(estimate_timeout, enabled=feedforward)
+        self.gate = FeedforwardGate(estimate_timeout, enabled=feedforward, max_load=max_load)
         self.add_on_set_parameters_callback(self.on_parameters)
 
         self.pub = self.create_publisher(SpeedCommand, "/rig/speed_command", STREAM)
