@@ -215,7 +215,7 @@ def test_undeclared_effect_is_named_and_cuts_the_held_out_error(name: str, tmp_p
         true_gap = math.radians(15.0 / 60.0)
         print(f"backlash: gap {effect.values['angle'] * 1e3:.4f} +- {effect.ci['angle'] * 1e3:.4f} mrad "
               f"(true {true_gap * 1e3:.4f} mrad)")
-        assert effect.values["angle"] == pytest.approx(true_gap, rel=0.03)
+        assert effect.values["angle"] == pytest.approx(true_gap, rel=0.01)  # the README: within 1 % (0.25 % seen)
         assert result.final.rms_held_out <= 1.02 * result.declared.rms_held_out
     if name == "oil_temperature":
         slope = effect.values["mu_per_kelvin"]
@@ -327,7 +327,8 @@ def test_cli_writes_report_parameter_file_and_plots(cogging_csv: Path, tmp_path:
 
 
 def test_cli_reads_a_bag(cogging_csv: Path, tmp_path: Path) -> None:
-    rig_csv = pytest.importorskip("worm_model.rig_data.bags")
+    import worm_model.rig_data.bags as rig_csv  # the project's own: a broken import must fail, not skip
+
     bag = tmp_path / "bag"
     rig_csv.csv_to_bag(cogging_csv, bag)
     run = _residuals(str(bag), "--out", str(tmp_path / "out"), "--free", ",".join(FREE), "--no-plots",
