@@ -20,6 +20,7 @@ import signal
 import time
 from collections.abc import Callable
 
+import pytest
 from std_msgs.msg import Float64
 from worm_msgs.msg import RigSample, RigSamples
 
@@ -92,4 +93,48 @@ def test_output_limit_no_windup_and_the_watchdog_over_dds(start_graph: Callable[
         driven = [s for s in samples if s.seq < stopped.seq]
         assert len(driven) <= 100 + 20 + 1, f"the rig drove {len(driven)} ms after its controller died"
     graph.processes.pop("controller_node")  # killed on purpose: not part of the clean-exit check
+    assert not graph.failed(), graph.failed()
+    assert graph.stop() == {"sim_node": 0}  # now: the next test's rig must be the only one on the domain
+
+
+def test_feedforward_from_another_stacks_joint_state(start_graph: Callable[[str, str], Graph]) -> None:
+    """controller_node takes the load from a sensor_msgs/JointState (feedforward_source joint_state): a
+    resistive load gives the speed commands the feedforward that balances it."""
+    from worm_msgs.msg import LoadCommand, SpeedCommand
+
+    from worm_model.physics.parameters import load_rig
+    from worm_model.physics.steady_state import balancing_torque
+
+    graph = start_graph("""\
+sim_node:
+  ros__parameters:
+    command_timeout: 0.1
+estimator_node:
+  ros__parameters:
+    method: observer
+controller_node:
+  ros__parameters:
+    speed_setpoint: 150.0
+    feedforward_source: joint_state
+""", "controller_joint_state")
+    with probe_node("controller_joint_state_probe") as (node, executor):
+        commands: list = []
+        node.create_subscription(SpeedCommand, "/rig/speed_command", commands.append, STREAM)
+        load = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
+        deadline = time.monotonic() + 30.0
+        while (not commands or not load.get_subscription_count()) and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert commands, f"no speed commands; logs in {graph.log_dir}"
+        load.publish(LoadCommand(torque=0.15))
+        deadline = time.monotonic() + 2.0
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        commands.clear()
+        deadline = time.monotonic() + 1.0
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+    expected = float(balancing_torque(load_rig(), 0.15, 150.0))
+    fed = [c.feedforward_torque for c in commands]
+    assert len(fed) > 50, len(fed)
+    assert sum(fed) / len(fed) == pytest.approx(expected, rel=0.1), (sum(fed) / len(fed), expected)
     assert not graph.failed(), graph.failed()

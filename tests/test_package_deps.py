@@ -26,7 +26,7 @@ KEYS = {
     # PyPI-only, without a rosdep key: documented in a package.xml comment instead
     "mcap": None, "zstandard": None,
     **{name: name for name in ("rclpy", "rcl_interfaces", "std_msgs", "sensor_msgs", "diagnostic_msgs",
-                               "builtin_interfaces", "ament_index_python", *PACKAGES, "worm_msgs")},
+                               "builtin_interfaces", "ament_index_python", "geometry_msgs", *PACKAGES, "worm_msgs")},
 }
 
 

@@ -11,6 +11,14 @@ worm, the PI gains and the voltage limit) once per estimate, and at least every
 ``command_period`` without one, so the rig's watchdog (command_timeout) stops the
 drive only when this node is gone.
 
+The estimate comes from /torque_estimate by default (``feedforward_source``
+torque_estimate: worm_msgs/TorqueEstimate, with its quality flags), or from
+another stack's standard message: ``joint_state`` (sensor_msgs/JointState, the
+effort of ``joint_name``: the torque the load applies in the joint's positive
+direction, so tau_d = -effort) or ``wrench`` (geometry_msgs/WrenchStamped,
+tau_d = -torque.z), on ``feedforward_topic`` (default: the estimator's topic
+for that type). Those carry no flags: only fresh, finite, plausible values are used.
+
 The feedforward is the estimated load tau_d reflected through the gearbox at the
 set-point speed (Eq. 28, worm_model.physics.steady_state.balancing_torque), from
 usable estimates only (younger than estimate_timeout, not flagged invalid or out
@@ -25,6 +33,8 @@ import math
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
 from rclpy.time import Time
+from geometry_msgs.msg import WrenchStamped
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from worm_msgs.msg import SpeedCommand, TorqueEstimate
 
@@ -38,6 +48,12 @@ from worm_model.ros.qos import STREAM
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 
 from torque_estimator.control.feedforward import FeedforwardGate
+
+
+#: feedforward_source -> (message type, the estimator's topic for it)
+SOURCES = {"torque_estimate": (TorqueEstimate, "/torque_estimate"),
+           "joint_state": (JointState, "/torque_estimate/joint_states"),
+           "wrench": (WrenchStamped, "/torque_estimate/wrench")}
 
 
 class ControllerNode(Node):
@@ -67,8 +83,19 @@ class ControllerNode(Node):
         self.gate = FeedforwardGate(estimate_timeout, enabled=feedforward, max_load=max_load)
         self.add_on_set_parameters_callback(self.on_parameters)
 
+        source = declare(self, "feedforward_source", "torque_estimate",
+                         "Message the load estimate comes in: torque_estimate (worm_msgs/TorqueEstimate), "
+                         "joint_state (sensor_msgs/JointState effort, tau_d = -effort) or wrench "
+                         "(geometry_msgs/WrenchStamped, tau_d = -torque.z).", choices=tuple(SOURCES))
+        topic = declare(self, "feedforward_topic", "",
+                        "Topic of that message; empty = the estimator's: " +
+                        ", ".join(f"{k}: {v[1]}" for k, v in SOURCES.items()) + ".")
+        self.joint_name = declare(self, "joint_name", "gear", "Joint whose effort a JointState source gives.")
         self.pub = self.create_publisher(SpeedCommand, "/rig/speed_command", STREAM)
-        self.create_subscription(TorqueEstimate, "/torque_estimate", self.on_estimate, STREAM)
+        msg_type, default_topic = SOURCES[source]
+        handler = {"torque_estimate": self.on_estimate, "joint_state": self.on_joint_state,
+                   "wrench": self.on_wrench}[source]
+        self.create_subscription(msg_type, topic or default_topic, handler, STREAM)
         subscribe_command(self, Float64, "/controller/speed_setpoint", self.on_setpoint)
         self.create_timer(self.command_period, self.on_timer)
         self.estimate: TorqueEstimate | None = None
@@ -95,6 +122,22 @@ class ControllerNode(Node):
         self.gate.offer(msg.torque, msg.flags, seconds(msg.header.stamp))
         self.estimate = msg
         self.send(seconds(msg.header.stamp))
+
+    def on_joint_state(self, msg: JointState) -> None:
+        if self.joint_name not in msg.name:
+            return
+        k = msg.name.index(self.joint_name)
+        effort = msg.effort[k] if k < len(msg.effort) else math.nan
+        self._offer_plain(-effort, msg.header)
+
+    def on_wrench(self, msg: WrenchStamped) -> None:
+        self._offer_plain(-msg.wrench.torque.z, msg.header)
+
+    def _offer_plain(self, tau_d: float, header) -> None:
+        """An estimate from a standard message: no seq, no flags (only freshness and plausibility)."""
+        self.gate.offer(tau_d, 0, seconds(header.stamp))
+        self.estimate = None
+        self.send(seconds(header.stamp))
 
     def on_timer(self) -> None:
         now = self.get_clock().now().nanoseconds * 1e-9

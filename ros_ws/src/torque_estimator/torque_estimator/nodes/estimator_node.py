@@ -13,6 +13,14 @@ the configured estimator (k-NN over the calibration database, paper Eqs
 while the worm accelerates faster than transient_acceleration is flagged
 TRANSIENT.
 
+For other stacks the same estimate goes out in standard types, at the batch rate,
+while someone subscribes: sensor_msgs/JointState on ``joint_state_topic`` (one
+joint, ``joint_name``, its effort the torque the load applies to the gear shaft
+in the joint's positive direction: -tau_d, the ROS convention external-torque
+observers follow) and geometry_msgs/WrenchStamped on ``wrench_topic`` (torque
+about +z of ``wrench_frame``, the output shaft's axis pointing so that positive
+rotation is about +z: torque.z = -tau_d; force and the other torques 0).
+
 A missing or broken calibration file is reported (log + /diagnostics ERROR)
 and the node keeps running without publishing estimates, so the rest of the
 graph (the controller falls back to no feedforward) carries on.
@@ -20,7 +28,9 @@ graph (the controller falls back to no feedforward) carries on.
 from __future__ import annotations
 
 from rclpy.node import Node
+from geometry_msgs.msg import WrenchStamped
 from rclpy.time import Time
+from sensor_msgs.msg import JointState
 from worm_msgs.msg import RigSamples, TorqueEstimate
 
 from worm_model.rig_data.samples import batch_problem
@@ -68,6 +78,14 @@ class EstimatorNode(Node):
             self, "transient_acceleration", 200.0,
             "Worm acceleration [rad/s^2] above which an estimate is flagged TRANSIENT.", low=0.0, high=1e6)
         period = 1.0 / declare(self, "sample_rate", 1000.0, "Rig sample rate [Hz].", low=1.0, high=100000.0)
+        joint_topic = declare(self, "joint_state_topic", "/torque_estimate/joint_states",
+                              "Topic of the estimate as sensor_msgs/JointState (effort = -tau_d).")
+        self.joint_name = declare(self, "joint_name", "gear", "Name of the output joint in that JointState.")
+        wrench_topic = declare(self, "wrench_topic", "/torque_estimate/wrench",
+                               "Topic of the estimate as geometry_msgs/WrenchStamped (torque.z = -tau_d).")
+        self.wrench_frame = declare(self, "wrench_frame", "gear_output",
+                                    "frame_id of that wrench: its z axis is the output shaft, positive rotation "
+                                    "about +z.")
 
         self.rig = load_rig(rig_file or None)
         self.estimator: LiveEstimator | None = None
@@ -90,6 +108,8 @@ class EstimatorNode(Node):
             self.get_logger().error(f"no estimates: {err}")
 
         self.pub = self.create_publisher(TorqueEstimate, "/torque_estimate", STREAM)
+        self.pub_joint = self.create_publisher(JointState, joint_topic, STREAM)
+        self.pub_wrench = self.create_publisher(WrenchStamped, wrench_topic, STREAM)
         self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
         self.received = 0
         self.malformed = 0  # /rig/samples messages refused
@@ -121,6 +141,17 @@ class EstimatorNode(Node):
         msg.header.stamp = Time(nanoseconds=stamp).to_msg()
         msg.header.frame_id = batch.header.frame_id
         self.pub.publish(msg)
+        # standard types for other stacks, only while someone listens (each costs a publish)
+        if self.pub_joint.get_subscription_count():
+            joint = JointState(name=[self.joint_name], effort=[-est.torque])
+            joint.header.stamp = msg.header.stamp
+            joint.header.frame_id = msg.header.frame_id
+            self.pub_joint.publish(joint)
+        if self.pub_wrench.get_subscription_count():
+            wrench = WrenchStamped()
+            wrench.header.stamp, wrench.header.frame_id = msg.header.stamp, self.wrench_frame
+            wrench.wrench.torque.z = -est.torque
+            self.pub_wrench.publish(wrench)
 
     def report(self) -> tuple[bytes, str, dict]:
         if self.estimator is None:

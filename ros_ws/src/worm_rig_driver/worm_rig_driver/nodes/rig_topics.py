@@ -5,7 +5,10 @@ Out (sensor-data QoS):
   /rig/sample       worm_msgs/RigSample    every sample one by one, only while someone subscribes
                                            (``ros2 topic echo``, a foreign stack); costs nothing otherwise
   /rig/currents, /rig/joint_states, /rig/encoders   every ``channel_decimation``-th sample, only while
-                                           someone subscribes
+                                           someone subscribes. JointState follows ROS's convention: the
+                                           gear joint's effort is the torque the load applies to the gear
+                                           shaft in its positive direction, -tau_load (RigSample's
+                                           tau_load is positive OPPOSING positive rotation)
 In:
   /rig/speed_command  worm_msgs/SpeedCommand  the rig's own speed loop (drive.rig_loop), sensor-data QoS
   /rig/drive_command  worm_msgs/DriveCommand  a voltage to hold, sensor-data QoS
@@ -128,7 +131,7 @@ class RigTopics:
             self.pub_joints.publish(JointState(header=s.header, name=["worm", "gear"],
                                                position=[s.theta_worm, s.theta_gear],
                                                velocity=[s.omega_worm, s.omega_gear],
-                                               effort=[math.nan, s.tau_load]))
+                                               effort=[math.nan, -s.tau_load]))  # see the docstring
         if self.pub_encoders.get_subscription_count():
             self.pub_encoders.publish(EncoderCounts(header=s.header, drive=s.count_drive, load_1=s.count_load_1,
                                                     load_2=s.count_load_2, counts_per_rev=self.counts_per_rev))
