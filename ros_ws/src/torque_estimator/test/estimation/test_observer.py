@@ -257,11 +257,23 @@ def write_reference(path: Path = REFERENCE) -> None:
     np.savez_compressed(path, **arrays)
 
 
+#: [N m] agreement required per case (relative above 1 N m). The interval encoder model is sensitive to
+#: round-off through the 1000 rad/s^2 ramp (its moment-matched pseudo-measurement depends on the prior):
+#: today's implementation against itself with ONE input sample nudged by one ulp differs by 1.2e-7 N m
+#: there (white: 2.8e-13 N m).
+PINNED_TOLERANCE = {"white": 1e-9, "interval": 1e-6, "no_encoder": 1e-9, "constant_mu_light": 1e-9}
+
+
 def test_numbers_pinned() -> None:
-    """LoadObserver.update reproduces the recorded run (torque and uncertainty within 1e-9 N m, flags and
-    detections identical) with the white and interval encoder models, without encoder, and with a
-    constant-friction, lighter model: a change to the observer's arithmetic that is more than round-off
-    fails here. Recorded with the numpy implementation of 2026-11 (~190 us per update)."""
+    """LoadObserver.update reproduces the recorded run (torque and uncertainty within PINNED_TOLERANCE, 1e-9
+    N m but for the interval model, flags and detections identical) with the white and interval encoder
+    models, without encoder, and with a constant-friction, lighter model: a change to the observer's
+    arithmetic that is more than round-off fails here. Recorded with the numpy implementation of 2026-11
+    (~190 us per update); the float one agrees within 3e-13 N m (white), 1.1e-7 N m (interval).
+
+    Values above 1 N m are compared relatively: in the self-locking V near the pole of the coast
+    flank (K_- -> 0) the AMBIGUOUS uncertainty reaches the other branch, hundreds of N m away, and 1/K_-
+    amplifies round-off (measured: 2.7e-8 N m on u = 518 N m when only the order of operations changed)."""
     ref = np.load(REFERENCE)
     inputs = ref["inputs"]
     for name, case in _reference_cases().items():
@@ -270,7 +282,8 @@ def test_numbers_pinned() -> None:
             expected = ref[f"{name}/{key}"]
             assert np.array_equal(np.isfinite(out[key]), np.isfinite(expected)), (name, key)
             finite = np.isfinite(expected)
-            assert np.max(np.abs(out[key][finite] - expected[finite])) <= 1e-9, (name, key)
+            error = np.abs(out[key][finite] - expected[finite]) / np.maximum(1.0, np.abs(expected[finite]))
+            assert np.max(error) <= PINNED_TOLERANCE[name], (name, key, np.max(error))
         assert np.array_equal(out["flags"], ref[f"{name}/flags"]), name
         assert np.array_equal(out["jump"], ref[f"{name}/jump"]), name
         assert ref[f"{name}/jump"].sum() >= 10  # the run exercises the GLR
