@@ -111,6 +111,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack
 from numpy.typing import ArrayLike
 from scipy.stats import chi2
 
@@ -394,6 +395,19 @@ def _normal_cdf(z: float) -> float:
     return 0.5 * math.erfc(-z / _SQRT2)
 
 
+_IDENTITY = {n: np.eye(n) for n in (2, 3)}
+
+
+def _inverse(S: np.ndarray) -> np.ndarray:
+    """S⁻¹ of the 2×2 or 3×3 innovation covariance by LAPACK's dgesv (LU with partial pivoting,
+    solved for the identity), what np.linalg.inv computes (bit for bit on every S of the pinned
+    run) without its ~3 us of argument checks and error-state handling."""
+    _lu, _piv, inverse, info = scipy.linalg.lapack.dgesv(S, _IDENTITY[len(S)])
+    if info > 0:
+        raise np.linalg.LinAlgError("Singular matrix")
+    return inverse
+
+
 def interval_measurement(mean: float, var: float, low: float, high: float, uniform_var: float
                          ) -> tuple[float, float]:
     """The Gaussian pseudo-measurement (z, r) equivalent to learning θ ∈ [low, high).
@@ -598,20 +612,21 @@ class LoadObserver:
         (the floored count × lsb, as RigSample.theta_worm; None: no encoder). Returns the
         estimate at this sample; never raises for NaN/inf (flagged INVALID_INPUT)."""
         self.samples += 1
-        values = (voltage, current, omega) + (() if theta is None else (theta,))
-        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
-            return self._invalid(voltage)
+        for v in (voltage, current, omega) if theta is None else (voltage, current, omega, theta):
+            if not (isinstance(v, (int, float)) and math.isfinite(v)):
+                return self._invalid(voltage)
         voltage, current, omega = float(voltage), float(current), float(omega)
         theta = None if theta is None else float(theta)
         if not self.initialised:
             self._initialise(current, omega, theta)
         nu, h, R = self._measurement(current, omega, theta, voltage)
         x, P = self.x, self.P
-        S = h @ P @ h.T + R
-        s_inv = np.linalg.inv(S)
-        K = P @ h.T @ s_inv
+        PhT = P @ h.T
+        S = h @ PhT + R
+        s_inv = _inverse(S)
+        K = PhT @ s_inv
         xf = x + K @ nu
-        Pf = P - K @ S @ K.T
+        Pf = P - K @ PhT.T  # K S K' = P H' S⁻¹ H P (P symmetric)
         jump = self._glr(h, nu, s_inv, K, xf, Pf)
         if jump is not None:
             xf, Pf = jump
