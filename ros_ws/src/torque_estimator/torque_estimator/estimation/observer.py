@@ -102,6 +102,15 @@ observer's own steady noise on a constant load (steady gains, Lyapunov) and
 is the Cramér–Rao bound on the size of a load step n samples after it, the floor
 under any observer's reaction time on these sensors.
 
+Cost: one :meth:`LoadObserver.update` takes ~50 us of CPU (bench/observer_bench.py,
+observer_update_cpu; ~200 us with numpy throughout). On a 7-state filter numpy's fixed cost
+per call (~1 us) outweighs the arithmetic, so the per-sample scalar work (μ(ω), K_s, J_eff,
+the mean propagation, the measurement Jacobian) runs in float math, once per state
+(StaticLoadMap.mesh on worm_model's float twins), and numpy does only the matrix algebra. test_observer's
+test_numbers_pinned holds the results to a run recorded with the all-numpy implementation.
+A J_eff bin met for the first time costs matrix exponentials (~0.4 ms single-threaded; 3-40 ms
+measured on a busy 2-core machine with OpenBLAS's default threads: OPENBLAS_NUM_THREADS=1).
+
 No ROS; numpy + scipy.
 """
 from __future__ import annotations
