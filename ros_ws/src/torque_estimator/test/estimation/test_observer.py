@@ -268,12 +268,12 @@ def test_numbers_pinned() -> None:
     """LoadObserver.update reproduces the recorded run (torque and uncertainty within PINNED_TOLERANCE, 1e-9
     N m but for the interval model, flags and detections identical) with the white and interval encoder
     models, without encoder, and with a constant-friction, lighter model: a change to the observer's
-    arithmetic that is more than round-off fails here. Recorded with the numpy implementation of 2026-11
-    (~190 us per update); the float one agrees within 3e-13 N m (white), 1.1e-7 N m (interval).
+    arithmetic that is more than round-off fails here. Recorded with the all-numpy implementation of 2026-11
+    (~200 us per update); the float one (~50 us) agrees within 5e-14 N m (white), 4.5e-9 N m (interval).
 
     Values above 1 N m are compared relatively: in the self-locking V near the pole of the coast
     flank (K_- -> 0) the AMBIGUOUS uncertainty reaches the other branch, hundreds of N m away, and 1/K_-
-    amplifies round-off (measured: 2.7e-8 N m on u = 518 N m when only the order of operations changed)."""
+    amplifies round-off (measured: 6e-8 N m on u = 518 N m when only the order of operations changed)."""
     ref = np.load(REFERENCE)
     inputs = ref["inputs"]
     for name, case in _reference_cases().items():
