@@ -1,8 +1,10 @@
 """Figures of the load observer (torque_estimator.estimation.observer) on the simulated rig; no ROS, never asserts.
 
-    python bench/observer_bench.py [--seeds N]
+    python bench/observer_bench.py [--seeds N] [--cpu-only]
 
-Prints: the step response to a 0 -> 0.2 N m load step at 150 rad/s (ensemble over seeds; a true
+Prints: ``observer_update_cpu: <x> us``, the median CPU time (time.process_time) of one
+LoadObserver.update on a steady 8 V, 0.1 N m run of the simulated rig (what the live graph pays
+per 1 ms sample; --cpu-only prints only this line), then the step response to a 0 -> 0.2 N m load step at 150 rad/s (ensemble over seeds; a true
 step, and with the rig's 2 ms load loop), the steady noise against the filter's prediction and
 the Cramer-Rao-type bound, the step-size bound (jump_bound), errors over a speed ramp and
 through a +150 -> -150 rad/s reversal, the 17 held-out points streamed, the robustness table
@@ -12,6 +14,8 @@ controller_bench (firmware timing, seed 1) with feedforward off / observer / ide
 from __future__ import annotations
 
 import argparse
+import statistics
+import time
 
 import numpy as np
 
@@ -23,16 +27,41 @@ from torque_estimator.estimation.observer import ObserverEstimator, equivalent_w
 from torque_estimator.experiment.observer_study import held_out_streaming, perturbed_rig, profile_error, step_response
 from torque_estimator.experiment.run_analysis import load_step_responses
 from torque_estimator.experiment.scenario import DEMO_SCENARIO
-from worm_model.physics.parameters import load_rig
+from worm_model.physics.parameters import Rig, load_rig
+from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 RANGE = 0.495
+
+
+def update_cpu_us(rig: Rig, samples: int = 3000, repeats: int = 3) -> float:
+    """Median CPU time [us] of one LoadObserver.update over ``repeats`` fresh observers fed the same
+    ``samples`` measurements (8 V, 0.1 N m, seed 0), each call timed on its own."""
+    sim = SimulatedRig(rig, n=1, seed=0)
+    sim.command(voltage_drive=8.0, load_torque=0.1)
+    inputs = []
+    for _ in range(samples):
+        m = sim.sample()
+        inputs.append((float(m.voltage_drive[0]), float(m.current_drive[0]), float(m.omega_worm[0]),
+                       float(m.theta_worm[0])))
+    clock, per_update = time.process_time, []
+    for _ in range(repeats):
+        update = ObserverEstimator(None, rig=rig).stream(1.0 / rig.sensors.sample_rate_hz).update
+        for sample in inputs:
+            start = clock()
+            update(*sample)
+            per_update.append(clock() - start)
+    return 1e6 * statistics.median(per_update)
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seeds", type=int, default=12)
+    parser.add_argument("--cpu-only", action="store_true", help="print only observer_update_cpu")
     args = parser.parse_args()
     rig = load_rig(None)
+    print(f"observer_update_cpu: {update_cpu_us(rig):.1f} us", flush=True)
+    if args.cpu_only:
+        return 0
     for ideal in (True, False):
         r = step_response(rig, seeds=args.seeds, ideal_step=ideal)
         print(f"step 0->0.2 N m at 150 rad/s ({'true step' if ideal else 'rig load loop, 2 ms'}): "

@@ -102,6 +102,15 @@ observer's own steady noise on a constant load (steady gains, Lyapunov) and
 is the Cramér–Rao bound on the size of a load step n samples after it, the floor
 under any observer's reaction time on these sensors.
 
+Cost: one :meth:`LoadObserver.update` takes ~50 us of CPU (bench/observer_bench.py,
+observer_update_cpu; ~200 us with numpy throughout). On a 7-state filter numpy's fixed cost
+per call (~1 us) outweighs the arithmetic, so the per-sample scalar work (μ(ω), K_s, J_eff,
+the mean propagation, the measurement Jacobian) runs in float math, once per state
+(StaticLoadMap.mesh on worm_model's float twins), and numpy does only the matrix algebra. test_observer's
+test_numbers_pinned holds the results to a run recorded with the all-numpy implementation.
+A J_eff bin met for the first time costs matrix exponentials (~0.4 ms single-threaded; 3-40 ms
+measured on a busy 2-core machine with OpenBLAS's default threads: OPENBLAS_NUM_THREADS=1).
+
 No ROS; numpy + scipy.
 """
 from __future__ import annotations
@@ -111,11 +120,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack
 from numpy.typing import ArrayLike
 from scipy.stats import chi2
 
-from worm_model.physics.efficiency import flank_factor
-from worm_model.physics.friction import friction_coefficient
+from worm_model.physics.efficiency import flank_factor, make_flank_factor_float
+from worm_model.physics.friction import friction_coefficient, make_friction_coefficient_float
 from worm_model.physics.parameters import Rig, load_rig
 
 from torque_estimator.estimation.database import CalibrationDatabase
@@ -206,7 +216,12 @@ class LoadProcess:
 # ----------------------------------------------------------------------------------------------
 # static part: the mesh/friction map and its inverse
 class StaticLoadMap:
-    """T_dist(ω, τ_d) of the module docstring and its inverse, from the rig's model (worm_model)."""
+    """T_dist(ω, τ_d) of the module docstring and its inverse, from the rig's model (worm_model).
+
+    The array methods take any shape; :meth:`mesh` and :meth:`worm_torque` take one (ω, τ_d)
+    and run in float math on worm_model's float twins of μ(ω) and K_s(μ): the streaming
+    observer calls them per sample, where numpy on one value costs ~5 us a call.
+    """
 
     def __init__(self, rig: Rig) -> None:
         self.rig = rig
@@ -217,6 +232,8 @@ class StaticLoadMap:
         self.drag_viscous = rig.load_motor_count * load.viscous_drag * gb.ratio  # [N m s/rad] per worm rad/s
         self.drag_coulomb = rig.load_motor_count * load.coulomb_drag
         self.self_locking_mu = gb.self_locking_mu
+        self._mu_float = make_friction_coefficient_float(rig.friction, gb)  # μ(ω), one float
+        self._flank_factor_float = make_flank_factor_float(gb)  # K_s(μ, s), one float
 
     def mu(self, omega: ArrayLike) -> np.ndarray:
         return np.asarray(friction_coefficient(self.rig.friction, self.rig.gearbox, omega), dtype=float)
@@ -232,15 +249,23 @@ class StaticLoadMap:
         return (np.asarray(flank_factor(self.rig.gearbox, mu, 1.0)),
                 np.asarray(flank_factor(self.rig.gearbox, mu, -1.0)))
 
+    def mesh(self, omega: float, tau_d: float) -> tuple[float, float, int, float, float]:
+        """(T_dist [N m], ∂T_dist/∂τ_d [1], flank s, K_s [1], μ [1]) at one (ω, τ_d), in float math.
+
+        The same operations as the array methods (gear_drag, factors), so the same numbers
+        up to the friction law's last bit (worm_model.physics.friction.make_friction_coefficient_float).
+        """
+        mu = self._mu_float(omega)
+        sigma = -1.0 if omega < 0 else 1.0
+        sign = (omega > 0) - (omega < 0)
+        D = sigma * (tau_d + (self.drag_viscous * omega + self.drag_coulomb * sign))  # gear_drag(ω)
+        flank = 1 if D >= 0 else -1
+        K = self._flank_factor_float(mu, float(flank))
+        return self.coulomb * sign + sigma * self.k * K * D, self.k * K, flank, K, mu
+
     def worm_torque(self, omega: float, tau_d: float) -> tuple[float, float, int]:
         """(T_dist [N m], ∂T_dist/∂τ_d [1], flank s) at one (ω, τ_d)."""
-        sigma = -1.0 if omega < 0 else 1.0
-        k_plus, k_minus = self.factors(omega)
-        D = sigma * (tau_d + float(self.gear_drag(omega)))
-        flank = 1 if D >= 0 else -1
-        K = float(k_plus) if flank == 1 else float(k_minus)
-        sign = (omega > 0) - (omega < 0)
-        return self.coulomb * sign + sigma * self.k * K * D, self.k * K, flank
+        return self.mesh(omega, tau_d)[:3]
 
     def invert(self, omega: ArrayLike, t_dist: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """τ_d explaining a worm-side disturbance T_dist [N m] at ω [rad/s], per flank.
@@ -270,11 +295,16 @@ class StaticLoadMap:
         return driving, coast, flags.astype(np.int64), chosen
 
 
+def inertia_terms(rig: Rig) -> tuple[float, float]:
+    """(J_w + J_m, J_g i (r_w/r_g)) [kg m²]: J_eff = first + second · K_s (Eq. 28)."""
+    gb = rig.gearbox
+    return rig.total_worm_inertia, rig.total_gear_inertia * gb.ratio * gb.radius_ratio
+
+
 def effective_inertia(rig: Rig, mu: float, flank: int) -> float:
     """J_eff of Eq. 28 [kg m²] on the worm: J_w + J_m + J_g i (r_w/r_g) K_s(μ)."""
-    gb = rig.gearbox
-    K = float(flank_factor(gb, mu, float(flank)))
-    return rig.total_worm_inertia + rig.total_gear_inertia * gb.ratio * gb.radius_ratio * K
+    rigid, geared = inertia_terms(rig)
+    return rigid + geared * float(flank_factor(rig.gearbox, mu, float(flank)))
 
 
 # ----------------------------------------------------------------------------------------------
@@ -289,6 +319,31 @@ class _Discrete:
     phi: np.ndarray  # (3, 3) on (θ, ω, i)
     gamma_v: np.ndarray  # (3,) per volt
     gamma_t: np.ndarray  # (3,) per N m of accelerating torque on the worm
+
+
+class _Step:
+    """One cached :class:`_Discrete` in the forms LoadObserver.update uses every sample.
+
+    phi, gamma_v, gamma_t as nested lists of floats: the mean is propagated in float math
+    (numpy's fixed cost per call is larger than this 3×3 arithmetic); ``transition``: the
+    7×7 Jacobian of the period with the two columns that change every sample (τ_d: −slope·Γ_t,
+    δ: −K_e ω̂·Γ_v) left at zero, copied and completed by LoadObserver._predict.
+    """
+
+    __slots__ = ("phi", "gamma_v", "gamma_t", "transition")
+
+    def __init__(self, d: _Discrete) -> None:
+        self.phi = d.phi.tolist()
+        self.gamma_v = d.gamma_v.tolist()
+        self.gamma_t = d.gamma_t.tolist()
+        self.transition = np.eye(N_STATES)
+        self.transition[:3, :3] = d.phi
+
+    def mean(self, x: list[float], drive: float, torque: float) -> list[float]:
+        """(θ, ω, i) after the step from x[:3]: Φ x + Γ_v·drive − Γ_t·torque (drive [V], torque [N m])."""
+        x0, x1, x2 = x[0], x[1], x[2]
+        return [p[0] * x0 + p[1] * x1 + p[2] * x2 + gv * drive - gt * torque
+                for p, gv, gt in zip(self.phi, self.gamma_v, self.gamma_t)]
 
 
 def discretise(rig: Rig, inertia: float, period: float) -> _Discrete:
@@ -337,6 +392,8 @@ class ObserverEstimate:
 THETA, OMEGA, CURRENT, TAU, RIPPLE_SIN, RIPPLE_COS, BACK_EMF_ERROR = range(7)
 N_STATES = 7
 _SQRT2 = math.sqrt(2.0)
+#: rows of the identity over the state (the encoder's Jacobian is the θ row)
+_UNIT = [[1.0 if j == i else 0.0 for j in range(N_STATES)] for i in range(N_STATES)]
 
 
 def _normal_pdf(z: float) -> float:
@@ -345,6 +402,19 @@ def _normal_pdf(z: float) -> float:
 
 def _normal_cdf(z: float) -> float:
     return 0.5 * math.erfc(-z / _SQRT2)
+
+
+_IDENTITY = {n: np.eye(n) for n in (2, 3)}
+
+
+def _inverse(S: np.ndarray) -> np.ndarray:
+    """S⁻¹ of the 2×2 or 3×3 innovation covariance by LAPACK's dgesv (LU with partial pivoting,
+    solved for the identity), what np.linalg.inv computes (bit for bit on every S of the pinned
+    run) without its ~3 us of argument checks and error-state handling."""
+    _lu, _piv, inverse, info = scipy.linalg.lapack.dgesv(S, _IDENTITY[len(S)])
+    if info > 0:
+        raise np.linalg.LinAlgError("Singular matrix")
+    return inverse
 
 
 def interval_measurement(mean: float, var: float, low: float, high: float, uniform_var: float
@@ -441,7 +511,13 @@ class LoadObserver:
         self.q = self.load.intensity(rig) * self.period
         self.threshold = self.load.threshold()
         self.window = int(self.load.window)
-        self._cache: dict[float, _Discrete] = {}
+        self._steps: dict[tuple[float, float], _Step] = {}  # by (J_eff / J_w to 4 decimals, period)
+        self._inertia = inertia_terms(rig)  # J_eff = first + second·K_s
+        self._back_emf = rig.drive_motor.back_emf_constant
+        self._emf_drift = self.load.back_emf_drift ** 2 * self.period  # δ's random walk over a period
+        # measurement covariances that do not change from sample to sample
+        self._r_white = np.diag([self.noise.theta_var, self.noise.tacho_var, self.noise.current_var])
+        self._r_no_encoder = np.diag([self.noise.tacho_var, self.noise.current_var])
         self.x = np.zeros(N_STATES)  # prior for the next sample
         self.P = np.eye(N_STATES)
         self.initialised = False
@@ -458,14 +534,16 @@ class LoadObserver:
         self._d = np.empty(0)
         self._c = np.empty(0)
 
-    def _discrete(self, omega: float, flank: int, period: float | None = None) -> _Discrete:
-        inertia = effective_inertia(self.rig, float(self.map.mu(omega)), flank)
-        period = self.period if period is None else period
-        key = (round(inertia / self.rig.total_worm_inertia, 4), period)
-        d = self._cache.get(key)
-        if d is None:
-            d = self._cache[key] = discretise(self.rig, inertia, period)
-        return d
+    def _step(self, factor: float, period: float) -> _Step:
+        """The discretisation over ``period`` [s] for the inertia of flank factor K_s (Eq. 28), cached:
+        J_eff to 4 decimals of J_w (the first J_eff met in a bin is the one discretised)."""
+        rigid, geared = self._inertia
+        inertia = rigid + geared * factor  # effective_inertia
+        key = (round(inertia / rigid, 4), period)
+        step = self._steps.get(key)
+        if step is None:
+            step = self._steps[key] = _Step(discretise(self.rig, inertia, period))
+        return step
 
     def _initialise(self, current: float, omega: float, theta: float | None) -> None:
         motor = self.rig.drive_motor
@@ -479,66 +557,63 @@ class LoadObserver:
                           self.load.back_emf_std ** 2])
         self.initialised = True
 
-    def _predict(self, voltage: float) -> None:
-        """Propagate the filtered state over one period with V held (mean: nonlinear T_dist)."""
-        x = self.x
-        t_dist, slope, flank = self.map.worm_torque(float(x[OMEGA]), float(x[TAU]))
-        d = self._discrete(float(x[OMEGA]), flank)
-        emf = self.rig.drive_motor.back_emf_constant * float(x[OMEGA])
-        x3 = d.phi @ x[:3] + d.gamma_v * (voltage - emf * x[BACK_EMF_ERROR]) - d.gamma_t * t_dist
-        self.x = np.concatenate((x3, x[3:]))
-        phi = np.eye(N_STATES)
-        phi[:4, :4] = transition(d, slope)
-        phi[:3, BACK_EMF_ERROR] = -emf * d.gamma_v
-        self.P = phi @ self.P @ phi.T
-        self.P[TAU, TAU] += self.q
-        self.P[BACK_EMF_ERROR, BACK_EMF_ERROR] += self.load.back_emf_drift ** 2 * self.period
+    def _predict(self, voltage: float, mesh: tuple | None = None) -> None:
+        """Propagate the filtered state over one period with V held (mean: nonlinear T_dist).
+
+        mesh: StaticLoadMap.mesh at the filtered state if the caller has it."""
+        x = self.x.tolist()
+        t_dist, slope, _flank, factor, _mu = self.map.mesh(x[OMEGA], x[TAU]) if mesh is None else mesh
+        step = self._step(factor, self.period)
+        emf = self._back_emf * x[OMEGA]
+        self.x = np.array(step.mean(x, voltage - emf * x[BACK_EMF_ERROR], t_dist) + x[3:])
+        phi = step.transition.copy()
+        phi[:3, TAU] = [-slope * g for g in step.gamma_t]  # transition(): τ_d acts as the torque −slope·τ_d
+        phi[:3, BACK_EMF_ERROR] = [-emf * g for g in step.gamma_v]
+        P = phi @ self.P @ phi.T
+        P[TAU, TAU] += self.q
+        P[BACK_EMF_ERROR, BACK_EMF_ERROR] += self._emf_drift
+        self.P = P
         self._phi_prev = phi
 
-    def _at(self, delay: float, voltage: float) -> tuple[np.ndarray, np.ndarray]:
-        """(θ, ω, i) predicted ``delay`` [s] after the tick with V applied, and its Jacobian (3×6)."""
-        x = self.x
-        jac = np.zeros((3, N_STATES))
+    def _at(self, delay: float, voltage: float, x: list[float], mesh: tuple) -> tuple[list[float], list[list[float]]]:
+        """(θ, ω, i) predicted ``delay`` [s] after the tick from the prior x with V applied, and its
+        Jacobian rows (3 × 7) over the state; floats. mesh: StaticLoadMap.mesh at the prior."""
         if delay <= 0:
-            jac[:, :3] = np.eye(3)
-            return x[:3].copy(), jac
-        t_dist, slope, flank = self.map.worm_torque(float(x[OMEGA]), float(x[TAU]))
-        d = self._discrete(float(x[OMEGA]), flank, delay)
-        jac[:, :3] = d.phi
-        jac[:, TAU] = -slope * d.gamma_t
-        emf = self.rig.drive_motor.back_emf_constant * float(x[OMEGA])
-        jac[:, BACK_EMF_ERROR] = -emf * d.gamma_v
-        return d.phi @ x[:3] + d.gamma_v * (voltage - emf * x[BACK_EMF_ERROR]) - d.gamma_t * t_dist, jac
+            return x[:3], _UNIT[:3]
+        t_dist, slope, _flank, factor, _mu = mesh
+        step = self._step(factor, delay)
+        emf = self._back_emf * x[OMEGA]
+        state = step.mean(x, voltage - emf * x[BACK_EMF_ERROR], t_dist)
+        # columns θ, ω, i | τ_d | a, b (the ripple does not move the motor) | δ
+        jac = [[*p, -slope * gt, 0.0, 0.0, -emf * gv] for p, gt, gv in zip(step.phi, step.gamma_t, step.gamma_v)]
+        return state, jac
 
     def _measurement(self, current: float, omega: float, theta: float | None, voltage: float):
-        """(y, h(x̂), Jacobian, R): tacho and current, each at its own ADC instant after the tick
-        (the encoder is latched at the tick), plus the encoder's (pseudo-)measurement."""
-        x, P = self.x, self.P
+        """(ν, Jacobian H, R): innovations of tacho and current, each predicted at its own ADC instant
+        after the tick (the encoder is latched at the tick), plus the encoder's (pseudo-)measurement."""
+        x = self.x.tolist()
+        mesh = self.map.mesh(x[OMEGA], x[TAU])  # the prior's, for both instants
         p = self.ripple_order
-        state_t, jac_t = self._at(self.delays["tacho_drive"], voltage)
-        state_i, jac_i = self._at(self.delays["current_drive"], voltage)
+        state_t, jac_t = self._at(self.delays["tacho_drive"], voltage, x, mesh)
+        state_i, jac_i = self._at(self.delays["current_drive"], voltage, x, mesh)
         w, th = state_t[OMEGA], state_t[THETA]
         s, c = math.sin(p * th), math.cos(p * th)
         ripple = x[RIPPLE_SIN] * s + x[RIPPLE_COS] * c
         d_theta = w * p * (x[RIPPLE_SIN] * c - x[RIPPLE_COS] * s)
-        jac_tacho = (1.0 + ripple) * jac_t[OMEGA] + d_theta * jac_t[THETA]
+        gain = 1.0 + ripple
+        jac_tacho = [gain * dw + d_theta * dth for dw, dth in zip(jac_t[OMEGA], jac_t[THETA])]
         jac_tacho[RIPPLE_SIN], jac_tacho[RIPPLE_COS] = w * s, w * c
-        jac_current = jac_i[CURRENT]
-        y = [omega, current]
-        predicted = [w * (1.0 + ripple), state_i[CURRENT]]
-        rows = [jac_tacho, jac_current]
-        variances = [self.noise.tacho_var, self.noise.current_var]
-        if theta is not None:
-            if self.encoder == "interval":
-                z, r = interval_measurement(float(x[THETA]), float(P[THETA, THETA]), theta,
-                                            theta + self.theta_lsb, self.noise.theta_var)
-            else:
-                z, r = theta + self.noise.theta_offset, self.noise.theta_var
-            y.insert(0, z)
-            predicted.insert(0, x[THETA])
-            rows.insert(0, np.eye(N_STATES)[THETA])
-            variances.insert(0, r)
-        return np.array(y), np.array(predicted), np.array(rows), np.diag(variances)
+        nu = [omega - w * gain, current - state_i[CURRENT]]
+        rows = [jac_tacho, jac_i[CURRENT]]
+        if theta is None:
+            return np.array(nu), np.array(rows), self._r_no_encoder
+        if self.encoder == "interval":
+            z, r = interval_measurement(x[THETA], float(self.P[THETA, THETA]), theta, theta + self.theta_lsb,
+                                        self.noise.theta_var)
+            R = np.diag([r, self.noise.tacho_var, self.noise.current_var])
+        else:
+            z, R = theta + self.noise.theta_offset, self._r_white
+        return np.array([z - x[THETA]] + nu), np.array([_UNIT[THETA]] + rows), R
 
     # --- public -----------------------------------------------------------------------------
     def update(self, voltage: float, current: float, omega: float, theta: float | None = None) -> ObserverEstimate:
@@ -546,28 +621,29 @@ class LoadObserver:
         (the floored count × lsb, as RigSample.theta_worm; None: no encoder). Returns the
         estimate at this sample; never raises for NaN/inf (flagged INVALID_INPUT)."""
         self.samples += 1
-        values = (voltage, current, omega) + (() if theta is None else (theta,))
-        if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in values):
-            return self._invalid(voltage)
+        for v in (voltage, current, omega) if theta is None else (voltage, current, omega, theta):
+            if not (isinstance(v, (int, float)) and math.isfinite(v)):
+                return self._invalid(voltage)
         voltage, current, omega = float(voltage), float(current), float(omega)
         theta = None if theta is None else float(theta)
         if not self.initialised:
             self._initialise(current, omega, theta)
-        y, predicted, h, R = self._measurement(current, omega, theta, voltage)
+        nu, h, R = self._measurement(current, omega, theta, voltage)
         x, P = self.x, self.P
-        nu = y - predicted
-        S = h @ P @ h.T + R
-        s_inv = np.linalg.inv(S)
-        K = P @ h.T @ s_inv
+        PhT = P @ h.T
+        S = h @ PhT + R
+        s_inv = _inverse(S)
+        K = PhT @ s_inv
         xf = x + K @ nu
-        Pf = P - K @ S @ K.T
+        Pf = P - K @ PhT.T  # K S K' = P H' S⁻¹ H P (P symmetric)
         jump = self._glr(h, nu, s_inv, K, xf, Pf)
         if jump is not None:
             xf, Pf = jump
         self.x, self.P = xf, 0.5 * (Pf + Pf.T)
-        estimate = self._estimate(jump is not None, 0)
+        mesh = self.map.mesh(float(xf[OMEGA]), float(xf[TAU]))  # for both the estimate and the prediction
+        estimate = self._estimate(jump is not None, 0, mesh)
         self.voltage = voltage
-        self._predict(voltage)
+        self._predict(voltage, mesh)
         return estimate
 
     def _glr(self, h, nu, s_inv, K, xf, Pf):
@@ -576,16 +652,21 @@ class LoadObserver:
             return None
         phi = self._phi_prev
         # each stored onset's filtered signature through the last period, plus the newest onset
-        # (a unit jump of τ_d during the last period): its prior error is phi's τ_d column
-        sig = np.vstack([self._sig @ phi.T, phi[:, TAU]])[-self.window:]
-        d = np.append(self._d, 0.0)[-self.window:]
-        c = np.append(self._c, 0.0)[-self.window:]
+        # (a unit jump of τ_d during the last period): its prior error is phi's τ_d column.
+        # The oldest onset leaves the window; oldest first, as argmax breaks ties by the first.
+        keep = min(len(self._d), self.window - 1)
+        sig = np.empty((keep + 1, N_STATES))
+        np.matmul(self._sig[len(self._sig) - keep:], phi.T, out=sig[:keep])
+        sig[keep] = phi[:, TAU]
         g = sig @ h.T  # innovation signatures (onsets, measurements)
-        d = d + g @ (s_inv @ nu)
-        c = c + np.einsum("ij,jk,ik->i", g, s_inv, g)
+        gs = g @ s_inv
+        d = gs @ nu  # the newest onset starts from 0
+        d[:keep] += self._d[len(self._d) - keep:]
+        c = (gs * g).sum(axis=1)
+        c[:keep] += self._c[len(self._c) - keep:]
         filtered = sig - g @ K.T  # filtered-state error signatures
-        with np.errstate(divide="ignore", invalid="ignore"):
-            stat = np.where(c > 0, d * d / c, 0.0)
+        stat = np.zeros(keep + 1)
+        np.divide(d * d, c, out=stat, where=c > 0)
         best = int(np.argmax(stat))
         if stat[best] > self.threshold:
             delta = d[best] / c[best]
@@ -597,13 +678,14 @@ class LoadObserver:
         self._sig, self._d, self._c = filtered, d, c  # propagated through the next period's phi
         return None
 
-    def _estimate(self, jump: bool, extra_flags: int) -> ObserverEstimate:
+    def _estimate(self, jump: bool, extra_flags: int, mesh: tuple | None = None) -> ObserverEstimate:
+        """The estimate at the filtered state; mesh: StaticLoadMap.mesh there if the caller has it."""
         x, P = self.x, self.P
         omega, tau = float(x[OMEGA]), float(x[TAU])
         u = math.sqrt(max(float(P[TAU, TAU]), 0.0))
-        t_dist, _slope, _flank = self.map.worm_torque(omega, tau)
+        t_dist, _slope, _flank, _factor, mu = self.map.mesh(omega, tau) if mesh is None else mesh
         flags = extra_flags
-        if abs(omega) > STANDSTILL and float(self.map.mu(omega)) > self.map.self_locking_mu:
+        if abs(omega) > STANDSTILL and mu > self.map.self_locking_mu:
             driving, coast, _f, _c = self.map.invert(omega, t_dist)
             branches = [float(b) for b in (driving, coast) if math.isfinite(float(b))]
             if len(branches) == 2:

@@ -11,6 +11,7 @@ from worm_model.physics.efficiency import (
     forward_efficiency,
     friction_angle,
     is_self_locking,
+    make_flank_factor_float,
 )
 from worm_model.physics.parameters import load_rig
 
@@ -25,6 +26,18 @@ def test_flank_factor_is_tan_lambda_plus_minus_rho() -> None:
     assert np.allclose(flank_factor(GB, MU, -1), np.tan(GB.lead_angle - rho))
     both = flank_factor(GB, MU[:, None], np.array([1, -1]))
     assert both.shape == (31, 2)
+
+
+def test_flank_factor_float_twin_is_bit_identical() -> None:
+    """make_flank_factor_float is flank_factor to the bit (same trigonometry, same order of operations),
+    on both flanks, 0-d and vectorised, through the coast flank's pole."""
+    factor = make_flank_factor_float(GB)
+    mu = np.concatenate([np.linspace(0.0, 0.3, 3001), [GB.self_locking_mu, 1.0, 5.0]])
+    for s in (1.0, -1.0):
+        floats = np.array([factor(float(m), s) for m in mu])
+        assert np.array_equal(floats, flank_factor(GB, mu, s))
+        assert all(factor(float(m), s) == float(flank_factor(GB, m, s)) for m in mu[::100])
+        assert isinstance(factor(0.05, s), float)
 
 
 def test_efficiencies_closed_form() -> None:

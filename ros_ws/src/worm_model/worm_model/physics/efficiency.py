@@ -5,6 +5,7 @@ mu is the tooth-thread friction coefficient, flank s = +1 (driving) or -1 (coast
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -28,6 +29,22 @@ def flank_factor(gearbox: Gearbox, mu: ArrayLike, flank: ArrayLike) -> FloatArra
     cphi = np.cos(gearbox.normal_pressure_angle)
     sl, cl = np.sin(gearbox.lead_angle), np.cos(gearbox.lead_angle)
     return (s * cphi * sl + m * cl) / (s * cphi * cl - m * sl)
+
+
+def make_flank_factor_float(gearbox: Gearbox) -> Callable[[float, float], float]:
+    """:func:`flank_factor` for one float mu and flank (+1.0 / -1.0), in plain math: for per-sample loops.
+
+    Returns K(mu, flank) -> float. The gearbox's trigonometry is evaluated once, by numpy
+    as flank_factor does, and the expression is flank_factor's with the same order of
+    operations, so the two agree bit for bit (test_efficiency checks it).
+    """
+    cphi = float(np.cos(gearbox.normal_pressure_angle))
+    sl, cl = float(np.sin(gearbox.lead_angle)), float(np.cos(gearbox.lead_angle))
+
+    def factor(mu: float, flank: float) -> float:
+        return (flank * cphi * sl + mu * cl) / (flank * cphi * cl - mu * sl)
+
+    return factor
 
 
 def friction_angle(gearbox: Gearbox, mu: ArrayLike) -> FloatArray:
