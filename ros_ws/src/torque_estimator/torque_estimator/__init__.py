@@ -26,3 +26,10 @@ Map (dependencies point up this list; rclpy only in ``nodes`` and the two
 Read first: ``estimation/base.py`` (what an estimator is), ``estimation/knn.py``
 (the paper's method), ``estimation/live.py`` (what the node does per sample).
 """
+import os as _os
+
+# One BLAS thread for numpy in every process of this package (set before numpy loads: this module is
+# imported first by every executable and node here). The estimators' matrices are 7x7 and per sample;
+# OpenBLAS's worker threads only add wake-ups, and on a busy 2-core machine a matrix exponential took
+# 3-40 ms with them against ~0.4 ms without (bench/observer_bench.py). A value the user set stands.
+_os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")

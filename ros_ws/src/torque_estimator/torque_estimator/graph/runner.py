@@ -11,6 +11,7 @@ for every prefix of AMENT_PREFIX_PATH.
 """
 from __future__ import annotations
 
+import os
 import signal
 import subprocess
 import sys
@@ -135,7 +136,10 @@ class Graph:
             command = self.command(unit[0]) if len(unit) == 1 else self.composed_command(unit)
             if self.priority:
                 command = ["chrt", "-f", str(self.priority), *command]
-            self.processes[name] = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT if out else None)
+            # numpy's BLAS with one thread in every node: see torque_estimator/__init__.py
+            env = {**os.environ, "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "1")}
+            self.processes[name] = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT if out else None,
+                                                    env=env)
         return self
 
     def failed(self) -> dict[str, int]:
