@@ -139,7 +139,7 @@ def run_phase(calibration: Path, work: Path, window: float, hog: bool, together:
         t1, wall1 = time.monotonic(), time.time_ns()
         after = {name: cpu_seconds(pid) for name, pid in pids.items()}
         for name in pids:  # a node alone, or a group "a+b+..." in one process
-            label = "one_process" if name.count("+") == len(NODES) - 1 else name.replace("+", "__")
+            label = name.replace("+", "__")
             figures[f"cpu_{label}"] = (after[name] - before[name]) / (t1 - t0)
         figures["cpu_cores"] = sum((after[n] - before[n]) / (t1 - t0) for n in pids)
         if graph.failed():
@@ -160,24 +160,30 @@ def run_phase(calibration: Path, work: Path, window: float, hog: bool, together:
         rclpy.try_shutdown(context=context)
         if any(codes.values()):
             info(f"{tag}: node exit codes {codes}; logs in {work}")
-    samples, skipped = [], 0.0
+    samples, skipped = [], {"before": 0.0, "end": math.nan}
     with BagReader(bag) as reader:
         for message in reader.messages(["/rig/samples"]):
             stamp = message.decoded.header.stamp
             if wall0 <= stamp.sec * 1_000_000_000 + stamp.nanosec <= wall1:
                 samples += unbatch(message.decoded)
+        # sim_node's count of periods it never simulated, at the window's start and end (it is cumulative)
         for message in reader.messages(["/diagnostics"]) if "/diagnostics" in reader.topics else ():
+            stamp = message.decoded.header.stamp
+            ns = stamp.sec * 1_000_000_000 + stamp.nanosec
             for status in message.decoded.status:
                 if status.name == "sim_node":
                     values = {kv.key: kv.value for kv in status.values}
-                    skipped = float(values.get("skipped_samples", skipped))
+                    if ns <= wall0:
+                        skipped["before"] = float(values.get("skipped_samples", 0.0))
+                    elif ns <= wall1 + 1_000_000_000:  # the report published within 1 s after the window
+                        skipped["end"] = float(values.get("skipped_samples", math.nan))
     period_ms = 1.0  # the rig's sample period [ms]
     # from sample s's stamp (the end of its period) to the start of the first period the command drives
     latencies = [k * period_ms for k in command_latencies(samples)]
     figures["latency_p50"] = percentile(latencies, 50)
     figures["latency_p99"] = percentile(latencies, 99)
     figures["lost_samples"] = missing_seqs(s.seq for s in samples)
-    figures["sim_skipped_samples"] = skipped
+    figures["sim_skipped_samples"] = skipped["end"] - skipped["before"]
     info(f"{tag}: {len(samples)} samples recorded in the {window:g} s window, {len(latencies)} commands; "
          f"latency max {max(latencies, default=math.nan):.0f} ms")
     return figures

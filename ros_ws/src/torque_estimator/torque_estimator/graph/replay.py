@@ -32,9 +32,11 @@ round-off, except where the live and the replayed input differ:
   live, but the recorder got, is one the replay feeds and live did not, and
   vice versa. Each live output answers one received batch (its seq is the
   batch's last sample), so the recorded outputs' seqs tell exactly which
-  batches a node saw; ``--follow-live`` feeds each core only those. A gap in
+  batches a node saw; ``--follow-live`` feeds each estimator only those. A gap in
   the recording of the outputs themselves (the recorder missed an estimate)
   then makes the replay skip a batch live processed: the comparison reports it.
+  model_node's outputs (one per publish_period, for its newest sample) do not
+  say which batches it got: it is fed every recorded batch.
   (A stream of single RigSamples counts each sample as its own batch.)
 
 Speed: the replay's wall time against the bag's span of sample time is
@@ -73,12 +75,14 @@ from worm_model.cli.progress import ProgressBar
 
 #: The nodes' parameter defaults (model_node.py, estimator_node.py), for what the file leaves out.
 NODE_DEFAULTS: dict[str, dict[str, Any]] = {
-    "model_node": {"rig_file": "", "use_acceleration": True, "acceleration_filter": 0.01},
+    "model_node": {"rig_file": "", "use_acceleration": True, "acceleration_filter": 0.01, "publish_period": 0.02},
     "estimator_node": {"rig_file": "", "inertia_compensation": True, "calibration_file": "",
                        "method": "knn", "k": 4, "weighting": "inverse_distance", "model_file": "",
                        "input_filter": 0.003,
                        "estimate_filter": 0.05, "change_threshold": 4.0,
-                       "transient_acceleration": 200.0, "sample_rate": 1000.0},
+                       "transient_acceleration": 200.0, "sample_rate": 1000.0,
+                       "joint_state_topic": "/torque_estimate/joint_states", "joint_name": "gear",
+                       "wrench_topic": "/torque_estimate/wrench", "wrench_frame": "gear_output"},
 }
 ESTIMATE_TOPIC = "/torque_estimate"
 FORCES_TOPIC = "/gearbox/forces"
@@ -221,7 +225,9 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
     try:
         with BagReader(bag) as reader:
             topic = find_sample_topic(reader, sample_topic)
-            model_seqs = _live_seqs(reader, FORCES_TOPIC) if follow_live else None
+            # model_node processes every batch it receives, in timer-sized chunks, and publishes the newest
+            # sample's forces: its outputs do not tell which batches it got, so it is fed them all
+            model_seqs = None
             est_seqs = _live_seqs(reader, ESTIMATE_TOPIC) if follow_live else None
             total = reader.topics[topic].metadata_count or 0
             kind = reader.topics[topic].type
@@ -235,7 +241,7 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
                     first = stamps[0] if first is None else first
                     last = stamps[-1]
                     n += len(batch)
-                    if model_seqs is None or last_seq in model_seqs:  # as model_node: a batch at once
+                    if model_seqs is None or last_seq in model_seqs:  # per sample, as model_node
                         forces = model.update_batch([s.omega_worm for s in batch], [s.current_drive for s in batch],
                                                     [s.tau_load for s in batch])
                         for s, f in zip(batch, forces):

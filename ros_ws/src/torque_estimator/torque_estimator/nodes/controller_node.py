@@ -39,7 +39,7 @@ from std_msgs.msg import Float64
 from worm_msgs.msg import SpeedCommand, TorqueEstimate
 
 from worm_model.physics.parameters import load_rig
-from worm_model.physics.steady_state import balancing_torque
+from worm_model.physics.steady_state import make_balancing_torque_float
 from worm_model.ros.diagnostics import OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
@@ -81,6 +81,7 @@ class ControllerNode(Node):
                                       "Longest time [s] between speed commands when no estimate arrives "
                                       "(keep it well below the rig's command_timeout).", low=0.001, high=1.0)
         self.gate = FeedforwardGate(estimate_timeout, enabled=feedforward, max_load=max_load)
+        self.balancing_torque = make_balancing_torque_float(self.rig)
         self.add_on_set_parameters_callback(self.on_parameters)
 
         source = declare(self, "feedforward_source", "torque_estimate",
@@ -147,7 +148,7 @@ class ControllerNode(Node):
     def send(self, now: float) -> None:
         """One speed command for the rig, feedforward from the estimate usable at ``now`` [s]."""
         tau_d = self.gate.load(now)
-        tau_ff = 0.0 if tau_d is None else float(balancing_torque(self.rig, tau_d, self.speed_setpoint))
+        tau_ff = 0.0 if tau_d is None else self.balancing_torque(tau_d, self.speed_setpoint)
         cmd = SpeedCommand(speed_setpoint=self.speed_setpoint, feedforward_torque=tau_ff, kp=self.kp, ki=self.ki,
                            voltage_limit=self.voltage_limit)
         if self.estimate is not None:

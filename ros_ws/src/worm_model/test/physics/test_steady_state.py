@@ -11,7 +11,8 @@ from worm_model.physics.dynamics import reflected_input_torque
 from worm_model.physics.efficiency import forward_efficiency
 from worm_model.physics.friction import friction_coefficient
 from worm_model.physics.parameters import load_rig
-from worm_model.physics.steady_state import balancing_torque, steady_worm_speed, torque_surplus
+from worm_model.physics.steady_state import (balancing_torque, make_balancing_torque_float, steady_worm_speed,
+                                             torque_surplus)
 
 RIG = load_rig()
 GB = RIG.gearbox
@@ -65,3 +66,13 @@ def test_balancing_torque_of_nan_load_is_zero() -> None:
     ff = balancing_torque(RIG, np.array([np.nan, 0.1, np.nan]), np.array([100.0, 100.0, -50.0]))
     assert np.all(np.isfinite(ff))
     assert ff[0] == 0.0 and ff[2] == 0.0 and ff[1] > 0.0
+
+
+def test_the_float_balancing_torque_equals_the_array_one() -> None:
+    rng = np.random.default_rng(5)
+    loads = np.concatenate([rng.uniform(-0.3, 0.3, 400), [0.0, -0.0, 0.2, -0.2]])
+    speeds = np.concatenate([rng.uniform(-450, 450, 400), [0.0, 150.0, -150.0, 1e-12]])
+    torque = make_balancing_torque_float(RIG)
+    scalar = np.array([torque(float(t), float(w)) for t, w in zip(loads, speeds)])
+    np.testing.assert_allclose(scalar, balancing_torque(RIG, loads, speeds), rtol=1e-14, atol=1e-18)
+    assert torque(float("nan"), 100.0) == 0.0

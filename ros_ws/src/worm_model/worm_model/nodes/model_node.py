@@ -2,8 +2,11 @@
 
 Subscribes /rig/samples (worm_msgs/RigSamples, batches of consecutive samples)
 and runs the model on every sample; publishes /gearbox/forces
-(worm_msgs/GearboxForces) for the newest sample of each batch (the rig's batch
-rate, 200 Hz by default), sensor-data QoS both. The per-sample work is
+(worm_msgs/GearboxForces) for the newest sample every ``publish_period``
+(50 Hz by default), sensor-data QoS both. The batches are queued as they come
+and processed on that timer, all at once: the forces are for watching (plots,
+recordings, other stacks), not for the rig's control path, which in a composed
+graph shares this process's executor and must not wait behind them. The per-sample work is
 live_model.LiveModel (the same class the offline replay runs): the input
 torque at the worm is the drive motor's torque less its declared drags
 (Eq. 29); the gear shaft carries the measured load torque plus the load
@@ -36,10 +39,15 @@ class ModelNode(Node):
                                    "Use the worm acceleration (Eqs 19-20); false = quasi-static (a_w = 0).")
         tau = declare(self, "acceleration_filter", 0.01,
                       "Time constant [s] of the low-pass on speed and acceleration.", low=0.0, high=1.0)
+        period = declare(self, "publish_period", 0.02,
+                         "Period [s] of the processing of the queued samples and of the forces published for "
+                         "the newest.", low=0.001, high=10.0)
         self.rig = load_rig(rig_file or None)
         self.model = LiveModel(self.rig, use_acceleration, tau)
         self.pub = self.create_publisher(GearboxForces, "/gearbox/forces", STREAM)
         self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
+        self.queue: list[RigSamples] = []
+        self.create_timer(period, self.process)
         self.received = 0
         self.malformed = 0  # /rig/samples messages refused
         self.invalid = 0
@@ -53,22 +61,31 @@ class ModelNode(Node):
             self.get_logger().warning(f"ignored a /rig/samples message (first_seq {batch.first_seq}): {problem}",
                                       throttle_duration_sec=1.0)
             return
-        n = len(batch.omega_worm)
-        if not n:
+        if len(batch.omega_worm):
+            self.queue.append(batch)
+
+    def process(self) -> None:
+        """Run the model over every queued sample; publish the forces of the newest."""
+        if not self.queue:
             return
-        self.received += n
-        for f in self.model.update_batch(batch.omega_worm, batch.current_drive, batch.tau_load):
+        batches, self.queue = self.queue, []
+        columns = [[v for b in batches for v in getattr(b, name)] for name in ("omega_worm", "current_drive",
+                                                                              "tau_load")]
+        self.received += len(columns[0])
+        for f in self.model.update_batch(*columns):
             if f.flags & _INVALID_INPUT:
                 self.invalid += 1
             if f.flags & _MU_OUT_OF_BOUND:
                 self.mu_out_of_bound += 1
+        last = batches[-1]
+        n = len(last.omega_worm)
         msg = GearboxForces(
-            seq=batch.first_seq + n - 1, normal_force=f.normal_force, friction_force=f.friction_force,
+            seq=last.first_seq + n - 1, normal_force=f.normal_force, friction_force=f.friction_force,
             mu=f.mu, mu_max=f.mu_max, switching_torque=f.switching_torque, tau_load=f.tau_load, tau_in=f.tau_in,
             mode=f.mode, flank=f.flank, flags=f.flags)
-        stamp = Time.from_msg(batch.header.stamp).nanoseconds + int(round((n - 1) * batch.sample_period * 1e9))
+        stamp = Time.from_msg(last.header.stamp).nanoseconds + int(round((n - 1) * last.sample_period * 1e9))
         msg.header.stamp = Time(nanoseconds=stamp).to_msg()
-        msg.header.frame_id = batch.header.frame_id
+        msg.header.frame_id = last.header.frame_id
         self.pub.publish(msg)
 
     def report(self) -> tuple[bytes, str, dict]:

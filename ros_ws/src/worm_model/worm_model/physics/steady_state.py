@@ -20,8 +20,12 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import brentq
 
+import math
+from collections.abc import Callable
+
 from worm_model.physics.dynamics import reflected_input_torque
-from worm_model.physics.friction import friction_coefficient
+from worm_model.physics.efficiency import make_flank_factor_float
+from worm_model.physics.friction import friction_coefficient, make_friction_coefficient_float
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.physics.motor import shaft_torque, steady_state_current
 from worm_model.physics.parameters import Rig
@@ -70,3 +74,21 @@ def balancing_torque(rig: Rig, tau_load: ArrayLike, omega_worm: ArrayLike) -> Fl
     mu = friction_coefficient(rig.friction, rig.gearbox, omega_worm)
     torque = reflected_input_torque(rig.gearbox, mu, np.nan_to_num(tau_load), omega_worm)
     return np.where(np.isfinite(tau_load), torque, 0.0)
+
+
+def make_balancing_torque_float(rig: Rig) -> Callable[[float, float], float]:
+    """:func:`balancing_torque` for one float load [N m] and speed [rad/s], in plain math: a controller
+    computes it for every estimate. Agrees with it to round-off (the friction law's float twin does);
+    a test checks. Speeds below 1e-9 rad/s count as positive (motion_sign with no torque)."""
+    mu_of = make_friction_coefficient_float(rig.friction, rig.gearbox)
+    factor = make_flank_factor_float(rig.gearbox)
+    ratio = rig.gearbox.radius_ratio
+
+    def torque(tau_load: float, omega_worm: float) -> float:
+        if not (math.isfinite(tau_load) and math.isfinite(omega_worm)):
+            return 0.0
+        sigma = -1.0 if omega_worm <= -1e-9 else 1.0
+        d = sigma * tau_load
+        return sigma * ratio * factor(mu_of(omega_worm), 1.0 if d >= 0.0 else -1.0) * d
+
+    return torque
