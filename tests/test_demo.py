@@ -27,16 +27,27 @@ def test_demo_runs_end_to_end(tmp_path: Path) -> None:
 
     held_out = re.search(r"held-out estimation error \(17 points\): mean ([\d.]+) %, max ([\d.]+) %", summary)
     assert held_out, summary
-    assert float(held_out[1]) < 2.0, f"held-out mean error {held_out[1]} %"
-    assert re.search(r"live estimation error \(steady parts\):\s+mean [\d.]+ %", summary), summary
+    # deterministic (seeded calibration and held-out draws): the README's figures exactly
+    assert (held_out[1], held_out[2]) == ("0.72", "2.13"), held_out[0]
+    live = re.search(r"live estimation error \(steady parts\):\s+mean ([\d.]+) %, worst segment ([\d.]+) %", summary)
+    assert live, summary
+    # live (timing-dependent): the observer's steady error; 0.19 / 0.25-0.34 % in the runs seen
+    assert float(live[1]) < 0.4 and float(live[2]) < 0.7, live[0]
     assert "modes visited: resistive, pseudo-resistive, assistive" in summary
-    assert re.search(r"feedforward off\s+[\d.]+ rad/s\s+[\d.]+ rad/s\s+[\d.]+ rad", summary), summary
-    assert re.search(r"feedforward on\s+[\d.]+ rad/s\s+[\d.]+ rad/s\s+[\d.]+ rad", summary), summary
+    steps = {m[1]: (float(m[2]), float(m[3])) for m in re.finditer(
+        r"feedforward (off|on)\s+4\s+([\d.]+) rad/s\s+([\d.]+) rad", summary)}
+    assert set(steps) == {"off", "on"}, summary
+    (dip_off, iae_off), (dip_on, iae_on) = steps["off"], steps["on"]
+    # what the README says of the load steps: feedforward cuts the IAE by about two thirds (0.37 of it
+    # in the runs seen) and the worst dip by about 30 % (0.70)
+    assert 4.0 < dip_off < 5.2 and 2.0 < iae_off < 2.8, steps
+    assert iae_on < 0.45 * iae_off, steps
+    assert dip_on < 0.8 * dip_off, steps
 
     for name in ("calibration.json", "held_out_deviation.png", "estimate_vs_truth.png", "tracking.png"):
         assert (out / name).stat().st_size > 0, name
     for bag in ("bag_ff_off", "bag_ff_on"):
         counts = read_bag_counts(out / bag)
-        # 12 s of scenario at 1 kHz: most estimates must be in the bag
-        assert counts.get("/torque_estimate", 0) > 6000, f"{bag}: {counts}"
-        assert counts.get("/rig/sample", 0) > 6000, f"{bag}: {counts}"
+        # 12 s of scenario: the rig's batches (200 Hz) and an estimate per batch must be in the bag
+        assert counts.get("/rig/samples", 0) > 0.9 * 12 * 200, f"{bag}: {counts}"
+        assert counts.get("/torque_estimate", 0) > 0.9 * 12 * 200, f"{bag}: {counts}"

@@ -51,7 +51,8 @@ SPEED_SETPOINT = 150.0  # [rad/s]
 BATCH = 5
 SAMPLE_PERIOD = 1e-3  # [s]
 DECIMATION = 10
-PER_BATCH_TOPICS = {"/gearbox/forces": GearboxForces, "/torque_estimate": TorqueEstimate}
+PER_BATCH_TOPICS = {"/torque_estimate": TorqueEstimate}
+FORCES_EVERY = 20  # model_node's publish_period (20 ms) in samples: it answers the newest of each chunk
 SLOW_TOPICS = {"/rig/currents": MotorCurrents, "/rig/joint_states": JointState,
                "/rig/encoders": EncoderCounts, "/sim/truth": SimTruth}
 #: Best effort on a loaded 2-core machine: at least this share of what was sent must arrive.
@@ -202,7 +203,8 @@ def test_every_topic_flows_at_its_configured_rate(graph: RunningGraph, probe: Pr
     """The rig's clock: consecutive seqs, stamps exactly one sample period apart, batches of 5; one
     estimate and one forces message per batch (for its newest sample); the decimated channels every
     10th sample; a speed command per estimate. Counted on the stream's own seqs and stamps."""
-    topics = {"/rig/samples": RigSamples, "/rig/speed_command": SpeedCommand, **PER_BATCH_TOPICS, **SLOW_TOPICS}
+    topics = {"/rig/samples": RigSamples, "/rig/speed_command": SpeedCommand, "/gearbox/forces": GearboxForces,
+              **PER_BATCH_TOPICS, **SLOW_TOPICS}
     rec, subs = probe.record(topics)
     try:
         assert probe.wait_all_flowing(rec), (
@@ -236,6 +238,10 @@ def test_every_topic_flows_at_its_configured_rate(graph: RunningGraph, probe: Pr
         assert len(answered) >= DELIVERED * len(ends), f"{topic}: answers for {len(answered)} of {len(ends)} batches"
         assert {m.seq for m in rec.messages[topic]} <= ends | set(range(seqs[0] - 100, seqs[0])) | \
             set(range(seqs[-1], seqs[-1] + 100)), f"{topic}: answers for samples that end no batch"
+    forces = [m.seq for m in rec.messages["/gearbox/forces"] if seqs[0] <= m.seq <= seqs[-1]]
+    report.append(f"/gearbox/forces {len(forces)}")
+    assert set(forces) <= ends, "/gearbox/forces: answers for samples that end no batch"
+    assert len(forces) >= DELIVERED * span / FORCES_EVERY, f"/gearbox/forces: {len(forces)} in {span} samples"
     commands = rec.messages["/rig/speed_command"]
     estimates = rec.messages["/torque_estimate"]
     # one speed command per estimate (the probe, best effort, may miss some of either: 0.82 seen with
@@ -345,7 +351,8 @@ def test_nan_samples_are_flagged_and_the_graph_keeps_running(graph: RunningGraph
     first_bad = 10**12  # far beyond the sim's seqs: these samples are recognisable downstream
     bad_seqs = {first_bad + BATCH * i + BATCH - 1 for i in range(6)}  # the batches' newest samples
     pub = probe.node.create_publisher(RigSamples, "/rig/samples", PROBE_QOS)
-    rec, subs = probe.record({"/torque_estimate": TorqueEstimate, "/gearbox/forces": GearboxForces})
+    rec, subs = probe.record({"/torque_estimate": TorqueEstimate, "/gearbox/forces": GearboxForces,
+                              "/diagnostics": DiagnosticArray})
     try:
         assert probe.wait_all_flowing(rec), f"no estimates or forces\n{graph.logs()}"
         assert probe.spin_until(lambda: pub.get_subscription_count() >= 2, MATCH_TIMEOUT), (
@@ -379,7 +386,11 @@ def test_nan_samples_are_flagged_and_the_graph_keeps_running(graph: RunningGraph
     forces = [m for m in rec.messages["/gearbox/forces"] if m.seq in bad_seqs]
     # Best effort: one sample may be dropped on a loaded machine, but not all of them.
     assert estimates, f"no estimate for any of the {len(bad_seqs)} NaN batches\n{graph.logs()}"
-    assert forces, f"no forces for any of the {len(bad_seqs)} NaN batches\n{graph.logs()}"
+    # model_node publishes forces for the newest sample of each 20 ms chunk: the NaN samples show in its
+    # count of invalid inputs (and as flagged forces if one ended a chunk)
+    invalid = [int(kv.value) for m in rec.messages["/diagnostics"] for s in m.status if s.name == "model_node"
+               for kv in s.values if kv.key == "invalid_inputs"]
+    assert invalid and max(invalid) >= BATCH, f"model_node counted {invalid} invalid inputs"
     for m in estimates:
         assert m.flags & TorqueEstimate.FLAG_INVALID_INPUT, f"estimate for NaN sample {m.seq}: flags {m.flags}"
     for m in forces:
@@ -388,10 +399,13 @@ def test_nan_samples_are_flagged_and_the_graph_keeps_running(graph: RunningGraph
 
     # Still publishing for the rig's samples after the bad ones, and finite again.
     for topic, msgs in rec.messages.items():
+        if topic == "/diagnostics":
+            continue
         times = rec.times[topic]
         later = [m for m, t in zip(msgs, times) if t > last_bad + 0.2 and m.seq not in bad_seqs]
         span = max(m.seq for m in later) - min(m.seq for m in later) + 1 if later else 0
-        assert span > 500 and len(later) >= DELIVERED * span / BATCH, (
+        every = FORCES_EVERY if topic == "/gearbox/forces" else BATCH
+        assert span > 500 and len(later) >= DELIVERED * span / every, (
             f"{topic}: {len(later)} messages for {span} samples after the NaN input")
         if topic == "/torque_estimate":
             assert all(math.isfinite(m.torque) and not m.flags & TorqueEstimate.FLAG_INVALID_INPUT

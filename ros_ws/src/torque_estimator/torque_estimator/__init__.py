@@ -20,7 +20,8 @@ Map (dependencies point up this list; rclpy only in ``nodes`` and the two
                 loop in one process), ``run_analysis``, ``plots``, ``demo``
 ``graph``       running the node graph: ``runner`` (start nodes from one parameter
                 file), ``run_graph`` CLI, ``replay`` (the graph's cores over a bag)
-``nodes``       estimator_node, controller_node
+``nodes``       estimator_node, controller_node, and ``composed`` (several nodes in one
+                process on one executor: run_graph --together)
 ==============  ===============================================================
 
 Read first: ``estimation/base.py`` (what an estimator is), ``estimation/knn.py``

@@ -174,7 +174,8 @@ def _live_seqs(reader: BagReader, topic: str) -> set[int] | None:
 
 
 def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators: Iterable[str] | None = None,
-           *, follow_live: bool = False, sample_topic: str | None = None, progress: bool = False) -> ReplayResult:
+           *, follow_live: bool = False, sample_topic: str | None = None, progress: bool = False,
+           start_seq: int = 0) -> ReplayResult:
     """Run model_node's and estimator_node's cores over the bag's RigSample stream.
 
     Args:
@@ -183,6 +184,8 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
         estimators: Names in the estimator registry; None: estimator_node's ``method``.
         follow_live: Feed each core only the samples live answered (see the module docstring).
         sample_topic: sample stream topic; None: the only one (or /rig/samples, then /rig/sample).
+        start_seq: batches ending before this seq are not fed (a replay that starts where a live
+            node's recorded answers start).
         progress: Show a progress bar on stderr.
 
     Raises:
@@ -237,6 +240,8 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
                     if not batch:
                         continue
                     last_seq = int(batch[-1].seq)
+                    if last_seq < start_seq:
+                        continue
                     stamps = [s.header.stamp.sec + 1e-9 * s.header.stamp.nanosec for s in batch]
                     first = stamps[0] if first is None else first
                     last = stamps[-1]

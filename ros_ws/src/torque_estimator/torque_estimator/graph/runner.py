@@ -5,7 +5,7 @@ node named at the top level of a standard parameter file as its own process,
 exactly as `ros2 run <pkg> <node> --ros-args --params-file <file>` would,
 and stops them all cleanly (SIGINT, then SIGKILL after a grace period).
 Nodes named in a group (``together``) share one process and executor instead
-(graph.composed), with the same parameters.
+(nodes.composed), with the same parameters.
 Executables are found where `ros2 run` finds them: <prefix>/lib/<pkg>/<exe>
 for every prefix of AMENT_PREFIX_PATH.
 """
@@ -111,7 +111,7 @@ class Graph:
         merged = (self.log_dir or Path(tempfile.mkdtemp(prefix="graph_"))) / f"{'+'.join(group)}.params.yaml"
         merged.parent.mkdir(parents=True, exist_ok=True)
         merged.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
-        return [sys.executable, "-m", "torque_estimator.graph.composed", "--params-file", str(merged), *group]
+        return [sys.executable, "-m", "torque_estimator.nodes.composed", "--params-file", str(merged), *group]
 
     def start(self) -> "Graph":
         nodes = graph_nodes(self.params_file)
