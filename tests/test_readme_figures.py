@@ -1,0 +1,90 @@
+"""The README's deterministic figures, recomputed: feedforward (controller_bench), the estimators' transients
+(make evaluate), the observer's noise against its bound and the step-size bound.
+
+Every run here is seeded, so the figures are exact up to round-off: the tolerances are the README's
+printed precision. (The live figures, the demo's, are pinned by tests/test_demo.py; the benchmark's
+CPU and latency are measurements, printed by `make bench`, not asserted.)
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
+from torque_estimator.estimation.observer import ObserverEstimator, jump_bound, steady_state_bound
+from torque_estimator.estimation.registry import make_estimator
+from torque_estimator.experiment.closed_loop import run_scenario
+from torque_estimator.experiment.run_analysis import load_step_responses
+from torque_estimator.experiment.scenario import DEMO_SCENARIO
+from torque_estimator.experiment.transient import STEP_SPEED, transient_figures
+from worm_model.physics.parameters import load_rig
+
+RIG = load_rig()
+
+
+@pytest.fixture(scope="module")
+def database():
+    """The paper's grid calibrated as make evaluate and controller_bench do (seed 0)."""
+    return calibrate_simulated(RIG, CalibrationGrid.paper(RIG), seed=0)
+
+
+def worst(runs) -> dict[str, tuple[float, float]]:
+    """mode -> (worst dip [rad/s], summed IAE [rad]) over the demo's load steps."""
+    out = {}
+    for mode, run in runs.items():
+        steps = load_step_responses(DEMO_SCENARIO, run.t, run.omega_true, run.setpoint)
+        out[mode] = (max(s.peak_dip for s in steps), sum(s.iae for s in steps))
+    return out
+
+
+@pytest.mark.parametrize("timing, options, expected", [
+    ("firmware", {}, {"off": (4.90, 2.29), "estimate": (3.06, 0.78), "truth": (1.60, 0.68)}),
+    ("graph", {"ff_batch": 5, "ff_latency": 1}, {"off": (4.90, 2.29), "estimate": (3.46, 0.81),
+                                                  "truth": (3.55, 0.73)}),
+])
+def test_feedforward_table(timing: str, options: dict, expected: dict) -> None:
+    """README, Feedforward: off -> observer -> ideal (controller_bench: seed 0 calibration, run seed 1)."""
+    runs = run_scenario(RIG, DEMO_SCENARIO, ("off", "estimate", "truth"), estimator=ObserverEstimator(None), seed=1,
+                        **options)
+    got = worst(runs)
+    for mode, (dip, iae) in expected.items():
+        assert got[mode][0] == pytest.approx(dip, abs=0.005), (timing, mode, got[mode])
+        assert got[mode][1] == pytest.approx(iae, abs=0.005), (timing, mode, got[mode])
+
+
+@pytest.mark.parametrize("options, dip, iae", [({}, 4.06, 0.98), ({"ff_batch": 5, "ff_latency": 1}, 4.90, 1.01)])
+def test_the_knn_feedforward(database, options: dict, dip: float, iae: float) -> None:
+    """README, Feedforward: the k-NN's figures in both timings (controller_bench --method knn)."""
+    runs = run_scenario(RIG, DEMO_SCENARIO, ("off", "estimate", "truth"), estimator=make_estimator("knn", database),
+                        seed=1, **options)
+    got = worst(runs)["estimate"]
+    assert got[0] == pytest.approx(dip, abs=0.005) and got[1] == pytest.approx(iae, abs=0.005), got
+
+
+def test_the_true_load_fed_forward_late() -> None:
+    """README: the true load fed forward 2 or 3 samples late gives a dip of 2.21 or 2.78 rad/s."""
+    for latency, dip in ((2, 2.21), (3, 2.78)):
+        runs = run_scenario(RIG, DEMO_SCENARIO, ("truth",), seed=1, ff_latency=latency)
+        assert worst(runs)["truth"][0] == pytest.approx(dip, abs=0.005), latency
+
+
+def test_the_step_size_bound() -> None:
+    """README: 1 sigma of a 0.2 N m step is 78, 32, 18 % of it after 1, 2, 3 samples."""
+    bound = 100 * jump_bound(RIG, 150.0, 0.1, 3) / 0.2
+    np.testing.assert_allclose(np.round(bound), [78, 32, 18])
+
+
+def test_transient_table_and_noise(database) -> None:
+    """README, the transient table (make evaluate's `transient:` lines) and the observer's noise ratio."""
+    expected = {"knn": (16, 12.9, 1.08, 3.91), "extended_model": (16, 7.0, 1.43, 7.67),
+                "observer": (3, 19.0, 0.19, 8.40)}
+    for method, (step90, overshoot, ramp, reversal) in expected.items():
+        estimator = make_estimator(method, database, **({"k": 4} if method == "knn" else {}))
+        f = transient_figures(RIG, method, estimator, database.torque_range, seeds=12, seed=0)
+        assert f.step90_ms == step90, (method, f)
+        assert f.overshoot_pct == pytest.approx(overshoot, abs=0.05), (method, f)
+        assert f.ramp_err_pct == pytest.approx(ramp, abs=0.005), (method, f)
+        assert f.reversal_err_pct == pytest.approx(reversal, abs=0.005), (method, f)
+        if method == "observer":
+            assert f.steady_std == pytest.approx(5.3e-4, abs=0.05e-4)
+            assert f.steady_std / steady_state_bound(RIG, STEP_SPEED, 0.0) == pytest.approx(1.06, abs=0.005)
