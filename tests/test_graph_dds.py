@@ -241,7 +241,10 @@ def test_every_topic_flows_at_its_configured_rate(graph: RunningGraph, probe: Pr
     forces = [m.seq for m in rec.messages["/gearbox/forces"] if seqs[0] <= m.seq <= seqs[-1]]
     report.append(f"/gearbox/forces {len(forces)}")
     assert set(forces) <= ends, "/gearbox/forces: answers for samples that end no batch"
-    assert len(forces) >= DELIVERED * span / FORCES_EVERY, f"/gearbox/forces: {len(forces)} in {span} samples"
+    # a timer publishes them (every 20 ms of the node's clock, not the rig's): they keep coming, each
+    # chunk at most a few periods after the last (134 of 150 seen in a loaded CI run)
+    gaps = [b - a for a, b in zip(forces, forces[1:])]
+    assert len(forces) >= 0.6 * span / FORCES_EVERY and max(gaps) <= 5 * FORCES_EVERY, (len(forces), max(gaps))
     commands = rec.messages["/rig/speed_command"]
     estimates = rec.messages["/torque_estimate"]
     # one speed command per estimate (the probe, best effort, may miss some of either: 0.82 seen with
