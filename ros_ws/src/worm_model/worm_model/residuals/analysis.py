@@ -17,8 +17,28 @@ Procedure (issue 7, physics.md section 9):
    regressors and the model's own Jacobian, its grid parameters chosen on training data).
 4. Take the best candidate (largest relative held-out improvement of its own signal) whose
    full refit lowers that signal's held-out RMS by at least ``min_improvement`` (relative),
-   does not raise the other signal's by as much, *and* lowers the BIC on the training
-   samples; repeat while one is left; finally drop any effect the others made redundant.
+   does not raise the other signal's by as much, lowers the BIC on the training samples,
+   *and* keeps every refitted parameter physical (:func:`physical`); repeat while one is
+   left and the current is above ``at_floor`` x its noise floor.
+5. Backward elimination on the held-out blocks: drop any accepted effect that no longer
+   earns its keep in the final set (the rest refitted without it: not accepted by the
+   criteria of step 4, or the current within ``at_floor`` x its floor without it).
+6. Name the effects that are aliases of refitted parameters beyond their tolerance
+   (:func:`resolve_aliases`, free.TOLERANCES), report every accepted effect's unique
+   contribution with a block-bootstrap interval (:func:`contributions`), estimate the noise
+   floor from the data (:func:`noise_floor`) and, when the held-out RMS stays above
+   ``unexplained_factor`` x that floor, describe the unexplained residual
+   (:func:`describe_unexplained`).
+
+Why this shape (issue 15).  The parameters a rig file typically gets wrong (mu scale, K_t,
+drags, rotor inertia: free.STANDARD_REFIT) are refitted always, so that a wrong declared
+value, or a wrong reference state of a mu effect (oil temperature, load, speed: they all
+modulate mu, whose scale is refitted), shows as a *parameter correction* and not as a
+string of effects that each buy 2 %.  Forward selection then only sees what no
+correction can produce; backward elimination and the floor rule remove what a later
+effect made redundant; an effect that would need a nonphysical correction (a mu scale of
+0.03 bought with a 78-fold Stribeck rise) is not taken.  What is left above the floor is
+reported as unexplained rather than forced onto a name.
 
 BIC and confidence intervals use an effective sample size n_eff = n (1 - rho)/(1 + rho),
 rho the lag-1 autocorrelation of the training residual (AR(1) approximation), because
@@ -62,6 +82,9 @@ class Settings:
     refit: tuple[str, ...] = STANDARD_REFIT
     # held-out RMS above this multiple of the noise floor: an unexplained residual is reported
     unexplained_factor: float = 1.3
+    # held-out RMS of the current within this multiple of its noise floor: no further current effect is
+    # added, and one whose removal stays within it is dropped (its share is below ~half the noise)
+    at_floor: float = 1.1
     bootstrap: int = 400  # block-bootstrap resamples for the intervals of unique contributions
 
 
@@ -691,9 +714,22 @@ def delta_bic(before: Fit, after: Fit) -> float:
     return d
 
 
-def accepts(before: Fit, after: Fit, settings: Settings, signal: str = "current_drive") -> bool:
+def accepts(before: Fit, after: Fit, settings: Settings, signal: str = "current_drive",
+            problem: Problem | None = None) -> bool:
     """Significant evidence: the held-out RMS of ``signal`` down by min_improvement (relative), the other
-    signal's not up by as much, AND a lower training BIC."""
+    signal's not up by as much, a lower training BIC, AND (given ``problem``) an improvement consistent
+    over the held-out blocks: the lower end of its block-bootstrap interval above 0.
+
+    The last one is what stops an effect from buying its 2 % from a few blocks where a
+    misfit elsewhere in the model happens to resemble it."""
+    if problem is not None:
+        if signal == "transmission_error" and before.te is not None and after.te is not None:
+            r0, r1, mask = before.te.residual, after.te.residual, problem.te_held_out
+        else:
+            r0, r1, mask = before.residual, after.residual, problem.split.held_out
+        low, _high = paired_interval(r0, r1, mask, problem.split.block, settings.bootstrap, settings.confidence)
+        if not low > 0.0:
+            return False
     for name in SIGNAL_UNITS:
         old, new = before.rms(name), after.rms(name)
         if not (math.isfinite(old) and math.isfinite(new)):
@@ -718,13 +754,17 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
         label = f"round {len(rounds) + 1}"
         ranking = screen(problem, current, (lambda k: progress(label, k, total)) if progress else None)
         accepted = None
+        at_floor = current.rms_held_out <= settings.at_floor * noise_floor(problem, current).rms
         for cand in ranking:
             if not cand.significant or cand.improvement < settings.min_improvement:
                 continue
+            if at_floor and cand.signal == "current_drive":
+                continue  # the current is already at its noise floor: nothing there left to name
             effect = EFFECTS[cand.name]
             specs = [(e.effect, e.grid) for e in current.effects] + [(effect, cand.grid)]
             trial = fit(problem, specs, current, {cand.name: cand.guess})
-            if accepts(current, trial, settings, effect.fitted_signal):
+            if accepts(current, trial, settings, effect.fitted_signal, problem) and (physical(problem, trial)
+                                                                             or not physical(problem, current)):
                 n_eff = trial.te.n_eff if cand.signal == "transmission_error" else trial.n_eff
                 interval = grid_interval(cand, n_eff, trial.n_train, settings.confidence)
                 for g in effect.grid_parameters:
@@ -749,7 +789,12 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
         for e in list(current.effects):
             rest = [(x.effect, x.grid) for x in current.effects if x is not e]
             without = fit(problem, rest, current)
-            if not accepts(without, current, settings, e.effect.fitted_signal):
+            # dropped: no longer significant, or not needed to reach the current's noise floor; but never
+            # when the rest alone is unphysical (the effect keeps the refitted parameters sane)
+            needless = e.effect.fitted_signal == "current_drive" and \
+                without.rms_held_out <= settings.at_floor * noise_floor(problem, current).rms
+            if (needless or not accepts(without, current, settings, e.effect.fitted_signal, problem)) and (
+                    physical(problem, without) or not physical(problem, current)):
                 grid_cis = {x.name: x.grid_ci for x in current.effects}
                 current = without
                 for x in current.effects:
@@ -767,6 +812,27 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
     return Analysis(declared=declared, final=current, rounds=rounds, split=problem.split, pruned=pruned,
                     aliases=aliases, contributions=contributions(problem, current, aliases), noise=noise,
                     unexplained=unexplained, nominal=nominal)
+
+
+def physical(problem: Problem, fitted: Fit) -> bool:
+    """Every refitted parameter inside its physical range (free.Tolerance.hard: identified / declared).
+
+    A fit that buys its error with a mu scale of 0.03 or a negative drag has traded a
+    parameter against an effect of nearly the same shape (e.g. a Stribeck law with a decay
+    speed beyond the data's range against the mu scale); such a fit names nothing.
+    """
+    for name in fitted.free:
+        tol = TOLERANCES.get(name)
+        declared = get_value(problem.rig0, name)
+        if tol is None or tol.hard is None or declared == 0.0:
+            continue
+        # outside by more than its own interval: a poorly identified parameter (a gear-side drag with the
+        # load near zero) wandering past a bound is no evidence of anything
+        value, half = fitted.free_values[name], fitted.free_ci.get(name, 0.0)
+        low, high = sorted(((value - half) / declared, (value + half) / declared))
+        if high < tol.hard[0] or low > tol.hard[1]:
+            return False
+    return True
 
 
 # --------------------------------------------------------------------------- aliases of refitted parameters
@@ -825,7 +891,7 @@ def resolve_aliases(problem: Problem, final: Fit) -> list[AliasFinding]:
         sub = Problem(clamped_rig, rest, problem.signals, problem.current, problem.split,
                       _replace_settings(problem.settings, refit=()))
         clamped = fit(sub, specs, final)
-        if not accepts(clamped, final, problem.settings, EFFECTS[effect].fitted_signal):
+        if not accepts(clamped, final, problem.settings, EFFECTS[effect].fitted_signal, problem):
             continue
         values, grid = _alias_values(effect, problem.rig0, final.rig, list(edges))
         # intervals: the parameters' own, carried through the (linear or 1/x) translation
@@ -852,7 +918,7 @@ def _replace_settings(settings: Settings, **changes) -> Settings:
     return replace(settings, **changes)
 
 
-def extended_effects(problem: Problem, result: Analysis) -> tuple[Rig, list[tuple[Effect, dict, dict]]]:
+def extended_effects(result: Analysis) -> tuple[Rig, list[tuple[Effect, dict, dict]]]:
     """The extended model as (rig, [(effect, values, grid)]): alias effects written as effects.
 
     A parameter named through an alias goes back to its declared value and the effect

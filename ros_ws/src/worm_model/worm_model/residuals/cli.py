@@ -153,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
     # tau_d from the current, by the declared and by the extended model, on held-out samples
     progress.stage("tau_d estimates", 2)
     before = ExtendedModel(result.declared.rig, [], settings.alpha_time_constant)
-    after = ExtendedModel(*extended_effects(problem, result), settings.alpha_time_constant)
+    after = ExtendedModel(*extended_effects(result), settings.alpha_time_constant)
     tau_d = {}
     for k, (key, model) in enumerate((("before", before), ("after", after))):
         error = model.estimate_load_torque(signals, data.current_drive) - data.tau_load

@@ -44,6 +44,7 @@ held-out error, analysis.resolve_aliases) the deviation is named as the aliased 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -92,24 +93,31 @@ class Tolerance:
     effect: str | None = None
     upward_only: bool = False
     why: str = ""
+    #: physical range of identified / declared: a fit outside it is not accepted (analysis.physical)
+    hard: tuple[float, float] | None = None
 
 
 #: tolerance bands of the refitted parameters (module docstring); twice to 2.5x the issue's
 #: "realistic" declared errors (K_t +-5 %, drags x2, inertia +-20 %), so that a declared value off
 #: by that much plus the fit's own spread stays a correction
 TOLERANCES: dict[str, Tolerance] = {
-    "friction.scale": Tolerance(None, None, None, why="mu scale: no effect is a constant scale of mu"),
+    "friction.scale": Tolerance(None, None, None, why="mu scale: no effect is a constant scale of mu",
+                                hard=(0.2, 5.0)),
     "drive_motor.torque_constant": Tolerance(0.9, 1.1, "sensor_gain",
                                              why="K_t datasheet tolerance +-5..10 %; a current-sensor gain "
-                                                 "error is the same function of the data"),
+                                                 "error is the same function of the data", hard=(0.5, 2.0)),
     "drive_motor.coulomb_drag": Tolerance(0.4, 2.5, "bearing_coulomb", True,
-                                          why="drags are guesses within x2; bearing drag on the worm adds to it"),
+                                          why="drags are guesses within x2; bearing drag on the worm adds to it",
+                                          hard=(-0.25, math.inf)),
     "load_motor.coulomb_drag": Tolerance(0.4, 2.5, "bearing_coulomb", True,
-                                         why="drags are guesses within x2; bearing drag on the gear adds to it"),
+                                         why="drags are guesses within x2; bearing drag on the gear adds to it",
+                                         hard=(-0.5, math.inf)),
     "drive_motor.viscous_drag": Tolerance(0.4, 2.5, "viscous_drag", True,
-                                          why="drags are guesses within x2; viscous drag (exponent 1) adds to it"),
+                                          why="drags are guesses within x2; viscous drag (exponent 1) adds to it",
+                                          hard=(-0.25, math.inf)),
     "drive_motor.rotor_inertia": Tolerance(0.7, 1.4, "inertia_error",
-                                           why="rotor inertia +-20 %; an inertia error is the same function"),
+                                           why="rotor inertia +-20 %; an inertia error is the same function",
+                                           hard=(0.2, 5.0)),
 }
 
 #: effect -> the refitted parameters it is entirely an alias of (not screened while they are all free)
