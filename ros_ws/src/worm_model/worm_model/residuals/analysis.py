@@ -753,8 +753,9 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
     while len(current.effects) < settings.max_effects:
         label = f"round {len(rounds) + 1}"
         ranking = screen(problem, current, (lambda k: progress(label, k, total)) if progress else None)
-        accepted = None
+        accepted = fallback = None
         at_floor = current.rms_held_out <= settings.at_floor * noise_floor(problem, current).rms
+        sane = physical(problem, current)
         for cand in ranking:
             if not cand.significant or cand.improvement < settings.min_improvement:
                 continue
@@ -763,15 +764,27 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
             effect = EFFECTS[cand.name]
             specs = [(e.effect, e.grid) for e in current.effects] + [(effect, cand.grid)]
             trial = fit(problem, specs, current, {cand.name: cand.guess})
-            if accepts(current, trial, settings, effect.fitted_signal, problem) and (physical(problem, trial)
-                                                                             or not physical(problem, current)):
-                n_eff = trial.te.n_eff if cand.signal == "transmission_error" else trial.n_eff
-                interval = grid_interval(cand, n_eff, trial.n_train, settings.confidence)
-                for g in effect.grid_parameters:
-                    if len(cand.profile) > 1:
-                        trial.effects[-1].grid_ci[g.name] = interval
-                accepted = (cand.name, trial)
-                break
+            if not accepts(current, trial, settings, effect.fitted_signal, problem):
+                continue
+            if sane:
+                if physical(problem, trial):
+                    accepted = (cand, trial)
+                    break
+                continue
+            # from an unphysical start (an effect the corrections twisted themselves around) every significant
+            # candidate is tried: the best held-out one that makes the fit physical, failing one the best
+            key = (not physical(problem, trial), trial.rms(effect.fitted_signal) / current.rms(effect.fitted_signal))
+            if fallback is None or key < fallback[0]:
+                fallback = (key, (cand, trial))
+        accepted = accepted or (fallback[1] if fallback else None)
+        if accepted is not None:
+            cand, trial = accepted
+            n_eff = trial.te.n_eff if cand.signal == "transmission_error" else trial.n_eff
+            interval = grid_interval(cand, n_eff, trial.n_train, settings.confidence)
+            for g in EFFECTS[cand.name].grid_parameters:
+                if len(cand.profile) > 1:
+                    trial.effects[-1].grid_ci[g.name] = interval
+            accepted = (cand.name, trial)
         rounds.append(Round(ranking, accepted[0] if accepted else None,
                             accepted[1].rms_held_out if accepted else None, current.rms_held_out,
                             current.te.rms_held_out if current.te is not None else math.nan))
