@@ -35,6 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from worm_model.physics.parameters import ParameterError, load_rig
+from worm_model.residuals.cases import evaluate_lines, small_matrix
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import CalibrationError, load_database
@@ -110,6 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--noise", type=_float_list, default=[0.0, 0.5, 1.0, 2.0, 4.0],
                        help="sensor noise factors (x the rig's current and speed noise), comma-separated "
                             "(default 0,0.5,1,2,4)")
+    p.add_argument("--no-residuals", action="store_true", help="skip the residuals tool's case matrix")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     return p
 
@@ -160,6 +162,9 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_transient:
         side_by_side(args, rig, grid, db)
     print(f"\nevaluate: wrote {', '.join(str(p) for p in pngs)} in {time.monotonic() - start:.1f} s")
+    if not args.no_residuals:  # the residuals tool's case matrix (issue 15); ends with its `residuals:` line
+        with ProgressBar(len(small_matrix()), "residuals cases", enabled=not args.quiet) as bar:
+            print("\n".join(evaluate_lines(progress=bar.update_to)))
     print(f"{args.method}: mae_pct={ev.mae_pct:.2f} max_pct={ev.max_pct:.2f} points={len(ev.tau_true)}")
     return 0
 

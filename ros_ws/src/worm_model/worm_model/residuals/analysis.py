@@ -17,8 +17,28 @@ Procedure (issue 7, physics.md section 9):
    regressors and the model's own Jacobian, its grid parameters chosen on training data).
 4. Take the best candidate (largest relative held-out improvement of its own signal) whose
    full refit lowers that signal's held-out RMS by at least ``min_improvement`` (relative),
-   does not raise the other signal's by as much, *and* lowers the BIC on the training
-   samples; repeat while one is left; finally drop any effect the others made redundant.
+   does not raise the other signal's by as much, lowers the BIC on the training samples,
+   *and* keeps every refitted parameter physical (:func:`physical`); repeat while one is
+   left and the current is above ``at_floor`` x its noise floor.
+5. Backward elimination on the held-out blocks: drop any accepted effect that no longer
+   earns its keep in the final set (the rest refitted without it: not accepted by the
+   criteria of step 4, or the current within ``at_floor`` x its floor without it).
+6. Name the effects that are aliases of refitted parameters beyond their tolerance
+   (:func:`resolve_aliases`, free.TOLERANCES), report every accepted effect's unique
+   contribution with a block-bootstrap interval (:func:`contributions`), estimate the noise
+   floor from the data (:func:`noise_floor`) and, when the held-out RMS stays above
+   ``unexplained_factor`` x that floor, describe the unexplained residual
+   (:func:`describe_unexplained`).
+
+Why this shape (issue 15).  The parameters a rig file typically gets wrong (mu scale, K_t,
+drags, rotor inertia: free.STANDARD_REFIT) are refitted always, so that a wrong declared
+value, or a wrong reference state of a mu effect (oil temperature, load, speed: they all
+modulate mu, whose scale is refitted), shows as a *parameter correction* and not as a
+string of effects that each buy 2 %.  Forward selection then only sees what no
+correction can produce; backward elimination and the floor rule remove what a later
+effect made redundant; an effect that would need a nonphysical correction (a mu scale of
+0.03 bought with a 78-fold Stribeck rise) is not taken.  What is left above the floor is
+reported as unexplained rather than forced onto a name.
 
 BIC and confidence intervals use an effective sample size n_eff = n (1 - rho)/(1 + rho),
 rho the lag-1 autocorrelation of the training residual (AR(1) approximation), because
@@ -30,7 +50,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -40,7 +60,7 @@ from worm_model.physics.parameters import Rig
 from worm_model.physics.units import FloatArray
 
 from worm_model.residuals.effects import EFFECTS, Effect, Shapes, channels_of, mask_shapes, regressors
-from worm_model.residuals.free import get_value, set_values
+from worm_model.residuals.free import PURE_ALIASES, STANDARD_REFIT, TOLERANCES, get_value, set_values
 from worm_model.residuals.model import ALPHA_TIME_CONSTANT, REFERENCE_TEMPERATURE, ModelState, Signals, evaluate, sensitivities
 
 
@@ -58,6 +78,14 @@ class Settings:
     reference_temperature: float = REFERENCE_TEMPERATURE  # [degC] oil temperature at which the declared mu holds
     confidence: float = 0.95
     candidates: tuple[str, ...] = tuple(EFFECTS)
+    # refitted always, on top of the caller's free list (free.STANDARD_REFIT: why these)
+    refit: tuple[str, ...] = STANDARD_REFIT
+    # held-out RMS above this multiple of the noise floor: an unexplained residual is reported
+    unexplained_factor: float = 1.3
+    # held-out RMS of the current within this multiple of its noise floor: no further current effect is
+    # added, and one whose removal stays within it is dropped (its share is below ~half the noise)
+    at_floor: float = 1.1
+    bootstrap: int = 400  # block-bootstrap resamples for the intervals of unique contributions
 
 
 # --------------------------------------------------------------------------- split
@@ -197,7 +225,7 @@ class Problem:
     def __init__(self, rig: Rig, free: Sequence[str], signals: Signals, current: FloatArray,
                  split: Split, settings: Settings) -> None:
         self.rig0 = rig
-        self.free = list(free)
+        self.free = list(free) + [p for p in settings.refit if p not in free]
         self.signals = signals
         self.current = np.asarray(current, dtype=float)
         self.split = split
@@ -506,6 +534,10 @@ def screen(problem: Problem, current: Fit, progress: Callable[[int], None] | Non
             continue
         te_effect = effect.fitted_signal == "transmission_error"
         why = effect.unavailable(rig, problem.signals)
+        aliased = PURE_ALIASES.get(name, ())
+        if not why and aliased and all(p in problem.free for p in aliased):
+            why = (f"the same function of the data as the refitted {', '.join(aliased)}: named only when that "
+                   f"correction leaves its tolerance band (free.TOLERANCES)")
         if not why and te_effect and not problem.has_te:
             why = "too few transmission-error samples (theta_gear) in the training or held-out set"
         if why:
@@ -576,16 +608,100 @@ class Round:
 
 
 @dataclass
+class AliasFinding:
+    """An effect named because a refitted parameter it is an alias of left its tolerance band.
+
+    ``parameters``: dotted name -> (declared, identified, CI half-width) [SI];
+    ``values``/``grid``: the effect in the analysis' parametrisation (effects.py) that, with
+    those parameters back at their declared values, gives the same model current;
+    ``clamped``: the fit with the parameters held at the band's edge (what "without it" means).
+    """
+
+    effect: str
+    parameters: dict[str, tuple[float, float, float]]
+    values: dict[str, float]
+    ci: dict[str, float]
+    grid: dict[str, float]
+    clamped: Fit
+
+
+@dataclass
+class Contribution:
+    """What one accepted effect buys on held-out data: RMS of its signal without it minus with it.
+
+    ``interval``: block-bootstrap interval (held-out blocks resampled, paired) at Settings.confidence.
+    """
+
+    name: str
+    signal: str
+    rms_without: float
+    rms_with: float
+    interval: tuple[float, float]
+
+    @property
+    def delta(self) -> float:
+        return self.rms_without - self.rms_with
+
+    @property
+    def unit(self) -> str:
+        return SIGNAL_UNITS[self.signal]
+
+
+@dataclass
+class NoiseFloor:
+    """The white-noise level of the current, estimated from the data [A]."""
+
+    rms: float
+    samples: int
+    method: str
+
+
+@dataclass
+class Correlation:
+    """How much of the unexplained residual one quantity accounts for (held-out samples)."""
+
+    quantity: str  # "speed", "load", "worm angle", ...
+    share: float  # fraction of the unexplained variance (rms_after^2 - floor^2) it explains
+    detail: str  # e.g. the best order and its amplitude
+
+
+@dataclass
+class Unexplained:
+    """A residual the accepted effects leave above the noise floor: its size and what it goes with."""
+
+    rms: float  # sqrt(rms_after^2 - floor^2) [A]
+    ratio: float  # rms_after / floor
+    correlations: list[Correlation]
+
+
+@dataclass
 class Analysis:
-    declared: Fit  # the declared model, its free parameters fitted
+    declared: Fit  # the declared model, its free parameters fitted (the corrections)
     final: Fit  # with the effects found
     rounds: list[Round]
     split: Split
     pruned: list[str] = field(default_factory=list)
+    aliases: list[AliasFinding] = field(default_factory=list)
+    contributions: list[Contribution] = field(default_factory=list)
+    noise: NoiseFloor | None = None
+    unexplained: Unexplained | None = None
+    nominal: Fit | None = None  # the rig file as declared, nothing fitted (encoder offsets aside)
+
+    @property
+    def rms_before(self) -> float:
+        """Held-out RMS of the current [A] by the rig file as declared (nothing fitted)."""
+        return (self.nominal or self.declared).rms_held_out
 
     @property
     def found(self) -> list[str]:
-        return self.final.names
+        """Effects named: those fitted, then those named through a parameter beyond its tolerance."""
+        names = list(self.final.names)
+        names += [a.effect for a in self.aliases if a.effect not in names]
+        return names
+
+    @property
+    def aliased_parameters(self) -> set[str]:
+        return {p for a in self.aliases for p in a.parameters}
 
 
 def delta_bic(before: Fit, after: Fit) -> float:
@@ -598,9 +714,22 @@ def delta_bic(before: Fit, after: Fit) -> float:
     return d
 
 
-def accepts(before: Fit, after: Fit, settings: Settings, signal: str = "current_drive") -> bool:
+def accepts(before: Fit, after: Fit, settings: Settings, signal: str = "current_drive",
+            problem: Problem | None = None) -> bool:
     """Significant evidence: the held-out RMS of ``signal`` down by min_improvement (relative), the other
-    signal's not up by as much, AND a lower training BIC."""
+    signal's not up by as much, a lower training BIC, AND (given ``problem``) an improvement consistent
+    over the held-out blocks: the lower end of its block-bootstrap interval above 0.
+
+    The last one is what stops an effect from buying its 2 % from a few blocks where a
+    misfit elsewhere in the model happens to resemble it."""
+    if problem is not None:
+        if signal == "transmission_error" and before.te is not None and after.te is not None:
+            r0, r1, mask = before.te.residual, after.te.residual, problem.te_held_out
+        else:
+            r0, r1, mask = before.residual, after.residual, problem.split.held_out
+        low, _high = paired_interval(r0, r1, mask, problem.split.block, settings.bootstrap, settings.confidence)
+        if not low > 0.0:
+            return False
     for name in SIGNAL_UNITS:
         old, new = before.rms(name), after.rms(name)
         if not (math.isfinite(old) and math.isfinite(new)):
@@ -624,21 +753,38 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
     while len(current.effects) < settings.max_effects:
         label = f"round {len(rounds) + 1}"
         ranking = screen(problem, current, (lambda k: progress(label, k, total)) if progress else None)
-        accepted = None
+        accepted = fallback = None
+        at_floor = current.rms_held_out <= settings.at_floor * noise_floor(problem, current).rms
+        sane = physical(problem, current)
         for cand in ranking:
             if not cand.significant or cand.improvement < settings.min_improvement:
                 continue
+            if at_floor and cand.signal == "current_drive":
+                continue  # the current is already at its noise floor: nothing there left to name
             effect = EFFECTS[cand.name]
             specs = [(e.effect, e.grid) for e in current.effects] + [(effect, cand.grid)]
             trial = fit(problem, specs, current, {cand.name: cand.guess})
-            if accepts(current, trial, settings, effect.fitted_signal):
-                n_eff = trial.te.n_eff if cand.signal == "transmission_error" else trial.n_eff
-                interval = grid_interval(cand, n_eff, trial.n_train, settings.confidence)
-                for g in effect.grid_parameters:
-                    if len(cand.profile) > 1:
-                        trial.effects[-1].grid_ci[g.name] = interval
-                accepted = (cand.name, trial)
-                break
+            if not accepts(current, trial, settings, effect.fitted_signal, problem):
+                continue
+            if sane:
+                if physical(problem, trial):
+                    accepted = (cand, trial)
+                    break
+                continue
+            # from an unphysical start (an effect the corrections twisted themselves around) every significant
+            # candidate is tried: the best held-out one that makes the fit physical, failing one the best
+            key = (not physical(problem, trial), trial.rms(effect.fitted_signal) / current.rms(effect.fitted_signal))
+            if fallback is None or key < fallback[0]:
+                fallback = (key, (cand, trial))
+        accepted = accepted or (fallback[1] if fallback else None)
+        if accepted is not None:
+            cand, trial = accepted
+            n_eff = trial.te.n_eff if cand.signal == "transmission_error" else trial.n_eff
+            interval = grid_interval(cand, n_eff, trial.n_train, settings.confidence)
+            for g in EFFECTS[cand.name].grid_parameters:
+                if len(cand.profile) > 1:
+                    trial.effects[-1].grid_ci[g.name] = interval
+            accepted = (cand.name, trial)
         rounds.append(Round(ranking, accepted[0] if accepted else None,
                             accepted[1].rms_held_out if accepted else None, current.rms_held_out,
                             current.te.rms_held_out if current.te is not None else math.nan))
@@ -656,7 +802,12 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
         for e in list(current.effects):
             rest = [(x.effect, x.grid) for x in current.effects if x is not e]
             without = fit(problem, rest, current)
-            if not accepts(without, current, settings, e.effect.fitted_signal):
+            # dropped: no longer significant, or not needed to reach the current's noise floor; but never
+            # when the rest alone is unphysical (the effect keeps the refitted parameters sane)
+            needless = e.effect.fitted_signal == "current_drive" and \
+                without.rms_held_out <= settings.at_floor * noise_floor(problem, current).rms
+            if (needless or not accepts(without, current, settings, e.effect.fitted_signal, problem)) and (
+                    physical(problem, without) or not physical(problem, current)):
                 grid_cis = {x.name: x.grid_ci for x in current.effects}
                 current = without
                 for x in current.effects:
@@ -664,4 +815,279 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
                 pruned.append(e.name)
                 changed = True
                 break
-    return Analysis(declared=declared, final=current, rounds=rounds, split=problem.split, pruned=pruned)
+    aliases = resolve_aliases(problem, current)
+    noise = noise_floor(problem, current)
+    nominal = fit(Problem(problem.rig0, [], problem.signals, problem.current, problem.split,
+                          _replace_settings(settings, refit=())), [])
+    unexplained = None
+    if current.rms_held_out > settings.unexplained_factor * noise.rms:
+        unexplained = describe_unexplained(problem, current, noise)
+    return Analysis(declared=declared, final=current, rounds=rounds, split=problem.split, pruned=pruned,
+                    aliases=aliases, contributions=contributions(problem, current, aliases), noise=noise,
+                    unexplained=unexplained, nominal=nominal)
+
+
+def physical(problem: Problem, fitted: Fit) -> bool:
+    """Every refitted parameter inside its physical range (free.Tolerance.hard: identified / declared).
+
+    A fit that buys its error with a mu scale of 0.03 or a negative drag has traded a
+    parameter against an effect of nearly the same shape (e.g. a Stribeck law with a decay
+    speed beyond the data's range against the mu scale); such a fit names nothing.
+    """
+    for name in fitted.free:
+        tol = TOLERANCES.get(name)
+        declared = get_value(problem.rig0, name)
+        if tol is None or tol.hard is None or declared == 0.0:
+            continue
+        # outside by more than its own interval: a poorly identified parameter (a gear-side drag with the
+        # load near zero) wandering past a bound is no evidence of anything
+        value, half = fitted.free_values[name], fitted.free_ci.get(name, 0.0)
+        low, high = sorted(((value - half) / declared, (value + half) / declared))
+        if high < tol.hard[0] or low > tol.hard[1]:
+            return False
+    return True
+
+
+# --------------------------------------------------------------------------- aliases of refitted parameters
+def _band_edge(name: str, declared: float, identified: float) -> float | None:
+    """The nearest edge of the tolerance band when ``identified`` lies beyond it on an alias side, else None."""
+    tol = TOLERANCES.get(name)
+    if tol is None or tol.effect is None or declared == 0.0:
+        return None
+    ratio = identified / declared
+    if tol.high is not None and ratio > tol.high:
+        return tol.high * declared
+    if tol.low is not None and ratio < tol.low and not tol.upward_only:
+        return tol.low * declared
+    return None
+
+
+def _alias_values(effect: str, rig0: Rig, fitted: Rig, params: Sequence[str]) -> tuple[dict, dict]:
+    """The effect's values (and grid) that, with ``params`` back at rig0's values, give ``fitted``'s current."""
+    if effect == "sensor_gain":  # i = (1 + g) torque / K_t,declared = torque / K_t,identified
+        k0, k1 = rig0.drive_motor.torque_constant, fitted.drive_motor.torque_constant
+        return {"drive_current": k0 / k1 - 1.0, "load_current": 0.0}, {}
+    if effect == "bearing_coulomb":  # worm: sigma c; gear: load_motor_count c_l sign(omega_gear)
+        worm = gear = 0.0
+        if "drive_motor.coulomb_drag" in params:
+            worm = fitted.drive_motor.coulomb_drag - rig0.drive_motor.coulomb_drag
+        if "load_motor.coulomb_drag" in params:
+            gear = rig0.load_motor_count * (fitted.load_motor.coulomb_drag - rig0.load_motor.coulomb_drag)
+        return {"worm_torque": worm, "gear_torque": gear}, {}
+    if effect == "viscous_drag":  # b omega = T_ref omega / omega_ref, exponent 1
+        ref = EFFECTS["viscous_drag"].reference_speed
+        return ({"worm_torque": (fitted.drive_motor.viscous_drag - rig0.drive_motor.viscous_drag) * ref,
+                 "gear_torque": 0.0}, {"exponent": 1.0})
+    if effect == "inertia_error":
+        return {"worm": fitted.total_worm_inertia / rig0.total_worm_inertia - 1.0}, {}
+    raise ValueError(f"no alias translation for {effect}")
+
+
+def resolve_aliases(problem: Problem, final: Fit) -> list[AliasFinding]:
+    """Name the effects whose aliased parameters left their tolerance band *and* earn it on held-out data.
+
+    For each alias effect (free.TOLERANCES), the refitted parameters beyond their band are
+    clamped to its edge and the rest refitted: if the final fit beats that clamped fit by
+    :func:`accepts`' criteria, the deviation is named as the effect (its whole size from the
+    declared value: within the band the split between parameter and effect is not identifiable).
+    """
+    groups: dict[str, dict[str, float]] = {}
+    for name in problem.free:
+        edge = _band_edge(name, get_value(problem.rig0, name), final.free_values[name])
+        if edge is not None:
+            groups.setdefault(TOLERANCES[name].effect, {})[name] = edge
+    out = []
+    specs = [(e.effect, e.grid) for e in final.effects]
+    for effect, edges in groups.items():
+        clamped_rig = set_values(problem.rig0, list(edges), list(edges.values()))
+        rest = [p for p in problem.free if p not in edges]
+        sub = Problem(clamped_rig, rest, problem.signals, problem.current, problem.split,
+                      _replace_settings(problem.settings, refit=()))
+        clamped = fit(sub, specs, final)
+        if not accepts(clamped, final, problem.settings, EFFECTS[effect].fitted_signal, problem):
+            continue
+        values, grid = _alias_values(effect, problem.rig0, final.rig, list(edges))
+        # intervals: the parameters' own, carried through the (linear or 1/x) translation
+        ci: dict[str, float] = {}
+        for p in edges:
+            half = final.free_ci.get(p, math.nan)
+            if p == "drive_motor.torque_constant":
+                ci["drive_current"] = problem.rig0.drive_motor.torque_constant / final.free_values[p] ** 2 * half
+            elif p == "drive_motor.coulomb_drag":
+                ci["worm_torque"] = half
+            elif p == "load_motor.coulomb_drag":
+                ci["gear_torque"] = problem.rig0.load_motor_count * half
+            elif p == "drive_motor.viscous_drag":
+                ci["worm_torque"] = half * EFFECTS["viscous_drag"].reference_speed
+            elif p == "drive_motor.rotor_inertia":
+                ci["worm"] = half / problem.rig0.total_worm_inertia
+        params = {p: (get_value(problem.rig0, p), final.free_values[p], final.free_ci.get(p, math.nan))
+                  for p in edges}
+        out.append(AliasFinding(effect, params, values, ci, grid, clamped))
+    return out
+
+
+def _replace_settings(settings: Settings, **changes) -> Settings:
+    return replace(settings, **changes)
+
+
+def extended_effects(result: Analysis) -> tuple[Rig, list[tuple[Effect, dict, dict]]]:
+    """The extended model as (rig, [(effect, values, grid)]): alias effects written as effects.
+
+    A parameter named through an alias goes back to its declared value and the effect
+    carries the deviation, so the simulator's ``effects:`` section names what was found; the
+    model current is the same.  (A viscous_drag already fitted with another exponent cannot
+    absorb it: then the parameter keeps its identified value.)
+    """
+    rig = result.final.rig
+    effects = [(e.effect, dict(e.values), dict(e.grid)) for e in result.final.effects]
+    for alias in result.aliases:
+        existing = next((k for k, (e, _v, _g) in enumerate(effects) if e.name == alias.effect), None)
+        if existing is not None:
+            e, values, grid = effects[existing]
+            if alias.grid and any(grid.get(k) != v for k, v in alias.grid.items()):
+                continue
+            effects[existing] = (e, {k: values[k] + alias.values.get(k, 0.0) for k in values}, grid)
+        else:
+            effects.append((EFFECTS[alias.effect], dict(alias.values), dict(alias.grid)))
+        rig = set_values(rig, list(alias.parameters), [v[0] for v in alias.parameters.values()])
+    return rig, effects
+
+
+# --------------------------------------------------------------------------- unique contributions
+def _block_sums(residual: FloatArray, mask: np.ndarray, block: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(sum of squares, count) of the residual on ``mask`` per block id (ids compacted)."""
+    ids, index = np.unique(block[mask], return_inverse=True)
+    r = np.nan_to_num(residual[mask])
+    return np.bincount(index, weights=r**2, minlength=len(ids)), np.bincount(index, minlength=len(ids)).astype(float)
+
+
+def paired_interval(res_without: FloatArray, res_with: FloatArray, mask: np.ndarray, block: np.ndarray,
+                    draws: int, confidence: float, seed: int = 0) -> tuple[float, float]:
+    """Block-bootstrap interval of RMS(without) - RMS(with) over the blocks of ``mask`` (paired resampling).
+
+    Held-out blocks are the independent units (residuals within a block are autocorrelated):
+    resample them with replacement, recompute both RMS on the same draw.
+    """
+    s0, n = _block_sums(res_without, mask, block)
+    s1, _ = _block_sums(res_with, mask, block)
+    if len(n) < 2:
+        return (math.nan, math.nan)
+    rng = np.random.default_rng(seed)
+    pick = rng.integers(0, len(n), size=(draws, len(n)))
+    counts = np.apply_along_axis(np.bincount, 1, pick, minlength=len(n)).astype(float)
+    total = counts @ n
+    diff = np.sqrt(counts @ s0 / total) - np.sqrt(counts @ s1 / total)
+    tail = 50.0 * (1.0 - confidence)
+    return float(np.percentile(diff, tail)), float(np.percentile(diff, 100.0 - tail))
+
+
+def contributions(problem: Problem, final: Fit, aliases: Sequence[AliasFinding]) -> list[Contribution]:
+    """Each accepted effect's unique contribution: the final fit against the final fit without it.
+
+    "Without" refits everything else (a fitted effect dropped; an alias's parameters clamped
+    at their band edge), so shared explanatory power is not counted twice.
+    """
+    s = problem.settings
+    out = []
+    pairs = []
+    for e in final.effects:
+        rest = [(x.effect, x.grid) for x in final.effects if x is not e]
+        pairs.append((e.name, e.effect.fitted_signal, fit(problem, rest, final)))
+    pairs += [(a.effect, EFFECTS[a.effect].fitted_signal, a.clamped) for a in aliases]
+    for name, signal, without in pairs:
+        if signal == "transmission_error" and final.te is not None and without.te is not None:
+            r0, r1, mask = without.te.residual, final.te.residual, problem.te_held_out
+        else:
+            signal = "current_drive"
+            r0, r1, mask = without.residual, final.residual, problem.split.held_out
+        out.append(Contribution(name, signal, without.rms(signal), final.rms(signal),
+                                paired_interval(r0, r1, mask, problem.split.block, s.bootstrap, s.confidence)))
+    return out
+
+
+# --------------------------------------------------------------------------- noise floor, unexplained residual
+def noise_floor(problem: Problem, final: Fit) -> NoiseFloor:
+    """White-noise level of the current [A] from second differences of the final residual.
+
+    e_k = (r_{k-1} - 2 r_k + r_{k+1}) / sqrt(6) has the variance sigma^2 of white noise in r
+    and removes whatever changes slowly against the sample period (model errors of the
+    operating point, drifts, ripples below ~1/10 of the sample rate; Gasser, Sroka and
+    Jennetten-Steinmetz 1986).  Only triples of consecutive used samples of one run enter.
+    A residual that varies as fast as the noise (a ripple near the Nyquist rate) counts as noise.
+    """
+    r, sig = final.residual, problem.signals
+    used = problem.split.train | problem.split.held_out
+    period = sig.sample_period
+    ok = np.zeros(len(r), dtype=bool)
+    ok[1:-1] = (used[:-2] & used[1:-1] & used[2:] & (sig.run[:-2] == sig.run[2:])
+                & (np.abs(sig.t[2:] - sig.t[:-2] - 2 * period) < 0.5 * period))
+    k = np.flatnonzero(ok)
+    e = (r[k - 1] - 2.0 * r[k] + r[k + 1]) / math.sqrt(6.0)
+    rms = float(np.sqrt(np.mean(e**2))) if len(e) else math.nan
+    return NoiseFloor(rms, int(len(e)), "second differences of the final residual within runs, "
+                                        "sqrt(mean((r[k-1] - 2 r[k] + r[k+1])^2) / 6) (white noise)")
+
+
+def _explained_by_bins(x: FloatArray, r: FloatArray, bins: int, floor: float) -> tuple[float, FloatArray, FloatArray]:
+    """Variance of r explained by its binned means over x (quantile bins), less the noise's share [A^2]."""
+    edges = np.unique(np.quantile(x, np.linspace(0.0, 1.0, bins + 1)))
+    if len(edges) < 2:
+        return 0.0, np.zeros(0), np.zeros(0)
+    which = np.clip(np.digitize(x, edges) - 1, 0, len(edges) - 2)
+    count = np.bincount(which, minlength=len(edges) - 1).astype(float)
+    mean = np.bincount(which, weights=r, minlength=len(edges) - 1) / np.maximum(count, 1.0)
+    explained = float(np.sum(count * mean**2) / len(r)) - (len(edges) - 1) * floor**2 / len(r)
+    return max(explained, 0.0), 0.5 * (edges[1:] + edges[:-1]), mean
+
+
+def _explained_by_orders(angle: FloatArray, sigma: FloatArray, r: FloatArray, orders: Sequence[float],
+                         floor: float) -> tuple[float, float, float]:
+    """(best order, explained variance [A^2], amplitude [A]): sin/cos of order*angle, per direction."""
+    best = (math.nan, 0.0, 0.0)
+    for k in orders:
+        s, c = np.sin(k * angle), np.cos(k * angle)
+        X = np.column_stack([s, c, sigma * s, sigma * c])
+        coef, *_ = np.linalg.lstsq(X, r, rcond=None)
+        fitted = X @ coef
+        explained = float(np.mean(fitted**2)) - 4 * floor**2 / len(r)
+        if explained > best[1]:
+            best = (float(k), explained, float(math.sqrt(2.0 * np.mean(fitted**2))))
+    return best
+
+
+def describe_unexplained(problem: Problem, final: Fit, noise: NoiseFloor) -> Unexplained:
+    """Size of the residual above the noise floor and the quantities it goes with (held-out samples).
+
+    Each quantity's share is the variance its best description (binned means; for angles a
+    sinusoid of the best order, each direction of rotation its own) takes out of the excess
+    variance rms_after^2 - floor^2, corrected for what noise alone would give.
+    """
+    held = problem.split.held_out
+    sig, r = problem.signals, final.residual[held]
+    floor = noise.rms
+    excess = max(float(np.mean(r**2)) - floor**2, 1e-30)
+    sigma = np.where(sig.omega[held] < 0.0, -1.0, 1.0)
+    runs, first = np.unique(sig.run, return_index=True)
+    t_run = sig.t - sig.t[first][np.searchsorted(runs, sig.run)]  # time since the start of its run [s]
+    found: list[Correlation] = []
+    binned = [("speed", sig.omega[held], 20, "omega_worm [rad/s]"), ("load", sig.tau_load[held], 20, "tau_load [N m]"),
+              ("time", t_run[held], 20, "time within the run [s]"), ("direction", sigma, 2, "sign of omega")]
+    if sig.temperature is not None and np.all(np.isfinite(sig.temperature[held])):
+        binned.append(("temperature", sig.temperature[held], 20, "temperature [degC]"))
+    for name, x, bins, label in binned:
+        explained, centre, mean = _explained_by_bins(x, r, bins, floor)
+        peak = centre[np.argmax(np.abs(mean))] if len(mean) else math.nan
+        found.append(Correlation(name, min(explained / excess, 1.0),
+                                 f"binned over {label}; largest bin mean {np.max(np.abs(mean)) if len(mean) else 0:.3g} A "
+                                 f"at {peak:.3g}"))
+    worm_orders = [float(k) for k in range(1, 61)]
+    gear_orders = [float(k) for k in range(1, 31)]
+    for name, angle, orders in (("worm angle orders", sig.theta_worm[held], worm_orders),
+                                ("gear angle orders", sig.theta_gear[held], gear_orders)):
+        k, explained, amplitude = _explained_by_orders(angle, sigma, r, orders, floor)
+        found.append(Correlation(name, min(explained / excess, 1.0),
+                                 f"best order {k:g} per turn, amplitude {amplitude:.3g} A (each direction its own phase)"))
+    found.sort(key=lambda c: -c.share)
+    rms_after = float(np.sqrt(np.mean(r**2)))
+    return Unexplained(math.sqrt(excess), rms_after / floor, found)

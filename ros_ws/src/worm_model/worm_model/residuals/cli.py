@@ -3,11 +3,14 @@
     residuals <data.csv | bag directory> --out <dir> [--params rig.yaml] [options]
 
 Fits the declared model (paper Eqs 28-30 with the motor; the parameters the rig file's
-``free:`` list names) to part of the data, ranks the candidate effects of physics.md
-section 9 by how much of the residual each explains on held-out data, adds the
-significant ones, and writes <dir>/report.json, <dir>/extended_rig.yaml (the extended
-model: rig file + ``effects:``) and PNG plots.  The last console line is
-``found: <name,name|none> rms_before=<x> rms_after=<y> A``.
+``free:`` list names, plus a standard set refitted always, ``--refit``) to part of the data,
+ranks the candidate effects of physics.md section 9 by how much of the residual each
+explains on held-out data, adds the significant ones, drops any that no longer earn their
+keep, and writes <dir>/report.json, <dir>/extended_rig.yaml (the extended model: rig file +
+``effects:``) and PNG plots.  It estimates the current's noise floor from the data; when
+the held-out RMS stays above 1.3x that floor it reports an unexplained residual and what
+it goes with.  The last console line is
+``found: <name,name|none> rms_before=<x> rms_after=<y> A[ unexplained=<z> A]``.
 Exit codes: 0 done, 2 bad input (the message names the file, line/field and column).
 """
 
@@ -22,11 +25,11 @@ import numpy as np
 from worm_model.physics.parameters import ParameterError, default_rig_path, load_rig
 from worm_model.rig_data.schema import RigDataError
 
-from worm_model.residuals.analysis import Settings, Problem, analyse, make_split
+from worm_model.residuals.analysis import Settings, Problem, analyse, extended_effects, make_split
 from worm_model.residuals.data import load_data
 from worm_model.residuals.effects import EFFECTS
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
-from worm_model.residuals.free import FREE_PARAMETERS, check_free, read_free
+from worm_model.residuals.free import FREE_PARAMETERS, STANDARD_REFIT, check_free, read_free
 from worm_model.residuals.model import ALPHA_TIME_CONSTANT, prepare_signals
 from worm_model.cli.progress import Progress
 from worm_model.residuals.report import build_report, console_summary, windowed_rms, write_json, write_plots
@@ -66,6 +69,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--free", default=None,
                    help="comma-separated parameters to fit, overriding the file's 'free:' list ('none' for none); "
                         f"allowed: {', '.join(FREE_PARAMETERS)}")
+    p.add_argument("--refit", default=",".join(STANDARD_REFIT),
+                   help="comma-separated parameters refitted always, on top of the free list ('none' for none): "
+                        "the declared numbers a rig file typically gets wrong (worm_model.residuals.free explains "
+                        "the choice); a deviation beyond a parameter's tolerance that an effect is an alias of "
+                        "(K_t: sensor_gain, drags: bearing_coulomb/viscous_drag, rotor inertia: inertia_error) is "
+                        "named as that effect")
     p.add_argument("--candidates", default=",".join(EFFECTS),
                    help="comma-separated candidate effects to consider")
     p.add_argument("--holdout-fraction", type=float, default=d.holdout_fraction,
@@ -102,7 +111,8 @@ def main(argv: list[str] | None = None) -> int:
     settings = Settings(holdout_fraction=args.holdout_fraction, block_seconds=args.block, guard_seconds=args.guard,
                         min_speed=args.min_speed, min_improvement=args.min_improvement, max_effects=args.max_effects,
                         alpha_time_constant=args.alpha_filter, confidence=args.confidence, candidates=candidates,
-                        reference_temperature=args.reference_temperature)
+                        reference_temperature=args.reference_temperature,
+                        refit=tuple(check_free(_names(args.refit, FREE_PARAMETERS, "refit parameter", parser))))
     progress = Progress(enabled=not args.quiet)
     try:
         rig = load_rig(args.params)
@@ -129,8 +139,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"data: {data.source}: {len(data)} samples, {len(np.unique(data.run))} run(s), "
           f"{data.t[-1] - data.t[0]:.1f} s; training {int(split.train.sum())}, held out {int(split.held_out.sum())}"
           + (f"; ignored columns {', '.join(data.ignored_columns)}" if data.ignored_columns else ""))
-    print(f"declared model: {rig.name}; free parameters: {', '.join(free) or 'none'}")
     problem = Problem(rig, free, signals, data.current_drive, split, settings)
+    print(f"declared model: {rig.name}; fitted parameters: {', '.join(problem.free) or 'none'} "
+          f"(free list: {', '.join(free) or 'none'}; refitted always: {', '.join(settings.refit) or 'none'})")
 
     def on_progress(label: str, done: int, total: int) -> None:
         if progress.name != label:
@@ -142,8 +153,7 @@ def main(argv: list[str] | None = None) -> int:
     # tau_d from the current, by the declared and by the extended model, on held-out samples
     progress.stage("tau_d estimates", 2)
     before = ExtendedModel(result.declared.rig, [], settings.alpha_time_constant)
-    after = ExtendedModel(result.final.rig, [(e.effect, e.values, e.grid) for e in result.final.effects],
-                          settings.alpha_time_constant)
+    after = ExtendedModel(*extended_effects(result), settings.alpha_time_constant)
     tau_d = {}
     for k, (key, model) in enumerate((("before", before), ("after", after))):
         error = model.estimate_load_torque(signals, data.current_drive) - data.tau_load
@@ -155,7 +165,8 @@ def main(argv: list[str] | None = None) -> int:
         progress.update_to(k + 1)
 
     params_out = out / "extended_rig.yaml"
-    write_parameter_file(params_out, args.params or default_rig_path(), after, free, result.final.free_ci,
+    write_parameter_file(params_out, args.params or default_rig_path(), after,
+                         [p for p in problem.free if p not in result.aliased_parameters], result.final.free_ci,
                          f"identified by residuals from {Path(data.source).name}",
                          {"backlash": "angle identified from the transmission error (theta_gear); see report.json"}
                          if "backlash" in after.names else None)

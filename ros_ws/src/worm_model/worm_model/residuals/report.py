@@ -108,11 +108,31 @@ def build_report(problem: Problem, result: Analysis, tau_d: dict[str, float], fi
         "unit": UNIT,
         "signals": signals,
         "effects_found": result.found,
-        "rms_before": declared.rms_held_out,
+        "rms_before": result.rms_before,
+        "rms_corrected": declared.rms_held_out,
         "rms_after": final.rms_held_out,
+        "rms_note": "held-out RMS of the drive current: before = the rig file as declared (nothing fitted); "
+                    "corrected = its refitted parameters (parameter_corrections); after = with the effects found",
         "torque_unit": "N m",
-        "rms_before_torque": declared.rms_held_out * kt,
+        "rms_before_torque": result.rms_before * kt,
         "rms_after_torque": final.rms_held_out * kt,
+        "parameter_corrections": corrections(problem, result),
+        "contributions": [{"name": c.name, "signal": c.signal, "unit": c.unit, "rms_without": c.rms_without,
+                           "rms_with": c.rms_with, "unique_contribution": c.delta,
+                           "interval": list(c.interval), "confidence": s.confidence,
+                           "note": "held-out RMS of its signal with every other effect and correction refitted, "
+                                   "without it minus with it; interval: block bootstrap over held-out blocks"}
+                          for c in result.contributions],
+        "aliases": [{"effect": a.effect, "parameters": {p: {"declared": d, "identified": v, "ci_half_width": h}
+                                                        for p, (d, v, h) in a.parameters.items()},
+                     "values": a.values, "ci_half_width": a.ci} for a in result.aliases],
+        "noise_floor": None if result.noise is None else {
+            "rms": result.noise.rms, "unit": UNIT, "samples": result.noise.samples, "method": result.noise.method},
+        "unexplained": None if result.unexplained is None else {
+            "rms": result.unexplained.rms, "unit": UNIT, "ratio_to_floor": result.unexplained.ratio,
+            "threshold": s.unexplained_factor,
+            "correlations": [{"quantity": c.quantity, "share": c.share, "detail": c.detail}
+                             for c in result.unexplained.correlations]},
         "rms_train_before": declared.rms_train,
         "rms_train_after": final.rms_train,
         "tau_d_unit": "N m",
@@ -136,6 +156,46 @@ def build_report(problem: Problem, result: Analysis, tau_d: dict[str, float], fi
                                       "least-squares intervals inflated by sqrt(n / n_eff)"},
         "files": files,
     }
+
+
+def corrections(problem: Problem, result: Analysis) -> list[dict[str, Any]]:
+    """Every fitted rig parameter: declared and identified value, interval, band, and what became of it."""
+    from worm_model.residuals.free import TOLERANCES  # noqa: PLC0415
+
+    out = []
+    final = result.final
+    for name in final.free:
+        declared, value = _declared(problem, name), final.free_values[name]
+        tol = TOLERANCES.get(name)
+        alias = next((a.effect for a in result.aliases if name in a.parameters), None)
+        ratio = value / declared if declared else math.nan
+        outside = tol is not None and ((tol.low is not None and ratio < tol.low) or
+                                       (tol.high is not None and ratio > tol.high))
+        status = (f"beyond its tolerance: named as the effect {alias}" if alias else
+                  "beyond its tolerance band, kept as a correction" if outside else "correction")
+        out.append({"name": name, "declared": declared, "identified": value,
+                    "ci_half_width": final.free_ci.get(name, math.nan), "ratio": ratio,
+                    "band": None if tol is None else [tol.low, tol.high], "status": status})
+    return out
+
+
+def mu_line(problem: Problem, result: Analysis) -> str | None:
+    """The mu correction as a friction coefficient at the data's median sliding speed and reference temperature."""
+    if "friction.scale" not in result.final.free:
+        return None
+    from worm_model.physics.friction import friction_coefficient, sliding_velocity  # noqa: PLC0415
+
+    used = result.split.train | result.split.held_out
+    omega = np.array([float(np.median(np.abs(problem.signals.omega[used])))])
+    rig0, final = problem.rig0, result.final
+    mu0 = float(friction_coefficient(rig0.friction, rig0.gearbox, omega)[0])
+    mu1 = float(friction_coefficient(final.rig.friction, final.rig.gearbox, omega)[0])
+    half = mu1 / final.rig.friction.scale * final.free_ci.get("friction.scale", math.nan) \
+        if final.rig.friction.scale else math.nan
+    vs = float(sliding_velocity(rig0.gearbox, omega)[0])
+    return (f"correction mu: declared {mu0:.4f}, identified {mu1:.4f} +- {half:.4f} at "
+            f"{problem.settings.reference_temperature:g} degC (sliding speed {vs:.2f} m/s, the data's median; "
+            f"friction.scale {rig0.friction.scale:.4g} -> {final.rig.friction.scale:.4g})")
 
 
 def _declared(problem: Problem, name: str) -> float:
@@ -211,6 +271,10 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
                       f"n = {rig.gearbox.worm_starts}", fontsize=9)
     save(fig, "spectrum.png", 2)
 
+    # 2b. an unexplained residual: what it goes with (held-out samples)
+    if result.unexplained is not None:
+        written.append(unexplained_plot(out / "unexplained.png", problem, result, plt))
+
     # 3. per effect found: the residual it explains against its regressor
     from worm_model.residuals.analysis import fit as refit  # noqa: PLC0415
 
@@ -243,14 +307,60 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
     return written
 
 
+def unexplained_plot(path: Path, problem: Problem, result: Analysis, plt) -> str:
+    """Binned means of the held-out final residual over speed, load, time and temperature, and its
+    angle-domain spectra (worm and gear orders, each direction of rotation apart)."""
+    sig, held, r = problem.signals, result.split.held_out, result.final.residual
+    floor = result.noise.rms if result.noise is not None else math.nan
+    runs, first = np.unique(sig.run, return_index=True)
+    t_run = sig.t - sig.t[first][np.searchsorted(runs, sig.run)]
+    panels = [("omega_worm [rad/s]", sig.omega), ("tau_load [N m]", sig.tau_load), ("time within the run [s]", t_run)]
+    if sig.temperature is not None:
+        panels.append(("temperature [degC]", sig.temperature))
+    fig, axes = plt.subplots(2, 3, figsize=(13, 7))
+    flat = axes.ravel()
+    for ax, (label, x) in zip(flat[:4], panels):
+        xs, rs = x[held], r[held]
+        edges = np.unique(np.quantile(xs, np.linspace(0, 1, 31)))
+        which = np.clip(np.digitize(xs, edges) - 1, 0, len(edges) - 2)
+        means = np.array([rs[which == b].mean() if np.any(which == b) else np.nan for b in range(len(edges) - 1)])
+        ax.plot(xs, rs, ".", ms=1, alpha=0.15)
+        ax.plot(0.5 * (edges[1:] + edges[:-1]), means, "k-", lw=1.5, label="binned mean")
+        ax.set(xlabel=label, ylabel="held-out residual [A]")
+        ax.legend(loc="upper right", fontsize=8)
+    if len(panels) < 4:
+        flat[3].axis("off")
+    sigma = np.where(sig.omega < 0.0, -1.0, 1.0)
+    for ax, angle, orders, label in ((flat[4], sig.theta_worm, np.arange(1, 61), "worm orders [per worm turn]"),
+                                     (flat[5], sig.theta_gear, np.arange(1, 31), "gear orders [per gear turn]")):
+        for direction, name in ((1.0, "forward"), (-1.0, "reverse")):
+            mask = held & (sigma == direction)
+            if mask.sum() > 100:
+                ax.plot(orders, order_spectrum(r, angle, mask, orders.astype(float)) * 1e3, ".-", lw=0.8, label=name)
+        ax.set(xlabel=label, ylabel="amplitude [mA]")
+        ax.legend(loc="upper right", fontsize=8)
+    u = result.unexplained
+    fig.suptitle(f"unexplained residual {u.rms:.4f} A above the noise floor {floor:.4f} A; "
+                 f"largest share: {u.correlations[0].quantity} ({100 * u.correlations[0].share:.0f} %)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    return path.name
+
+
 def console_summary(problem: Problem, result: Analysis, tau_d: dict[str, float]) -> list[str]:
     """Human-readable lines (the last one is the machine-readable ``found:`` line)."""
     kt = problem.rig0.drive_motor.torque_constant
     d, f = result.declared, result.final
     lines = []
-    for name in d.free:
-        lines.append(f"free parameter {name}: declared {_declared(problem, name):.6g} -> "
-                     f"{f.free_values[name]:.6g} +- {f.free_ci.get(name, math.nan):.2g} (95 %)")
+    for row in corrections(problem, result):
+        band = "" if not row["band"] or row["band"][0] is None else \
+            f", tolerance x{row['band'][0]:g}..x{row['band'][1]:g}"
+        lines.append(f"parameter {row['name']}: declared {row['declared']:.6g} -> {row['identified']:.6g} "
+                     f"+- {row['ci_half_width']:.2g} (95 %; x{row['ratio']:.3g}{band}): {row['status']}")
+    mu = mu_line(problem, result)
+    if mu:
+        lines.append(mu)
     for k, rnd in enumerate(result.rounds):
         te_note = "" if not math.isfinite(rnd.baseline_te_rms_held_out) else \
             f", transmission error {rnd.baseline_te_rms_held_out * 1e3:.4f} mrad"
@@ -275,8 +385,30 @@ def console_summary(problem: Problem, result: Analysis, tau_d: dict[str, float])
             f" [{ef.grid_ci[g.name][0]:.3g}, {ef.grid_ci[g.name][1]:.3g}]" if g.name in ef.grid_ci else "")
                   for g in ef.effect.grid_parameters]
         lines.append(f"effect {ef.name}: " + "; ".join(parts))
-    lines.append(f"held-out RMS error of the drive current: before {d.rms_held_out:.5f} A "
-                 f"({d.rms_held_out * kt * 1e3:.3f} mN m), after {f.rms_held_out:.5f} A ({f.rms_held_out * kt * 1e3:.3f} mN m)")
+    for a in result.aliases:
+        parts = ", ".join(f"{k} = {v:.4g} +- {a.ci.get(k, math.nan):.2g}" for k, v in a.values.items() if v)
+        lines.append(f"effect {a.effect} (named from {', '.join(a.parameters)} beyond the declared value's "
+                     f"tolerance; its size counted from the declared value): {parts}")
+    for c in result.contributions:
+        scale, unit = (1e3, "mrad") if c.unit == "rad" else (1.0, c.unit)
+        lines.append(f"unique contribution of {c.name}: held-out RMS {c.rms_without * scale:.5f} -> "
+                     f"{c.rms_with * scale:.5f} {unit} without -> with it, {c.delta * scale:.5f} {unit} "
+                     f"[{c.interval[0] * scale:.5f}, {c.interval[1] * scale:.5f}] (95 %, block bootstrap)")
+    lines.append(f"held-out RMS error of the drive current: before {result.rms_before:.5f} A "
+                 f"({result.rms_before * kt * 1e3:.3f} mN m; the rig file as declared), corrected "
+                 f"{d.rms_held_out:.5f} A (refitted parameters), after {f.rms_held_out:.5f} A "
+                 f"({f.rms_held_out * kt * 1e3:.3f} mN m)")
+    if result.noise is not None:
+        n = result.noise
+        lines.append(f"noise floor {n.rms:.5f} A, estimated from the data: {n.method}, {n.samples} samples; "
+                     f"after / floor = {f.rms_held_out / n.rms:.2f}")
+    u = result.unexplained
+    if u is not None:
+        lines.append(f"UNEXPLAINED residual: {u.rms:.5f} A above the noise floor (held-out RMS {u.ratio:.2f} x "
+                     f"the floor, more than {problem.settings.unexplained_factor:g} x); no effect of the "
+                     f"vocabulary describes it. It goes with:")
+        for c in u.correlations:
+            lines.append(f"    {c.quantity:<18} {100 * c.share:5.1f} % of its variance  ({c.detail})")
     if d.te is not None and f.te is not None:
         lines.append(f"held-out RMS error of the transmission error (theta_gear fitted too): before "
                      f"{d.te.rms_held_out * 1e3:.4f} mrad, after {f.te.rms_held_out * 1e3:.4f} mrad")
@@ -292,8 +424,12 @@ def _unit(unit: str) -> str:
 
 
 def found_line(result: Analysis) -> str:
+    """``found: <names|none> rms_before=<x> rms_after=<y> A[ unexplained=<z> A]``."""
     names = ",".join(result.found) or "none"
-    return f"found: {names} rms_before={result.declared.rms_held_out:.6g} rms_after={result.final.rms_held_out:.6g} {UNIT}"
+    line = f"found: {names} rms_before={result.rms_before:.6g} rms_after={result.final.rms_held_out:.6g} {UNIT}"
+    if result.unexplained is not None:
+        line += f" unexplained={result.unexplained.rms:.4g} {UNIT}"
+    return line
 
 
 def write_json(path: Path, report: dict[str, Any]) -> None:
