@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from worm_model.physics.parameters import ParameterError, load_rig
-from worm_model.residuals.cases import evaluate_lines, small_matrix
+from torque_estimator.experiment.residual_cases import evaluate_lines, small_matrix
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import CalibrationError, load_database

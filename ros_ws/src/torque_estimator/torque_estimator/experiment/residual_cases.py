@@ -18,8 +18,8 @@ free.TOLERANCES) can only be told from a wrong declared value by size, so their 
 lie beyond the tolerance band *including* a declared value off by the amounts above
 (e.g. bearing drag 30 mN m on the worm: 34 mN m against a declared 8 mN m is x4.25 > x2.5).
 
-The simulator lives in worm_rig_driver (which depends on worm_model): it is imported
-inside the functions that simulate, so the residuals package itself stays free of it.
+It lives here, with the experiments, because it needs both the residual analysis
+(worm_model) and the simulator (worm_rig_driver).
 
 :func:`run_matrix` runs a list of cases; :func:`small_matrix` is what ``make evaluate``
 prints (one line: :func:`summary_line`), :func:`full_matrix` the one the slow test runs.
@@ -38,7 +38,7 @@ import numpy as np
 from worm_model.physics.parameters import Rig, load_rig
 from worm_model.rig_data.schema import MeasuredData
 
-from worm_model.residuals import analysis as an
+import worm_model.residuals.analysis as an
 from worm_model.residuals.free import get_value, set_values
 from worm_model.residuals.model import prepare_signals
 
