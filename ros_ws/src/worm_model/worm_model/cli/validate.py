@@ -166,7 +166,7 @@ def read_text(path: str | os.PathLike[str], what: str = "file") -> str:
             raise InputError(str(file), f"{size} bytes: too large for a {what} (at most {MAX_TEXT_BYTES})")
         data = file.read_bytes()
     except FileNotFoundError:
-        raise InputError(str(file), f"no such {what}") from None
+        raise InputError(str(file), f"not found (expected a {what})") from None
     except OSError as err:
         raise InputError(str(file), f"cannot read: {err.strerror or err}") from None
     try:
@@ -403,7 +403,7 @@ def run_tool(tool: str, main: Callable[[], int], bad_input: Sequence[type[BaseEx
     """Run a tool's ``main`` and turn what escapes it into an exit code and one stderr line.
 
     InputError and the loaders' errors the tool names in ``bad_input`` -> exit 2;
-    KeyboardInterrupt -> 130; any other exception is a bug: one line saying so, the traceback
+    KeyboardInterrupt -> 130; OSError (disk full, ...) -> exit 1; any other exception is a bug: one line saying so, the traceback
     written to a file named in that line, exit 1.
     """
     try:
@@ -417,6 +417,9 @@ def run_tool(tool: str, main: Callable[[], int], bad_input: Sequence[type[BaseEx
     except BrokenPipeError:  # e.g. `... | head`
         sys.stderr.close()
         return 0
+    except OSError as err:  # the machine, not the input: a full disk, a folder gone meanwhile
+        print(f"{tool}: {one_line(err)}", file=sys.stderr)
+        return 1
     except Exception as err:  # noqa: BLE001 - reported as a bug, with its traceback kept
         fd, name = tempfile.mkstemp(prefix=f"{tool}-traceback-", suffix=".txt")
         with os.fdopen(fd, "w", encoding="utf-8") as stream:
