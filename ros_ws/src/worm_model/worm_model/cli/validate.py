@@ -59,11 +59,12 @@ class InputError(ValueError):
 
 def _bound(low: float | None, high: float | None, open_low: bool, open_high: bool, unit: str) -> str:
     u = f" {unit}" if unit else ""
+    lo, hi = (str(x) if isinstance(x, int) else f"{x:g}" for x in (low, high))
     if low is not None and high is not None:
-        return f"in {'(' if open_low else '['}{low:g}, {high:g}{')' if open_high else ']'}{u}"
+        return f"in {'(' if open_low else '['}{lo}, {hi}{')' if open_high else ']'}{u}"
     if low is not None:
-        return f"{'>' if open_low else '>='} {low:g}{u}"
-    return f"{'<' if open_high else '<='} {high:g}{u}"
+        return f"{'>' if open_low else '>='} {lo}{u}"
+    return f"{'<' if open_high else '<='} {hi}{u}"
 
 
 def check_number(value: Any, where: str, unit: str = "", low: float | None = None, high: float | None = None, *,
