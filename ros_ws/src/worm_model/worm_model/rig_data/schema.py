@@ -112,6 +112,8 @@ class MeasuredData:
     run: np.ndarray = field(default=None)  # type: ignore[assignment]  # run index per sample (int)
     lines: np.ndarray | None = None
     """Line of the CSV file each sample came from (None for other sources)."""
+    damage: tuple[str, ...] = ()
+    """Storage files read although truncated (messages lost), and what was lost."""
 
     def __post_init__(self) -> None:
         n = len(self.t)
