@@ -138,7 +138,7 @@ def test_broken_file_is_rejected_naming_file_and_field(tmp_path: Path, case: str
 
 def test_missing_file(tmp_path: Path) -> None:
     path = tmp_path / "nowhere.json"
-    with pytest.raises(CalibrationError, match=f"calibration file {path}: not found"):
+    with pytest.raises(CalibrationError, match=f"calibration file {path}: cannot read: no such file"):
         load_database(path)
 
 

@@ -159,22 +159,23 @@ def read_text(path: str | os.PathLike[str], what: str = "file") -> str:
             (the message gives the offset of the first bad byte).
     """
     file = Path(path)
+    a = f"{'an' if what[:1] in 'aeiou' else 'a'} {what}"
     try:
         if file.is_dir():
-            raise InputError(str(file), f"is a folder, expected a {what}")
+            raise InputError(str(file), f"is a folder, expected {a}")
         size = file.stat().st_size
         if size > MAX_TEXT_BYTES:
-            raise InputError(str(file), f"{size} bytes: too large for a {what} (at most {MAX_TEXT_BYTES})")
+            raise InputError(str(file), f"{size} bytes: too large for {a} (at most {MAX_TEXT_BYTES})")
         data = file.read_bytes()
     except FileNotFoundError:
-        raise InputError(str(file), f"not found (expected a {what})") from None
+        raise InputError(str(file), f"cannot read: no such file (expected {a})") from None
     except OSError as err:
         raise InputError(str(file), f"cannot read: {err.strerror or err}") from None
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as err:
         raise InputError(str(file), f"not UTF-8 text (byte 0x{data[err.start]:02x} at offset {err.start}): "
-                                    f"expected a {what}") from None
+                                    f"expected {a}") from None
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
