@@ -60,6 +60,7 @@ import io
 import re
 import shutil
 import sqlite3
+import struct
 import tempfile
 from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -503,7 +504,7 @@ class McapFile:
         self.damage = ''
         try:
             self._read_summary()
-        except (McapError, OSError, ValueError, EOFError) as err:
+        except (McapError, OSError, ValueError, EOFError, struct.error) as err:
             self.stream.close()
             msg = f'Cannot read MCAP storage file {path}: {err!r}'
             raise BagReadError(msg) from err
@@ -512,7 +513,7 @@ class McapFile:
         reader = SeekingReader(self.stream)
         try:
             summary = reader.get_summary()
-        except (McapError, EOFError, ValueError):
+        except (McapError, EOFError, ValueError, struct.error):
             summary = None
         if summary is not None:
             self.seekable = True
@@ -536,7 +537,7 @@ class McapFile:
                         records.append(record)
                     elif isinstance(record, DataEnd):
                         break  # every message is before it: a cut in the summary loses none
-            except (McapError, EOFError, ValueError) as err:
+            except (McapError, EOFError, ValueError, struct.error) as err:
                 self.damage = (f'{self.path}: truncated: it ends inside a record ({type(err).__name__}) '
                                f'of its {size} bytes, so the messages of the cut-off part are lost; '
                                f'{messages} message(s) before the cut can be read')
@@ -589,12 +590,12 @@ class McapFile:
                         self.stream, record_size_limit=None).iter_messages(log_time_order=False):
                     if topics is None or channel.topic in topics:
                         found.append((message.log_time, message.sequence, channel.topic, message.data))
-            except (McapError, EOFError):
+            except (McapError, EOFError, struct.error):
                 pass  # truncated
             found.sort(key=lambda m: m[:2])
             for log_time, _sequence, topic, data in found:
                 yield topic, log_time, data
-        except (McapError, OSError, ValueError) as err:
+        except (McapError, OSError, ValueError, struct.error) as err:
             msg = f'Cannot read messages of MCAP storage file {self.path}: {err!r}'
             raise BagReadError(msg) from err
 

@@ -136,6 +136,12 @@ def existing_file(text: str) -> Path:
 class Parser(argparse.ArgumentParser):
     """argparse, with every error as one line ``prog: --option: what`` and exit code 2 (no usage block)."""
 
+    def _get_values(self, action: argparse.Action, arg_strings: list[str]) -> Any:
+        # "--opt=--": argparse drops the "--" and hands the option an empty list instead of a value
+        if action.nargs is None and action.option_strings and not [a for a in arg_strings if a != "--"]:
+            self.error(f"argument {'/'.join(action.option_strings)}: expected a value")
+        return super()._get_values(action, arg_strings)
+
     def error(self, message: str) -> None:  # type: ignore[override]
         where, what = "", message
         if message.startswith("argument "):
@@ -242,6 +248,8 @@ def load_json(path: str | os.PathLike[str], what: str = "JSON file") -> Any:
 
 #: a measured value beyond MARGIN times what the rig file says the rig can do is refused as implausible
 MARGIN: Final = 2.0
+#: largest unwrapped angle accepted [rad]
+MAX_ANGLE: Final = 1e12
 
 
 @dataclass(frozen=True)
@@ -250,8 +258,9 @@ class Envelope:
 
     ``omega_worm``: no-load speed at the supply voltage, V/K_e [rad/s]; ``current_drive``: stall current
     V/R [A]; ``tau_load``: what the load motors make at stall, count K_t V/R [N m]; ``current_load``:
-    their summed stall current [A]; ``voltage_drive``: the supply [V]; ``temperature`` [degC]: -60..250.
-    Angles and times are only required to be finite.
+    their summed stall current [A]; ``voltage_drive``: the supply [V]; ``temperature`` [degC]: -60..250;
+    unwrapped angles [rad]: MAX_ANGLE (the no-load speed for some 80 years). Times are only required
+    to be finite.
     """
 
     limits: dict[str, tuple[float, str]]
@@ -268,6 +277,8 @@ class Envelope:
             "current_load": (margin * rig.load_motor_count * v / load.resistance, "A"),
             "voltage_drive": (margin * v, "V"),
             "temperature": (250.0, "degC"),
+            "theta_worm": (MAX_ANGLE, "rad"),
+            "theta_gear": (MAX_ANGLE, "rad"),
         }, getattr(rig, "name", ""))
 
     def problem(self, column: str, value: float) -> str | None:
