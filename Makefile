@@ -6,10 +6,10 @@ setup:
 	@bash tools/setup.sh
 
 demo: setup
-	@$(RUN) python -m torque_estimator.experiment.demo --out out/demo
+	@$(RUN) python -m torque_estimator.experiment.demo --out out/demo --force
 
 evaluate: setup
-	@$(RUN) python -m torque_estimator.experiment.evaluate --out out/evaluate
+	@$(RUN) python -m torque_estimator.experiment.evaluate --out out/evaluate --force
 
 test: setup
 	@$(RUN) python -m pytest

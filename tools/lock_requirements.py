@@ -11,7 +11,7 @@ from pathlib import Path
 
 HEADER = """# Every Python dependency of the project, pinned to exact versions (one file).
 # ROS 2 Kilted from the ros-* wheels with rmw_fastrtps_cpp as the RMW, colcon,
-# numpy/scipy/matplotlib, pyserial, rosbags (+ mcap readers), pytest.
+# numpy/scipy/matplotlib, pyserial, rosbags (+ mcap readers), pytest, hypothesis.
 # Regenerate: tools/lock_requirements.py (keeps real distributions only; the
 # ros-* wheels also carry inner egg-info entries that are not on PyPI).
 """

@@ -4,6 +4,8 @@ Map (dependencies point up this list, never down; no module imports rclpy
 outside ``ros/`` and ``nodes/``):
 
 ============  =================================================================
+``cli``       what every command-line tool and file loader shares (input validation and atomic
+              outputs: ``cli/validate.py``; progress bars)
 ``physics``   the model itself: rig parameters (one YAML file, a source for every
               number), friction mu, modes and flanks, efficiencies, internal forces
               (Eqs 21-23), coupled dynamics (Eq 28), PMDC motor (Eq 29), steady state
@@ -16,7 +18,6 @@ outside ``ros/`` and ``nodes/``):
 ``residuals`` closing the loop with measured data: fit, residual, effects, report
 ``calc``      ``worm_calc``: one operating point through the model
 ``figures``   ``report``: the paper's Figures 6-11 from a calibration
-``cli``       what every command-line tool shares (progress bars)
 ``ros``       what every node of the project shares (QoS, parameters, diagnostics,
               lifecycle, ament lookup)
 ``nodes``     model_node, the ROS shell over ``live``

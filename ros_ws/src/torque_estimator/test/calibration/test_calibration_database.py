@@ -138,14 +138,14 @@ def test_broken_file_is_rejected_naming_file_and_field(tmp_path: Path, case: str
 
 def test_missing_file(tmp_path: Path) -> None:
     path = tmp_path / "nowhere.json"
-    with pytest.raises(CalibrationError, match=f"calibration file not found: {path}"):
+    with pytest.raises(CalibrationError, match=f"calibration file {path}: cannot read: no such file"):
         load_database(path)
 
 
 def test_not_json_gives_line_and_column(tmp_path: Path) -> None:
     path = tmp_path / "calibration.json"
     path.write_text('{"format": "worm_torque_calibration",\n "version": 1,,\n}', encoding="utf-8")
-    with pytest.raises(CalibrationError, match="not valid JSON at line 2 column 15"):
+    with pytest.raises(CalibrationError, match="line 2, column 15: not valid JSON"):
         load_database(path)
 
 

@@ -107,11 +107,11 @@ def test_cli_prints_table_3_and_its_summary_last(tmp_path: Path) -> None:
 def test_cli_sweeps_write_their_plot(tmp_path: Path) -> None:
     done = subprocess.run([str(find_executable("evaluate")), "--speeds", "3", "--torques", "4", "--points", "4",
                            "--sweep-points", "8", "--ks", "1,2", "--grid-sizes", "2x2,3x4", "--noise", "0,1",
-                           "--no-transient", "--no-residuals", "--out", str(tmp_path), "--quiet"],
+                           "--no-transient", "--no-residuals", "--out", str(tmp_path / "out"), "--quiet"],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert LAST_LINE.match(done.stdout.splitlines()[-1]).group(3) == "4"
-    assert (tmp_path / "error_sweeps.png").stat().st_size > 0
+    assert (tmp_path / "out" / "error_sweeps.png").stat().st_size > 0
     assert "neighbours k [uniform]  1: " in done.stdout
 
 

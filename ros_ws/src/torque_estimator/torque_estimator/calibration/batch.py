@@ -90,7 +90,8 @@ def batch_seed(seed: int, batch: int) -> int:
 def calibrate_simulated(rig: Rig, grid: CalibrationGrid, *, seed: int = 0, gains: PiGains = DEFAULT_GAINS,
                         criterion: SteadyStateCriterion = SteadyStateCriterion(),
                         progress: Callable[[float], None] | None = None, batch_size: int = DEFAULT_BATCH_SIZE,
-                        journal: Path | None = None, resume: bool = False) -> CalibrationDatabase:
+                        journal: Path | None = None, resume: bool = False,
+                        drop_bad_points: bool = False) -> CalibrationDatabase:
     """Run the calibration grid on the simulated rig and return the database.
 
     The plan's points (CalibrationGrid.points() order) are cut into batches of
@@ -102,6 +103,8 @@ def calibrate_simulated(rig: Rig, grid: CalibrationGrid, *, seed: int = 0, gains
         progress: called with the fraction of the grid's points done.
         journal: journal file written after every batch (calibration_journal); None: none.
         resume: continue the journal at `journal` if it exists.
+        drop_bad_points: measure again the points the journal holds with bad values
+            (CalibrationJournal.open) instead of refusing it.
 
     Raises:
         calibration_journal.JournalError: a journal exists and resume is False, or
@@ -113,7 +116,7 @@ def calibrate_simulated(rig: Rig, grid: CalibrationGrid, *, seed: int = 0, gains
     n = len(speeds)
     settings = {"source": "simulator", **grid_settings(grid, rig, criterion), "seed": seed,
                 "gains": {"kp": gains.kp, "ki": gains.ki}, "batch_size": batch_size}
-    book = CalibrationJournal.open(journal, settings, n, resume)
+    book = CalibrationJournal.open(journal, settings, n, resume, drop_bad_points)
     pending = set(book.pending().tolist())
     for batch, first in enumerate(range(0, n, batch_size)):
         members = np.arange(first, min(first + batch_size, n))

@@ -36,49 +36,59 @@ from torque_estimator.calibration.journal import CalibrationJournal, default_jou
 from torque_estimator.calibration.live import LiveRigError, PointByPoint, live_settings
 from torque_estimator.calibration.operating_points import SteadyStateCriterion
 from worm_model.cli.progress import ProgressBar
+from worm_model.cli.validate import InputError, Parser, check_output, existing_file, integer, number, run_tool
 
 EXIT_INTERRUPTED = 130
+#: largest grid dimension and longest time per point [s] accepted (the paper's grid is 17 x 16, points take ~1 s)
+MAX_GRID = 200
+MAX_POINT_TIME = 600.0
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="calibrate", description=__doc__.split("\n\n")[0],
+    p = Parser(prog="calibrate", description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[1:]),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", type=Path, required=True, help="calibration database to write (JSON)")
-    p.add_argument("--rig", type=Path, default=None,
+    p.add_argument("--out", type=Path, required=True,
+                   help="calibration database to write (JSON); an existing file is replaced only with --force")
+    p.add_argument("--force", action="store_true", help="replace an existing --out file")
+    p.add_argument("--rig", type=existing_file, default=None,
                    help="rig parameter YAML recorded in the database (default: the bundled NMRV030 rig); "
                         "with --live it must describe the rig on the graph")
     grid = p.add_argument_group("grid")
-    grid.add_argument("--speeds", type=int, default=17, help="number of worm speeds per direction (default 17)")
-    grid.add_argument("--torques", type=int, default=16, help="number of load torques (default 16)")
-    grid.add_argument("--speed-min", type=float, default=20.0, help="smallest worm speed [rad/s] (default 20)")
-    grid.add_argument("--speed-max", type=float, default=340.0, help="largest worm speed [rad/s] (default 340)")
-    grid.add_argument("--torque-fraction", type=float, default=0.9,
+    grid.add_argument("--speeds", type=integer(1, MAX_GRID), default=17, help="number of worm speeds per direction (default 17)")
+    grid.add_argument("--torques", type=integer(2, MAX_GRID), default=16, help="number of load torques (default 16)")
+    grid.add_argument("--speed-min", type=number("rad/s", 0, open_low=True), default=20.0, help="smallest worm speed [rad/s] (default 20)")
+    grid.add_argument("--speed-max", type=number("rad/s", 0, open_low=True), default=340.0,
+                      help="largest worm speed [rad/s], at most the rig's no-load speed (default 340)")
+    grid.add_argument("--torque-fraction", type=number("", 0, 1, open_low=True), default=0.9,
                       help="load torques span +- this fraction of what the load motors can make (default 0.9)")
     steady = p.add_argument_group("steady-state criterion (operating_points.SteadyStateCriterion)")
     default = SteadyStateCriterion()
-    steady.add_argument("--window", type=float, default=default.window,
+    steady.add_argument("--window", type=number("s", 0, MAX_POINT_TIME, open_low=True), default=default.window,
                         help=f"averaging window of a steady point [s] (default {default.window:g})")
-    steady.add_argument("--settle-time", type=float, default=default.settle_time,
+    steady.add_argument("--settle-time", type=number("s", 0, MAX_POINT_TIME), default=default.settle_time,
                         help=f"earliest start of a point's first window [s] (default {default.settle_time:g})")
-    steady.add_argument("--timeout", type=float, default=default.timeout,
+    steady.add_argument("--timeout", type=number("s", 0, MAX_POINT_TIME, open_low=True), default=default.timeout,
                         help=f"after this [s] an unsettled point keeps its last window and is listed as "
                              f"unsettled (default {default.timeout:g})")
     sim = p.add_argument_group("simulator (without --live)")
-    sim.add_argument("--seed", type=int, default=0, help="seed of the simulated sensor noise (default 0)")
-    sim.add_argument("--batch-size", type=int, default=DEFAULT_BATCH_SIZE,
+    sim.add_argument("--seed", type=integer(0, 2**63 - 1), default=0, help="seed of the simulated sensor noise (default 0)")
+    sim.add_argument("--batch-size", type=integer(1, 100_000), default=DEFAULT_BATCH_SIZE,
                      help=f"points simulated side by side; the journal is written after each batch "
                           f"(default {DEFAULT_BATCH_SIZE})")
     live = p.add_argument_group("live rig (--live)")
     live.add_argument("--live", action="store_true",
                       help="drive the rig on the ROS graph (needs /rig/sample and controller_node)")
-    live.add_argument("--start-timeout", type=float, default=30.0,
+    live.add_argument("--start-timeout", type=number("s", 0, 3600, open_low=True), default=30.0,
                       help="wait this long [s] for the rig's samples and controller_node (default 30)")
     resume = p.add_argument_group("resuming")
     resume.add_argument("--resume", action="store_true",
                         help="continue the interrupted run recorded in the journal (same options required; "
                              "starts afresh if there is no journal)")
     resume.add_argument("--journal", type=Path, default=None, help="journal file (default: <out>.partial)")
+    resume.add_argument("--drop-bad-points", action="store_true",
+                        help="with --resume: measure again the points the journal holds with a missing or "
+                             "non-finite value, instead of refusing the journal")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -88,21 +98,28 @@ def _interrupt(signum, _frame) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    return run_tool("calibrate", lambda: _main(argv), (ParameterError, CalibrationError))
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     journal_path = args.journal or default_journal_path(args.out)
-    try:
-        rig = load_rig(args.rig)
-        grid = CalibrationGrid.paper(rig, args.speeds, args.torques, args.speed_min, args.speed_max,
-                                     args.torque_fraction)
-        if not (0 < args.window and 0 <= args.settle_time and 0 < args.timeout):
-            raise ValueError("need --window > 0, --settle-time >= 0 and --timeout > 0")
-        if args.batch_size < 1:
-            raise ValueError(f"--batch-size must be >= 1, got {args.batch_size}")
-        if not args.out.parent.is_dir():
-            raise ValueError(f"--out {args.out}: folder {args.out.parent} does not exist")
-    except (ParameterError, ValueError) as err:
-        print(f"calibrate: {err}", file=sys.stderr)
-        return 2
+    rig = load_rig(args.rig)
+    top_speed = rig.supply_voltage / rig.drive_motor.back_emf_constant
+    if args.speed_max > top_speed:
+        raise InputError("--speed-max", f"{args.speed_max:g} rad/s is beyond what the rig can reach "
+                                        f"(no-load speed {top_speed:.4g} rad/s at {rig.supply_voltage:g} V)")
+    if not args.speed_min < args.speed_max:
+        raise InputError("--speed-min", f"{args.speed_min:g} rad/s must be below --speed-max {args.speed_max:g} rad/s")
+    grid = CalibrationGrid.paper(rig, args.speeds, args.torques, args.speed_min, args.speed_max,
+                                 args.torque_fraction)
+    check_output(args.out, args.force)
+    if journal_path.is_dir():
+        raise InputError(f"--journal {journal_path}", "is a folder, expected a file name")
+    if args.resume and journal_path.exists():  # a journal that cannot be finished is refused before measuring
+        journal = CalibrationJournal.load(journal_path, len(grid.speeds) * len(grid.torques), args.drop_bad_points)
+        for dropped in journal.dropped:
+            print(f"calibrate: journal {journal_path}: {dropped}: measured again", file=sys.stderr)
     criterion = SteadyStateCriterion(window=args.window, settle_time=args.settle_time, timeout=args.timeout)
     n = len(grid.speeds) * len(grid.torques)
     signal.signal(signal.SIGTERM, _interrupt)  # `kill` gets the same clean stop as Ctrl-C
@@ -114,6 +131,7 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 db = calibrate_simulated(rig, grid, seed=args.seed, criterion=criterion, batch_size=args.batch_size,
                                          journal=journal_path, resume=args.resume,
+                                         drop_bad_points=args.drop_bad_points,
                                          progress=lambda fraction: bar.update_to(round(fraction * n)))
         save_database(db, args.out)
     except KeyboardInterrupt:
@@ -141,7 +159,8 @@ def _calibrate_live(args, rig, grid, criterion, journal_path, bar):
     from torque_estimator.calibration.calibration_node import run_live
 
     n = len(grid.speeds) * len(grid.torques)
-    journal = CalibrationJournal.open(journal_path, live_settings(grid, rig, criterion), n, args.resume)
+    journal = CalibrationJournal.open(journal_path, live_settings(grid, rig, criterion), n, args.resume,
+                                      args.drop_bad_points)
     run = PointByPoint(grid, journal, criterion, 1.0 / rig.sensors.sample_rate_hz)
     bar.update_to(len(journal.points))
     run_live(run, start_timeout=args.start_timeout, on_point=lambda: bar.update_to(len(journal.points)))

@@ -42,7 +42,9 @@ from typing import Any, Final
 
 import numpy as np
 
-from torque_estimator.estimation.database import CalibrationDatabase, CalibrationError, write_text_atomically
+from worm_model.cli.validate import InputError, load_json, write_text_atomically
+
+from torque_estimator.estimation.database import CalibrationDatabase, CalibrationError
 
 FORMAT: Final = "worm_torque_calibration_journal"
 VERSION: Final = 1
@@ -102,6 +104,25 @@ def _lookup(doc: Any, dotted: str) -> Any:
     return doc
 
 
+def _point_problem(point: dict[str, Any]) -> str:
+    """What is wrong with one journal point ("" if nothing)."""
+    for name, unit in COLUMNS.items():
+        value = point[name]
+        if name == "settled":
+            if not isinstance(value, bool):
+                return f"field 'settled' is {value!r}, not true or false"
+            continue
+        if value is None and name.endswith("_std"):
+            continue  # a spread may be unknown
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            return f"field '{name}' is {'null' if value is None else repr(value)}, not a finite number [{unit}]"
+        if (name.endswith("_std") or name == "samples") and value < 0:
+            return f"field '{name}' is {value!r}, negative"
+        if name == "samples" and value != int(value):
+            return f"field 'samples' is {value!r}, not a whole number"
+    return ""
+
+
 class CalibrationJournal:
     """Points measured so far (by plan index) under one set of settings; see the module docstring.
 
@@ -119,24 +140,30 @@ class CalibrationJournal:
         self.started = started or datetime.now(timezone.utc).isoformat(timespec="seconds")
         self.resumed = resumed
         self.points: dict[int, dict[str, float]] = {}
+        #: points a resumed journal held with bad values and left out (measured again), described
+        self.dropped: list[str] = []
 
     # --- opening --------------------------------------------------------------------------------
     @classmethod
     def open(cls, path: Path | None, settings: dict[str, Any], n_points: int,
-             resume: bool) -> "CalibrationJournal":
+             resume: bool, drop_bad_points: bool = False) -> "CalibrationJournal":
         """A fresh journal, or (resume) the one at ``path`` if there is one.
+
+        Args:
+            drop_bad_points: leave out points the journal holds with a missing or non-finite
+                value (they are measured again) instead of refusing the journal.
 
         Raises:
             JournalError: a journal exists and resume is False (it would be
-                overwritten); or it cannot be read, or was taken with other
-                settings (the message names the first differing setting).
+                overwritten); or it cannot be read, holds a bad point, or was taken
+                with other settings (the message names the first differing setting).
         """
         if path is None or not path.exists():
             return cls(path, settings, n_points)
         if not resume:
             raise JournalError(f"{path} holds an interrupted calibration: pass --resume to continue it, "
                                "or delete it to start over")
-        journal = cls.load(path, n_points)
+        journal = cls.load(path, n_points, drop_bad_points)
         wanted = _normalised(settings)
         differs = _first_difference(journal.settings, wanted)
         if differs:
@@ -147,17 +174,19 @@ class CalibrationJournal:
         return journal
 
     @classmethod
-    def load(cls, path: Path, n_points: int) -> "CalibrationJournal":
-        """Read a journal file (settings are not checked here; see :meth:`open`)."""
+    def load(cls, path: Path, n_points: int, drop_bad_points: bool = False) -> "CalibrationJournal":
+        """Read a journal file (settings are not checked here; see :meth:`open`).
+
+        Every point must have finite means (``omega_worm``, ``current_drive``, ``tau_load``), spreads
+        that are null or >= 0, a whole ``samples`` >= 0 and a boolean ``settled``: a journal holding
+        another point could be resumed but never finished. Such points are refused, naming the file,
+        the point and the way out, or with ``drop_bad_points`` left out (listed in :attr:`dropped`)
+        so that they are measured again.
+        """
         try:
-            doc = json.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise JournalError(f"journal not found: {path}") from None
-        except (OSError, UnicodeDecodeError) as err:
-            raise JournalError(f"journal {path}: cannot read: {err}") from None
-        except json.JSONDecodeError as err:
-            raise JournalError(f"journal {path}: not valid JSON at line {err.lineno} column {err.colno}: "
-                               f"{err.msg}") from None
+            doc = load_json(path, "calibration journal")
+        except InputError as err:
+            raise JournalError(f"journal {err}") from None
         if not isinstance(doc, dict) or doc.get("format") != FORMAT:
             raise JournalError(f"journal {path}: field 'format' is not {FORMAT!r}")
         if doc.get("version") != VERSION:
@@ -181,8 +210,17 @@ class CalibrationJournal:
             if not 0 <= index < n_points:
                 raise JournalError(f"journal {path}: field 'points.plan_index' at row {row}: {index} is not "
                                    f"a point of this run's plan (0..{n_points - 1})")
-            journal.points[index] = {name: (math.nan if columns[name][row] is None else columns[name][row])
-                                     for name in COLUMNS}
+            point = {name: columns[name][row] for name in COLUMNS}
+            problem = _point_problem(point)
+            if problem:
+                if drop_bad_points:
+                    journal.dropped.append(f"point {index} ({problem})")
+                    continue
+                raise JournalError(
+                    f"journal {path}: point {index} (row {row}): {problem}, so this calibration cannot be finished "
+                    "from it; resume with --drop-bad-points to measure that point again, or delete the journal "
+                    "to start over")
+            journal.points[index] = {name: (math.nan if v is None else v) for name, v in point.items()}
         return journal
 
     # --- progress -------------------------------------------------------------------------------

@@ -38,7 +38,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, replace
 from datetime import datetime
 from pathlib import Path
@@ -46,6 +45,9 @@ from typing import Any, Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from worm_model.cli.validate import Envelope, InputError, load_json, write_text_atomically
+from worm_model.physics.parameters import Rig
 
 FORMAT: Final = "worm_torque_calibration"
 VERSION: Final = 1
@@ -262,31 +264,6 @@ def save_database(db: CalibrationDatabase, path: str | os.PathLike[str]) -> None
     write_text_atomically(target, text + "\n")
 
 
-def write_text_atomically(path: str | os.PathLike[str], text: str) -> None:
-    """Write ``text`` (UTF-8) to ``path`` so that a reader, or a crash, sees the old file or the new one.
-
-    The text goes to a temporary file in the same directory, is synced, then
-    moved over ``path`` with :func:`os.replace`.
-
-    Raises:
-        OSError: the directory is not writable.
-    """
-    target = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        umask = os.umask(0o022)  # mkstemp makes the file 0600; give it the mode open() would
-        os.umask(umask)
-        os.chmod(fd, 0o666 & ~umask)
-        with os.fdopen(fd, "w", encoding="utf-8") as stream:
-            stream.write(text)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def _require(obj: dict[str, Any], key: str, where: str = "") -> Any:
     if key not in obj:
         raise CalibrationError(f"missing field {where + key!r}")
@@ -320,33 +297,43 @@ def _from_document(doc: Any) -> CalibrationDatabase:
     )
 
 
-def load_database(path: str | os.PathLike[str]) -> CalibrationDatabase:
+def load_database(path: str | os.PathLike[str], rig: Rig | None = None) -> CalibrationDatabase:
     """Read and validate a calibration file written by :func:`save_database`.
 
     Raises:
         CalibrationError: the file is missing or unreadable, is not JSON (the
             message gives line and column), has the wrong format or an
             unsupported version, lacks a field, has columns of unequal length,
-            or has a non-finite mean value; the message names the file and the
+            has a non-finite mean value, or (``rig`` given) a point far outside
+            what that rig can do (check_plausible); the message names the file and the
             field (and the point index where relevant).
     """
     source = Path(path)
     try:
-        text = source.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise CalibrationError(f"calibration file not found: {source}") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise CalibrationError(f"calibration file {source}: cannot read: {err}") from None
+        doc = load_json(source, "calibration file")
+    except InputError as err:
+        raise CalibrationError(f"calibration file {err}") from None
     try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as err:
-        raise CalibrationError(
-            f"calibration file {source}: not valid JSON at line {err.lineno} column {err.colno}: {err.msg}"
-        ) from None
-    try:
-        return _from_document(doc)
+        db = _from_document(doc)
+        if rig is not None:
+            check_plausible(db, rig)
     except CalibrationError as err:
         raise CalibrationError(f"calibration file {source}: {err}") from None
+    return db
+
+
+def check_plausible(db: CalibrationDatabase, rig: Rig) -> None:
+    """Every point inside what ``rig`` can do (worm_model.cli.validate.Envelope).
+
+    Raises:
+        CalibrationError: a point far outside the rig's envelope (the field and the point are named).
+    """
+    envelope = Envelope.of(rig)
+    for name in ("omega_worm", "current_drive", "tau_load"):
+        values = getattr(db, name)
+        k = envelope.first_outside(name, values)
+        if k is not None:
+            raise CalibrationError(f"field 'points.{name}' at point {k}: {envelope.problem(name, float(values[k]))}")
 
 
 __all__ = [
@@ -360,4 +347,5 @@ __all__ = [
     "save_database",
     "load_database",
     "write_text_atomically",
+    "check_plausible",
 ]

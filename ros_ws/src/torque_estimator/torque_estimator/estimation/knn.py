@@ -40,7 +40,9 @@ Method, per sample (ω, i):
    farther than ``outside_margin`` × h, h the typical grid spacing in scaled
    units = the median distance from each stored point to its nearest other
    (distinct) point of the same direction. The estimate is still returned.
-8. NaN/inf in ω or i: τ̂ = u = NaN, INVALID_INPUT; never raises.
+8. NaN/inf in ω or i: τ̂ = u = NaN, INVALID_INPUT; never raises. Finite inputs so large
+   that a squared distance would overflow (|scaled feature| > 1e100) are clipped to
+   that size first: still OUT_OF_CALIBRATION, never an error.
 
 TRANSIENT is never set here: the map is quasi-static and this estimator
 does not see acceleration; the caller sets it.
@@ -59,6 +61,9 @@ from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.base import EstimateFlags, TorqueEstimates
 
 _TINY_DISTANCE: Final = 1e-12
+#: |scaled feature| beyond this is clipped to it before the tree query: its square must not overflow
+#: (the query then stays OUT_OF_CALIBRATION, and the estimate is the map's edge, as for any far query)
+_FAR: Final = 1e100
 
 #: weighting name → (distances (m, k) → unnormalised weights (m, k)).
 WEIGHTINGS: Final[dict[str, Callable[[NDArray[np.float64]], NDArray[np.float64]]]] = {
@@ -173,6 +178,7 @@ class KnnEstimator:
                                              np.asarray(current_drive, dtype=np.float64))
         x = np.column_stack((omega.ravel(), current.ravel())) / self._scale
         valid = np.isfinite(x).all(axis=1)
+        x = np.clip(x, -_FAR, _FAR)  # squared distances of larger ones overflow the tree query
         negative = is_negative(x[:, 0], x[:, 1])
         torque = np.full(len(x), np.nan)
         uncertainty = np.full(len(x), np.nan)
@@ -197,8 +203,9 @@ class KnnEstimator:
         if side is None:
             return math.nan, math.nan, EstimateFlags.OUT_OF_CALIBRATION
         k, wide = self._neighbour_counts(side)
-        dist, index = side.tree.query((omega / self.feature_scale[0], current / self.feature_scale[1]),
-                                      k=list(range(1, wide + 1)))
+        query = (min(max(omega / self.feature_scale[0], -_FAR), _FAR),
+                 min(max(current / self.feature_scale[1], -_FAR), _FAR))
+        dist, index = side.tree.query(query, k=list(range(1, wide + 1)))
         tau, tau_var = side.tau[index].tolist(), side.tau_var[index].tolist()
         weight = self._weights(dist).tolist()
         flags = EstimateFlags.OUT_OF_CALIBRATION if dist[0] > self.outside_margin * self.grid_spacing \

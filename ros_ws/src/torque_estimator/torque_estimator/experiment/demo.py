@@ -28,6 +28,7 @@ from torque_estimator.graph.runner import default_graph_file
 from torque_estimator.experiment.evaluation import evaluate_held_out, format_table
 from torque_estimator.experiment.plots import estimate_vs_truth, held_out_deviation, tracking
 from worm_model.cli.progress import ProgressBar
+from worm_model.cli.validate import Parser, check_output, existing_file, integer, run_tool
 from torque_estimator.experiment.run_analysis import analyse_run, recorded_load_steps
 from torque_estimator.experiment.scenario import DEMO_SCENARIO
 from torque_estimator.experiment.scenario_node import live_run
@@ -58,13 +59,20 @@ def load_run(bag: Path, start_stamp: float) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="demo", description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path("out/demo"), help="folder for every output (replaced)")
-    parser.add_argument("--graph", type=Path, default=None, help="graph parameter file (default: installed sim_graph.yaml)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of calibration noise and held-out draws")
+    return run_tool("demo", lambda: _main(argv))
+
+
+def _main(argv: list[str] | None) -> int:
+    parser = Parser(prog="demo", description=__doc__.split("\n\n")[0],
+                    formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+    parser.add_argument("--out", type=Path, default=Path("out/demo"),
+                        help="folder for every output (an existing one is replaced only with --force)")
+    parser.add_argument("--force", action="store_true", help="replace an existing --out folder")
+    parser.add_argument("--graph", type=existing_file, default=None,
+                        help="graph parameter file (default: installed sim_graph.yaml)")
+    parser.add_argument("--seed", type=integer(0, 2**32 - 2), default=0, help="seed of calibration noise and held-out draws")
     args = parser.parse_args(argv)
-    out = args.out.resolve()
+    out = check_output(args.out, args.force, folder=True).resolve()
     shutil.rmtree(out, ignore_errors=True)
     out.mkdir(parents=True)
     os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(100, 230)))

@@ -28,12 +28,12 @@ of the database's τ_d). The last line printed is
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from worm_model.cli.validate import Parser, atomic_dir, check_output, existing_file, integer, run_tool
 from worm_model.physics.parameters import ParameterError, load_rig
 from torque_estimator.experiment.residual_cases import evaluate_lines, small_matrix
 
@@ -81,28 +81,30 @@ def _sizes(text: str) -> list[tuple[int, int]]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="evaluate", description=__doc__.split("\n\n")[0],
+    p = Parser(prog="evaluate", description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[1:]),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--calibration", type=Path, default=None,
+    p.add_argument("--calibration", type=existing_file, default=None,
                    help="calibration database to evaluate (default: calibrate the paper's grid now)")
-    p.add_argument("--rig", type=Path, default=None,
+    p.add_argument("--rig", type=existing_file, default=None,
                    help="rig parameter YAML of the simulated rig (default: the bundled NMRV030 rig)")
-    p.add_argument("--out", type=Path, default=Path("out/evaluate"), help="folder for the PNGs (default out/evaluate)")
+    p.add_argument("--out", type=Path, default=Path("out/evaluate"),
+                   help="folder for the PNGs, created (default out/evaluate; an existing one only with --force)")
+    p.add_argument("--force", action="store_true", help="replace an existing --out folder")
     p.add_argument("--method", default="knn", choices=sorted(ESTIMATORS), help="estimator (default knn)")
-    p.add_argument("--k", type=int, default=4, help="neighbours of the k-NN estimator (default 4)")
+    p.add_argument("--k", type=integer(1, 64), default=4, help="neighbours of the k-NN estimator (default 4)")
     p.add_argument("--weighting", default="inverse_distance", choices=sorted(WEIGHTINGS),
                    help="k-NN weighting (default inverse_distance)")
-    p.add_argument("--points", type=int, default=17, help="held-out points of the table (default 17, as the paper)")
-    p.add_argument("--seed", type=int, default=0,
+    p.add_argument("--points", type=integer(1, 10_000), default=17, help="held-out points of the table (default 17, as the paper)")
+    p.add_argument("--seed", type=integer(0, 2**32 - 2), default=0,
                    help="seed of the calibration noise; held-out draws and their noise use seed+1 (default 0)")
-    p.add_argument("--speeds", type=int, default=17, help="speeds per direction of the calibration grid (default 17)")
-    p.add_argument("--torques", type=int, default=16, help="torques of the calibration grid (default 16)")
+    p.add_argument("--speeds", type=integer(1, 1000), default=17, help="speeds per direction of the calibration grid (default 17)")
+    p.add_argument("--torques", type=integer(2, 1000), default=16, help="torques of the calibration grid (default 16)")
     sweep = p.add_argument_group("sweeps")
     sweep.add_argument("--no-sweeps", action="store_true", help="only the table and the deviation plot")
     sweep.add_argument("--no-transient", action="store_true",
                        help="leave out the estimators side by side (held-out, step, ramp, reversal)")
-    sweep.add_argument("--sweep-points", type=int, default=68,
+    sweep.add_argument("--sweep-points", type=integer(1, 10_000), default=68,
                        help="held-out points each sweep value is scored on (default 68)")
     sweep.add_argument("--ks", type=_int_list, default=[1, 2, 3, 4, 6, 8, 12, 16],
                        help="k values, comma-separated (default 1,2,3,4,6,8,12,16)")
@@ -117,29 +119,43 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    return run_tool("evaluate", lambda: _main(argv), (ParameterError, CalibrationError))
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     start = time.monotonic()
+    check_output(args.out, args.force, folder=True)
+    rig = load_rig(args.rig)
+    if args.calibration is not None:
+        db = load_database(args.calibration, rig)
+        if db.torque_range <= 0:
+            raise CalibrationError(f"calibration file {args.calibration}: its {len(db)} point(s) span no torque "
+                                   "range: errors are in % of that range; calibrate at two loads at least")
+        grid = CalibrationGrid(speeds=db.speed_setpoints, torques=db.torque_setpoints)
+        source = str(args.calibration)
+    else:
+        grid = CalibrationGrid.paper(rig, args.speeds, args.torques)
+        n = len(grid.speeds) * len(grid.torques)
+        with ProgressBar(n, "calibration points", enabled=not args.quiet) as bar:
+            db = calibrate_simulated(rig, grid, seed=args.seed,
+                                     progress=lambda f: bar.update_to(round(f * n)))
+        source = f"calibrated now, seed {args.seed}"
+    options = {"k": args.k, "weighting": args.weighting} if args.method == "knn" else {}
     try:
-        if args.points < 1 or args.sweep_points < 1 or args.k < 1:
-            raise ValueError("--points, --sweep-points and --k must be >= 1")
-        rig = load_rig(args.rig)
-        if args.calibration is not None:
-            db = load_database(args.calibration)
-            grid = CalibrationGrid(speeds=db.speed_setpoints, torques=db.torque_setpoints)
-            source = str(args.calibration)
-        else:
-            grid = CalibrationGrid.paper(rig, args.speeds, args.torques)
-            n = len(grid.speeds) * len(grid.torques)
-            with ProgressBar(n, "calibration points", enabled=not args.quiet) as bar:
-                db = calibrate_simulated(rig, grid, seed=args.seed,
-                                         progress=lambda f: bar.update_to(round(f * n)))
-            source = f"calibrated now, seed {args.seed}"
-        options = {"k": args.k, "weighting": args.weighting} if args.method == "knn" else {}
         estimator = make_estimator(args.method, db, **options)
-    except (ParameterError, CalibrationError, ValueError) as err:
-        print(f"evaluate: {err}", file=sys.stderr)
-        return 2
-    args.out.mkdir(parents=True, exist_ok=True)
+    except ValueError as err:
+        raise CalibrationError(f"--method {args.method}: {err}") from None
+    with atomic_dir(args.out, args.force) as folder:
+        pngs, ev = _evaluate(args, rig, grid, db, estimator, options, source, folder)
+    print(f"\nevaluate: wrote {', '.join(str(args.out / p.name) for p in pngs)} in {time.monotonic() - start:.1f} s")
+    print(f"{args.method}: mae_pct={ev.mae_pct:.2f} max_pct={ev.max_pct:.2f} points={len(ev.tau_true)}")
+    return 0
+
+
+def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
+    """Everything but the last two lines, the PNGs written into ``out``; returns their paths and the table's
+    evaluation."""
     print(f"evaluate: {args.method} ({', '.join(f'{k}={v}' for k, v in options.items())}) on {len(db)} "
           f"calibration points ({source}), torque range {db.torque_range:.4f} N·m")
 
@@ -147,12 +163,12 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\nTable 3: {args.points} held-out operating points (not grid points), simulated rig")
     print("\n".join(format_table(ev)))
     print(f"  mean error {ev.mae_pct:.2f} %, largest {ev.max_pct:.2f} % of the calibrated torque range")
-    pngs = [held_out_deviation(args.out / "held_out_deviation.png", ev.tau_true, ev.tau_estimated, db.torque_range)]
+    pngs = [held_out_deviation(out / "held_out_deviation.png", ev.tau_true, ev.tau_estimated, db.torque_range)]
 
     if not args.no_sweeps:
         results = run_sweeps(args, rig, grid, db, options)
         reference = {"neighbours k": args.k, "calibration points": len(db), "sensor noise (x the rig's)": 1.0}
-        pngs.append(sweeps(args.out / "error_sweeps.png", results, reference))
+        pngs.append(sweeps(out / "error_sweeps.png", results, reference))
         print(f"\nSweeps ({args.sweep_points} held-out points each; mean / largest error, % of torque range)")
         for result in results:
             for label, mae in result.mae_pct.items():
@@ -161,12 +177,10 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"  {result.name} [{label}]  {cells}")
     if not args.no_transient:
         side_by_side(args, rig, grid, db)
-    print(f"\nevaluate: wrote {', '.join(str(p) for p in pngs)} in {time.monotonic() - start:.1f} s")
     if not args.no_residuals:  # the residuals tool's case matrix (issue 15); ends with its `residuals:` line
         with ProgressBar(len(small_matrix()), "residuals cases", enabled=not args.quiet) as bar:
             print("\n".join(evaluate_lines(progress=bar.update_to)))
-    print(f"{args.method}: mae_pct={ev.mae_pct:.2f} max_pct={ev.max_pct:.2f} points={len(ev.tau_true)}")
-    return 0
+    return pngs, ev
 
 
 def side_by_side(args, rig, grid, db) -> None:

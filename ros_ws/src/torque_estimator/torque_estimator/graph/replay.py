@@ -60,7 +60,8 @@ import yaml
 
 from worm_model.live.live_model import FIELDS as FORCE_FIELDS
 from worm_model.live.live_model import LiveModel
-from worm_model.physics.parameters import load_rig
+from worm_model.cli.validate import Envelope, InputError, Parser, existing_file, load_yaml, number, run_tool
+from worm_model.physics.parameters import ParameterError, load_rig
 from worm_model.rig_data.schema import RigDataError
 from worm_model.bags.reader import BagReader
 from worm_model.bags.typestore import BagRecordingError
@@ -84,6 +85,8 @@ NODE_DEFAULTS: dict[str, dict[str, Any]] = {
                        "joint_state_topic": "/torque_estimate/joint_states", "joint_name": "gear",
                        "wrench_topic": "/torque_estimate/wrench", "wrench_frame": "gear_output"},
 }
+#: sample channels checked against the rig's envelope before they reach a core
+PLAUSIBLE_CHANNELS = ("omega_worm", "current_drive", "tau_load", "voltage_drive")
 ESTIMATE_TOPIC = "/torque_estimate"
 FORCES_TOPIC = "/gearbox/forces"
 ESTIMATE_FIELDS = ("torque", "uncertainty", "flags", "omega_worm", "current_drive")
@@ -105,9 +108,9 @@ def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> 
     params = {node: dict(values) for node, values in NODE_DEFAULTS.items()}
     if params_file is not None:
         try:
-            document = yaml.safe_load(Path(params_file).read_text(encoding="utf-8")) or {}
-        except (OSError, yaml.YAMLError) as err:
-            raise ReplayError(f"cannot read parameter file {params_file}: {err}") from None
+            document = load_yaml(params_file, "graph parameter file") or {}
+        except InputError as err:
+            raise ReplayError(f"parameter file {err}") from None
         if not isinstance(document, dict):
             raise ReplayError(f"parameter file {params_file}: expected node names at the top level")
         for node in params:
@@ -125,8 +128,28 @@ def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> 
             continue  # another node of the graph (the same --set list serves run_graph)
         for assignment in assignments:
             name, _, text = assignment.partition(":=")
-            params[node][name] = yaml.safe_load(text) if text else ""
+            default = NODE_DEFAULTS[node].get(name)
+            if name not in NODE_DEFAULTS[node]:
+                raise ReplayError(f"--set {node}.{name}={text}: {node} has no parameter {name!r} "
+                                  f"(it has: {', '.join(NODE_DEFAULTS[node])})")
+            try:
+                value = yaml.safe_load(text) if text else ""
+            except yaml.YAMLError:
+                value = text
+            if not _same_kind(default, value):
+                raise ReplayError(f"--set {node}.{name}={text}: expected {type(default).__name__} like the "
+                                  f"node's default {default!r}")
+            params[node][name] = value
     return params
+
+
+def _same_kind(default: Any, value: Any) -> bool:
+    """``value`` has the parameter type of ``default`` (an int is a float too, a bool is not a number)."""
+    if isinstance(default, bool) or isinstance(value, bool):
+        return isinstance(default, bool) and isinstance(value, bool)
+    if isinstance(default, float):
+        return isinstance(value, (int, float))
+    return isinstance(value, type(default))
 
 
 # --- replay ----------------------------------------------------------------------------------------
@@ -175,7 +198,7 @@ def _live_seqs(reader: BagReader, topic: str) -> set[int] | None:
 
 def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators: Iterable[str] | None = None,
            *, follow_live: bool = False, sample_topic: str | None = None, progress: bool = False,
-           start_seq: int = 0) -> ReplayResult:
+           allow_truncated: bool = False, start_seq: int = 0) -> ReplayResult:
     """Run model_node's and estimator_node's cores over the bag's RigSample stream.
 
     Args:
@@ -187,9 +210,11 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
         start_seq: batches ending before this seq are not fed (a replay that starts where a live
             node's recorded answers start).
         progress: Show a progress bar on stderr.
+        allow_truncated: Read a storage file cut inside a record as far as it goes.
 
     Raises:
-        ReplayError: Bad bag, calibration or estimator name.
+        ReplayError: Bad bag, calibration or estimator name, or a sample far outside what
+            estimator_node's rig can do (named by message, seq and column).
     """
     model_p, est_p = params["model_node"], params["estimator_node"]
     names = list(estimators) if estimators else [str(est_p["method"])]
@@ -198,7 +223,7 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
     database = None
     if est_p["calibration_file"]:
         try:
-            database = load_database(est_p["calibration_file"])
+            database = load_database(est_p["calibration_file"], load_rig(est_p["rig_file"] or None))
         except CalibrationError as err:
             raise ReplayError(f"estimator_node.calibration_file: {err}") from None
     elif needing := [n for n in names if n not in CALIBRATION_OPTIONAL]:
@@ -223,10 +248,11 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
                                  change_threshold=float(est_p["change_threshold"]))
              for name in names}
     model_out, est_out = Outputs(), {name: Outputs() for name in names}
+    envelope = Envelope.of(est_rig)
     first = last = None
     n = 0
     try:
-        with BagReader(bag) as reader:
+        with BagReader(bag, allow_truncated=allow_truncated) as reader:
             topic = find_sample_topic(reader, sample_topic)
             # model_node processes every batch it receives, in timer-sized chunks, and publishes the newest
             # sample's forces: its outputs do not tell which batches it got, so it is fed them all
@@ -239,6 +265,11 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
                     batch = samples_of(message.decoded, kind)
                     if not batch:
                         continue
+                    for s in batch:
+                        for column in PLAUSIBLE_CHANNELS:
+                            if problem := envelope.problem(column, float(getattr(s, column))):
+                                raise ReplayError(f"{bag}: {topic} message {n_messages}, sample seq {int(s.seq)}, "
+                                                  f"column {column!r}: {problem}")
                     last_seq = int(batch[-1].seq)
                     if last_seq < start_seq:
                         continue
@@ -295,13 +326,13 @@ class Comparison:
 
 
 def compare(bag: Path | str, topic: str, replayed: Outputs, fields: Sequence[str], warmup: float = 0.0,
-            method: str | None = None) -> Comparison | None:
+            method: str | None = None, allow_truncated: bool = False) -> Comparison | None:
     """Compare one core's outputs with the live messages recorded on ``topic`` (None if not recorded).
 
     Samples within ``warmup`` [s] (of header stamp) after the first recorded
     live output are matched but not compared (filter start-up, see module docstring).
     """
-    with BagReader(bag) as reader:
+    with BagReader(bag, allow_truncated=allow_truncated) as reader:
         if topic not in reader.topics:
             return None
         live = {}
@@ -339,14 +370,18 @@ def _print_comparison(c: Comparison, label: str) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
+    return run_tool("replay", lambda: _main(argv), (ReplayError, BagRecordingError, RigDataError, ParameterError))
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    parser = Parser(
         prog="replay", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="prints `replay_<metric>: <value> <unit>` lines: samples, span, wall, speed_factor, and for\n"
                "the live outputs the bag holds, replay_forces_* and replay_estimates_* (matched, compared,\n"
                "live_only, replay_only, max_abs_diff; per-field differences on stderr).\n"
                "exit code 2 on a bad bag, parameter file or calibration (the message names it).")
     parser.add_argument("bag", type=Path, help="bag directory (or .mcap/.db3 file) holding /rig/samples or /rig/sample")
-    parser.add_argument("--params-file", type=Path, default=None, metavar="FILE",
+    parser.add_argument("--params-file", type=existing_file, default=None, metavar="FILE",
                         help="graph parameter file of the live run (default: the installed sim_graph.yaml)")
     parser.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
                         help="override one parameter of model_node or estimator_node (repeatable), "
@@ -359,35 +394,34 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--follow-live", action="store_true",
                         help="feed each core only the samples its live node answered (by the seqs of the "
                              "recorded /torque_estimate and /gearbox/forces)")
-    parser.add_argument("--warmup", type=float, default=0.0, metavar="SECONDS",
+    parser.add_argument("--allow-truncated", action="store_true",
+                        help="read a bag file cut inside a record (messages lost) as far as it goes")
+    parser.add_argument("--warmup", type=number("s", 0, 1e6), default=0.0, metavar="SECONDS",
                         help="leave the first SECONDS of live outputs out of the comparison (filter start-up)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
-    try:
-        params = node_parameters(args.params_file or default_graph_file(), args.set)
-        names = args.estimators.split(",") if args.estimators else None
-        result = replay(args.bag, params, names, follow_live=args.follow_live, sample_topic=args.topic,
-                        progress=not args.quiet)
-        print(f"replay_samples: {result.samples} count")
-        print(f"replay_span: {result.span:.3f} s")
-        print(f"replay_wall: {result.wall:.3f} s")
-        print(f"replay_speed_factor: {result.speed_factor:.1f} x real time")
-        forces = compare(args.bag, FORCES_TOPIC, result.model, FORCE_FIELDS, args.warmup)
-        if forces is not None:
-            _print_comparison(forces, "forces")
-        method = str(params["estimator_node"]["method"])
-        if method in result.estimates:
-            estimates = compare(args.bag, ESTIMATE_TOPIC, result.estimates[method], ESTIMATE_FIELDS,
-                                args.warmup, method)
-            if estimates is not None:
-                _print_comparison(estimates, "estimates")
-        for name, outputs in result.estimates.items():
-            torque = outputs.array("torque")
-            finite = torque[np.isfinite(torque)]
-            print(f"replay_{name}_mean_torque: {finite.mean() if finite.size else math.nan:.6g} N m")
-    except (ReplayError, BagRecordingError) as err:
-        print(f"replay: {err}", file=sys.stderr)
-        return 2
+    params = node_parameters(args.params_file or default_graph_file(), args.set)
+    names = args.estimators.split(",") if args.estimators else None
+    result = replay(args.bag, params, names, follow_live=args.follow_live, sample_topic=args.topic,
+                    progress=not args.quiet, allow_truncated=args.allow_truncated)
+    print(f"replay_samples: {result.samples} count")
+    print(f"replay_span: {result.span:.3f} s")
+    print(f"replay_wall: {result.wall:.3f} s")
+    print(f"replay_speed_factor: {result.speed_factor:.1f} x real time")
+    forces = compare(args.bag, FORCES_TOPIC, result.model, FORCE_FIELDS, args.warmup,
+                     allow_truncated=args.allow_truncated)
+    if forces is not None:
+        _print_comparison(forces, "forces")
+    method = str(params["estimator_node"]["method"])
+    if method in result.estimates:
+        estimates = compare(args.bag, ESTIMATE_TOPIC, result.estimates[method], ESTIMATE_FIELDS,
+                            args.warmup, method, args.allow_truncated)
+        if estimates is not None:
+            _print_comparison(estimates, "estimates")
+    for name, outputs in result.estimates.items():
+        torque = outputs.array("torque")
+        finite = torque[np.isfinite(torque)]
+        print(f"replay_{name}_mean_torque: {finite.mean() if finite.size else math.nan:.6g} N m")
     return 0
 
 

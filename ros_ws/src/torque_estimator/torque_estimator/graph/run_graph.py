@@ -12,24 +12,29 @@ Stops all nodes on Ctrl-C / SIGTERM, or when one of them exits on its own.
 """
 from __future__ import annotations
 
-import argparse
 import signal
 import sys
 import time
 from pathlib import Path
 
+from worm_model.cli.validate import Parser, integer, run_tool
+
 from torque_estimator.graph.runner import Graph, GraphError, parse_overrides
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="run_graph", description=__doc__.split("\n\n")[0])
+    return run_tool("run_graph", lambda: _main(argv), (GraphError,))
+
+
+def _main(argv: list[str] | None) -> int:
+    parser = Parser(prog="run_graph", description=__doc__.split("\n\n")[0])
     parser.add_argument("graph", type=Path, help="ROS 2 parameter file whose top-level keys are the nodes to start")
     parser.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
                         help="override one parameter of one node (repeatable)")
     parser.add_argument("--together", action="append", default=[], metavar="NODE,NODE,...",
                         help="run these nodes in one process on one executor (repeatable, one group each; "
                              "e.g. --together sim_node,model_node,estimator_node,controller_node)")
-    parser.add_argument("--priority", type=int, default=0, choices=range(0, 100), metavar="0-99",
+    parser.add_argument("--priority", type=integer(0, 99), default=0, metavar="0-99",
                         help="SCHED_FIFO priority of the graph's processes (0: normal scheduling)")
     parser.add_argument("--log-dir", type=Path, default=None,
                         help="write each node's output to <dir>/<node>.log instead of this terminal")
@@ -37,13 +42,9 @@ def main(argv: list[str] | None = None) -> int:
     stop = []
     for signum in (signal.SIGINT, signal.SIGTERM):  # a flag, so a second Ctrl-C cannot cut the clean stop short
         signal.signal(signum, lambda *_: stop.append(True))
-    try:
-        groups = [[n for n in group.split(",") if n] for group in args.together]
-        graph = Graph(args.graph, parse_overrides(args.set), args.log_dir, together=groups,
-                      priority=args.priority).start()
-    except GraphError as err:
-        print(f"run_graph: {err}", file=sys.stderr)
-        return 2
+    groups = [[n for n in group.split(",") if n] for group in args.together]
+    graph = Graph(args.graph, parse_overrides(args.set), args.log_dir, together=groups,
+                  priority=args.priority).start()
     print(f"run_graph: started {', '.join(graph.processes)}", flush=True)
     while not stop and not graph.failed():
         time.sleep(0.2)

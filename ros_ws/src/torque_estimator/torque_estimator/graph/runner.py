@@ -22,6 +22,7 @@ from pathlib import Path
 
 import yaml
 
+from worm_model.cli.validate import InputError, load_yaml
 from worm_model.ros.ament import ament_prefixes, find_executable
 from worm_rig_driver.drive.realtime import realtime_permitted
 
@@ -42,9 +43,9 @@ def default_graph_file() -> Path:
 def graph_nodes(params_file: Path) -> list[str]:
     """Node names (= executable names) at the top level of a ROS 2 parameter file."""
     try:
-        data = yaml.safe_load(Path(params_file).read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as err:
-        raise GraphError(f"cannot read graph file {params_file}: {err}") from None
+        data = load_yaml(params_file, "graph parameter file")
+    except InputError as err:
+        raise GraphError(f"graph file {err}") from None
     if not isinstance(data, dict) or not data:
         raise GraphError(f"graph file {params_file}: expected node names at the top level")
     for name, body in data.items():
@@ -72,7 +73,7 @@ def parse_overrides(items: list[str]) -> dict[str, list[str]]:
         target, sep, value = item.partition("=")
         node, dot, param = target.partition(".")
         if not (sep and dot and node and param):
-            raise GraphError(f"override '{item}' is not of the form node.param=value")
+            raise GraphError(f"--set {item}: not of the form node.param=value")
         overrides.setdefault(node, []).append(f"{param}:={value}")
     return overrides
 
@@ -102,7 +103,7 @@ class Graph:
 
     def composed_command(self, group: list[str]) -> list[str]:
         """One process for ``group``: the overrides are merged into a parameter file of its own."""
-        data = yaml.safe_load(Path(self.params_file).read_text(encoding="utf-8"))
+        data = load_yaml(self.params_file, "graph parameter file")
         for node, assignments in self.overrides.items():
             section = data.setdefault(node, {}).setdefault("ros__parameters", {})
             for assignment in assignments:

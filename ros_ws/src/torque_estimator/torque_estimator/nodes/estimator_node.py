@@ -92,7 +92,7 @@ class EstimatorNode(Node):
         self.problem = ""
         try:
             database = (None if not self.calibration_file and self.method in CALIBRATION_OPTIONAL
-                        else load_database(self.calibration_file))
+                        else load_database(self.calibration_file, self.rig))
             options = node_options(self.method, {"k": k, "weighting": weighting, "model_file": model_file,
                                                  "rig_file": rig_file})
             self.estimator = LiveEstimator(self.rig, make_estimator(self.method, database, **options),

@@ -91,7 +91,7 @@ def test_text_output_and_help() -> None:
         (("--tau-in", "0.2"), "missing --tau-load"),
         ((), "give --tau-in and --tau-load"),
         (("--mu", "-0.1"), "mu"),
-        (("--mu", "abc"), "invalid float"),
+        (("--mu", "abc"), "not a number"),
         (("--tau-in", "0.1", "--tau-load", "0.1", "--gear-inertia", "-1"), "gear inertia"),
         (("--tau-in", "0.1", "--tau-load", "0.1", "--rig", "/nonexistent/rig.yaml"), "rig.yaml"),
     ],

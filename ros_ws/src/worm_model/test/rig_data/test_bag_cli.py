@@ -97,7 +97,7 @@ def test_export_import_export_round_trip(rig_bag: Path, tmp_path: Path) -> None:
         bag = tmp_path / f'imported_{storage}'
         done = run_bag('import', first_csv, '--out', bag, '--storage', storage, '--start', '1700000000')
         assert done.returncode == 0, done.stderr
-        done = run_bag('export', bag, '--out', second_csv)
+        done = run_bag('export', bag, '--out', second_csv, '--force')  # the second storage replaces it
         assert done.returncode == 0, done.stderr
         assert second_csv.read_text() == first_csv.read_text()
 

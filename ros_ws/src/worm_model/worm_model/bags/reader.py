@@ -60,6 +60,7 @@ import io
 import re
 import shutil
 import sqlite3
+import struct
 import tempfile
 from collections.abc import Callable, Collection, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -70,7 +71,7 @@ from urllib.parse import quote
 import zstandard
 from mcap.exceptions import McapError
 from mcap.reader import NonSeekingReader, SeekingReader
-from mcap.records import Channel, Metadata, Schema
+from mcap.records import Channel, DataEnd, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 from rosbags.typesys import (
     Stores,
@@ -238,6 +239,10 @@ def _nanoseconds(node: Any, key: str, inner: str, where: str) -> int | None:
     return _require(node, inner, int, f'{where}: {key}')
 
 
+#: newest metadata.yaml version this reader knows (rosbag2 of Kilted writes 9)
+MAX_METADATA_VERSION: Final = 9
+
+
 def parse_metadata(document: Any, source: str) -> BagMetadata:
     """Check and convert a parsed ``metadata.yaml`` (versions 1 to 9).
 
@@ -263,6 +268,10 @@ def parse_metadata(document: Any, source: str) -> BagMetadata:
         raise BagReadError(msg)
     meta = BagMetadata(source=source)
     meta.version = _require(info, 'version', int, where)
+    if not 1 <= meta.version <= MAX_METADATA_VERSION:
+        msg = (f'{where}: key version is {meta.version}: this reader knows metadata versions 1 to '
+               f'{MAX_METADATA_VERSION} (a newer rosbag2 wrote it, or the file is damaged)')
+        raise BagReadError(msg)
     meta.storage_identifier = _require(info, 'storage_identifier', str, where)
     paths = _optional(info, 'relative_file_paths', list, where, [])
     for i, name in enumerate(paths):
@@ -491,9 +500,11 @@ class McapFile:
             raise BagReadError(msg) from err
         self.seekable = False
         self.embedded_metadata: BagMetadata | None = None
+        #: why the file is damaged (data lost), "" if it is not
+        self.damage = ''
         try:
             self._read_summary()
-        except (McapError, OSError, ValueError, EOFError) as err:
+        except (McapError, OSError, ValueError, EOFError, struct.error) as err:
             self.stream.close()
             msg = f'Cannot read MCAP storage file {path}: {err!r}'
             raise BagReadError(msg) from err
@@ -502,7 +513,7 @@ class McapFile:
         reader = SeekingReader(self.stream)
         try:
             summary = reader.get_summary()
-        except (McapError, EOFError, ValueError):
+        except (McapError, EOFError, ValueError, struct.error):
             summary = None
         if summary is not None:
             self.seekable = True
@@ -512,16 +523,24 @@ class McapFile:
             self.warnings.append(f'{self.path}: no MCAP summary (file not closed); scanned instead')
             schemas, channels, records = {}, {}, []
             self.stream.seek(0)
+            messages = 0
+            size = self.path.stat().st_size
             try:
                 for record in StreamReader(self.stream, record_size_limit=None).records:
                     if isinstance(record, Schema):
                         schemas[record.id] = record
                     elif isinstance(record, Channel):
                         channels[record.id] = record
+                    elif isinstance(record, Message):
+                        messages += 1
                     elif isinstance(record, Metadata) and record.name == 'rosbag2':
                         records.append(record)
-            except (McapError, EOFError, ValueError):
-                pass  # truncated: what was read is what there is
+                    elif isinstance(record, DataEnd):
+                        break  # every message is before it: a cut in the summary loses none
+            except (McapError, EOFError, ValueError, struct.error) as err:
+                self.damage = (f'{self.path}: truncated: it ends inside a record ({type(err).__name__}) '
+                               f'of its {size} bytes, so the messages of the cut-off part are lost; '
+                               f'{messages} message(s) before the cut can be read')
         self.topics = []
         self._channel_topics: dict[int, str] = {}
         seen: set[str] = set()
@@ -571,12 +590,12 @@ class McapFile:
                         self.stream, record_size_limit=None).iter_messages(log_time_order=False):
                     if topics is None or channel.topic in topics:
                         found.append((message.log_time, message.sequence, channel.topic, message.data))
-            except (McapError, EOFError):
+            except (McapError, EOFError, struct.error):
                 pass  # truncated
             found.sort(key=lambda m: m[:2])
             for log_time, _sequence, topic, data in found:
                 yield topic, log_time, data
-        except (McapError, OSError, ValueError) as err:
+        except (McapError, OSError, ValueError, struct.error) as err:
             msg = f'Cannot read messages of MCAP storage file {self.path}: {err!r}'
             raise BagReadError(msg) from err
 
@@ -662,7 +681,8 @@ class BagReader(ClosesOnExit):
     asked for.
     """
 
-    def __init__(self, path: Path | str, types: MessageTypes | None = None) -> None:
+    def __init__(self, path: Path | str, types: MessageTypes | None = None, *,
+                 allow_truncated: bool = False) -> None:
         """Open the bag: read ``metadata.yaml`` and every storage file's topics.
 
         Args:
@@ -670,15 +690,23 @@ class BagReader(ClosesOnExit):
                 ``.zstd``-compressed).
             types: Type store for types the bag has no definition of; a new
                 :class:`MessageTypes` over ``AMENT_PREFIX_PATH`` when None.
+            allow_truncated: read a storage file cut inside a record (messages
+                lost) as far as it goes, listing it in :attr:`damage`, instead of
+                refusing it. A file that merely lacks its summary (a recorder
+                killed between chunks) loses nothing and is always read.
 
         Raises:
             BagReadError: No such path, bad ``metadata.yaml``, a listed file
-                missing, or a storage file unreadable (each named).
+                missing, a storage file unreadable, or (unless allow_truncated)
+                truncated inside a record (each named).
 
         """
         self.path = Path(path)
         self.types = types
         self.warnings: list[str] = []
+        #: storage files cut inside a record, and what was lost (read with allow_truncated)
+        self.damage: list[str] = []
+        self.allow_truncated = allow_truncated
         self.metadata: BagMetadata | None = None
         self.files: list[StorageFile] = []
         self._tmpdir: tempfile.TemporaryDirectory[str] | None = None
@@ -751,6 +779,13 @@ class BagReader(ClosesOnExit):
             raise BagReadError(msg)
         opened_file = reader(opened, path.name)
         self.warnings.extend(getattr(opened_file, 'warnings', []))
+        if damage := getattr(opened_file, 'damage', ''):
+            if not self.allow_truncated:
+                opened_file.close()
+                msg = f'{damage} (--allow-truncated reads them)'
+                raise BagReadError(msg)
+            self.damage.append(damage)
+            self.warnings.append(damage)
         return opened_file
 
     def _decompress_file(self, path: Path) -> Path:

@@ -160,6 +160,9 @@ def forces(gearbox: Gearbox, tau_in: float, tau_d: float, omega_worm: float | No
         "output_power": None,
         "friction_power": None,
     })
+    overflowed = [k for k, v in out.items() if isinstance(v, float) and math.isinf(v)]
+    if overflowed:
+        raise CalculatorError(f"{overflowed[0]} overflows (inf) for these inputs: they are far outside any gear set")
     if omega_worm is not None:
         v_s = float(sliding_velocity(gearbox, omega_worm))
         omega_gear = ratio * omega_worm
@@ -183,12 +186,16 @@ def efficiencies(gearbox: Gearbox, mu: float) -> dict[str, Any]:
         efficiency_forward (worm drives gear, tan(lambda)/tan(lambda + rho')),
         efficiency_backward (gear drives worm, tan(lambda - rho')/tan(lambda); <= 0 when
         self-locking), self_locking (mu > cos(phi_n) tan(lambda)), and
-        forward_drive_possible (mu < mu_max, Remark 4).
+        forward_drive_possible (mu < mu_max, Remark 4; always true, as larger mu are refused).
     Raises:
-        CalculatorError: mu negative or not finite.
+        CalculatorError: mu negative, not finite, or at or beyond mu_max (Remark 4).
     """
     if not _finite("mu", mu) >= 0:
         raise CalculatorError(f"mu {mu:g}: must be >= 0")
+    if mu >= gearbox.mu_engagement_max:
+        raise CalculatorError(f"mu {mu:g} is at or beyond the Remark-4 bound mu_max = cos(phi_n) cot(lambda) = "
+                              f"{gearbox.mu_engagement_max:.4g} of this geometry: the driving flank does not "
+                              "engage, there is no efficiency to compute")
     rho = float(friction_angle(gearbox, mu))
     out: dict[str, Any] = geometry(gearbox)
     out.update({

@@ -15,7 +15,16 @@ from pathlib import Path
 from typing import Any
 
 from worm_model.calc.calculator import CalculatorError, efficiencies, forces, make_gearbox, to_json_ready
+from worm_model.cli.validate import Parser, existing_file, number, run_tool
 from worm_model.physics.parameters import ParameterError, load_rig
+
+#: what the calculator takes: bounds far beyond any worm gear set (the largest make ~1e5 N m), so that a
+#: typo or an overflow is refused instead of computed
+MAX_RADIUS = 10.0  # [m]
+MAX_TORQUE = 1e6  # [N m]
+MAX_SPEED = 1e5  # [rad/s]
+MAX_ACCELERATION = 1e8  # [rad/s^2]
+MAX_INERTIA = 1e4  # [kg m^2]
 
 FORCE_OPTIONS = ("tau_in", "tau_load", "omega", "alpha_worm", "worm_inertia", "gear_inertia", "switching_torque")
 
@@ -52,7 +61,7 @@ TEXT_ROWS = (
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog="worm_calc",
         description="Internal forces (paper Eqs 21-23) of a worm gear set from its torques, or its "
                     "forward/back-driving efficiencies and self-locking from a friction coefficient. "
@@ -62,32 +71,35 @@ def build_parser() -> argparse.ArgumentParser:
                "NMRV030 rig: r_w 7.5 mm, r_g 22.5 mm, lambda 5.71 deg, phi_n 20 deg). The speed ratio "
                "used is the one the geometry implies, i = r_w tan(lambda)/r_g. Exit code 2 on bad input.")
     g = p.add_argument_group("geometry (defaults: the rig file)")
-    g.add_argument("--rig", type=Path, default=None,
+    g.add_argument("--rig", type=existing_file, default=None,
                    help="rig parameter YAML the defaults come from (default: the bundled NMRV030 rig)")
-    g.add_argument("--r-worm", type=float, default=None, metavar="M", help="worm pitch radius r_w [m], > 0")
-    g.add_argument("--r-gear", type=float, default=None, metavar="M", help="gear pitch radius r_g [m], > 0")
-    g.add_argument("--lead-angle-deg", type=float, default=None, metavar="DEG",
+    g.add_argument("--r-worm", type=number("m", 0, MAX_RADIUS, open_low=True, what="worm pitch radius"), default=None, metavar="M", help="worm pitch radius r_w [m], > 0")
+    g.add_argument("--r-gear", type=number("m", 0, MAX_RADIUS, open_low=True, what="gear pitch radius"), default=None, metavar="M", help="gear pitch radius r_g [m], > 0")
+    g.add_argument("--lead-angle-deg", type=number("deg", 0, 90, open_low=True, open_high=True, what="lead angle"), default=None, metavar="DEG",
                    help="worm lead angle lambda at the pitch radius [deg], in (0, 90)")
-    g.add_argument("--pressure-angle-deg", type=float, default=None, metavar="DEG",
+    g.add_argument("--pressure-angle-deg", type=number("deg", 0, 90, open_high=True, what="pressure angle"), default=None, metavar="DEG",
                    help="normal pressure angle phi_n [deg], in [0, 90)")
     f = p.add_argument_group("forces from torques (needs --tau-in and --tau-load)")
-    f.add_argument("--tau-in", type=float, default=None, metavar="NM",
+    f.add_argument("--tau-in", type=number("N m", -MAX_TORQUE, MAX_TORQUE, what="input torque"), default=None, metavar="NM",
                    help="torque on the worm shaft [N m], + drives + worm rotation")
-    f.add_argument("--tau-load", type=float, default=None, metavar="NM",
+    f.add_argument("--tau-load", type=number("N m", -MAX_TORQUE, MAX_TORQUE, what="load torque"), default=None, metavar="NM",
                    help="load torque on the gear shaft [N m], + opposes the motion that + worm rotation drives")
-    f.add_argument("--omega", type=float, default=None, metavar="RAD_S",
+    f.add_argument("--omega", type=number("rad/s", -MAX_SPEED, MAX_SPEED, what="worm speed"), default=None, metavar="RAD_S",
                    help="worm speed [rad/s]; its sign is the direction of motion and its size gives the "
                         "sliding velocity and powers (default: direction of --tau-in, no powers); 0 = standstill")
-    f.add_argument("--alpha-worm", type=float, default=None, metavar="RAD_S2",
+    f.add_argument("--alpha-worm", type=number("rad/s^2", -MAX_ACCELERATION, MAX_ACCELERATION,
+                                                      what="worm acceleration"), default=None, metavar="RAD_S2",
                    help="worm angular acceleration [rad/s^2] (default 0, quasi-static); the gear's is i times it")
-    f.add_argument("--worm-inertia", type=float, default=None, metavar="KGM2",
+    f.add_argument("--worm-inertia", type=number("kg m^2", 0, MAX_INERTIA, what="worm inertia"), default=None, metavar="KGM2",
                    help="inertia on the worm side of the measured tau_in [kg m^2] (default: the rig's worm shaft)")
-    f.add_argument("--gear-inertia", type=float, default=None, metavar="KGM2",
+    f.add_argument("--gear-inertia", type=number("kg m^2", 0, MAX_INERTIA, what="gear inertia"), default=None, metavar="KGM2",
                    help="inertia on the gear side of the measured tau_load [kg m^2] (default: the rig's gear shaft)")
-    f.add_argument("--switching-torque", type=float, default=None, metavar="NM",
+    f.add_argument("--switching-torque", type=number("N m", 0, MAX_TORQUE, what="switching torque"), default=None, metavar="NM",
                    help="switching torque tau_sw >= 0 [N m] for the mode (pseudo-resistive band); default 0")
     e = p.add_argument_group("efficiencies from a friction coefficient")
-    e.add_argument("--mu", type=float, default=None, help="tooth-thread friction coefficient, >= 0")
+    e.add_argument("--mu", type=number("", 0, what="mu"), default=None,
+                   help="tooth-thread friction coefficient, >= 0 and below the Remark-4 bound "
+                        "mu_max = cos(phi_n) cot(lambda) of the geometry")
     p.add_argument("--json", action="store_true", help="print one JSON object (snake_case keys, SI) instead of text")
     return p
 
@@ -107,6 +119,10 @@ def render_text(result: dict[str, Any]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
+    return run_tool("worm_calc", lambda: _main(argv), (CalculatorError, ParameterError))
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     given = [name for name in FORCE_OPTIONS if getattr(args, name) is not None]
@@ -133,8 +149,10 @@ def main(argv: list[str] | None = None) -> int:
             result = forces(gearbox, args.tau_in, args.tau_load, args.omega,
                             0.0 if args.alpha_worm is None else args.alpha_worm,
                             0.0 if args.switching_torque is None else args.switching_torque)
-    except (CalculatorError, ParameterError) as err:
-        print(f"worm_calc: error: {err}", file=sys.stderr)
+    except CalculatorError as err:
+        parser.error(str(err))
+    except ParameterError as err:
+        print(f"worm_calc: --rig {err}", file=sys.stderr)
         return 2
     if args.json:
         print(json.dumps(to_json_ready(result), allow_nan=False))

@@ -28,7 +28,6 @@ rotation); D = sign(omega) tau_d > 0 is a resistive load.
 """
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass
@@ -37,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from worm_model.cli.validate import Envelope, InputError, load_json
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.physics.internal_forces import internal_forces
 from worm_model.physics.modes import Mode, classify_mode
@@ -95,13 +95,9 @@ def read_calibration(path: str | os.PathLike[str]) -> CalibrationPoints:
     """
     origin = str(path)
     try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ReportError(f"{origin}: calibration file not found") from None
-    except (OSError, UnicodeDecodeError) as err:
-        raise ReportError(f"{origin}: cannot read: {err}") from None
-    except json.JSONDecodeError as err:
-        raise ReportError(f"{origin}: not valid JSON at line {err.lineno} column {err.colno}: {err.msg}") from None
+        doc = load_json(path, "calibration file")
+    except InputError as err:
+        raise ReportError(str(err)) from None
     if not isinstance(doc, dict):
         raise ReportError(f"{origin}: top level must be a JSON object")
     if doc.get("format") != FORMAT:
@@ -139,20 +135,32 @@ def read_calibration(path: str | os.PathLike[str]) -> CalibrationPoints:
 
 
 def rig_for(points: CalibrationPoints, rig_file: str | os.PathLike[str] | None) -> Rig:
-    """The rig to analyse with: ``rig_file`` if given, else the rig embedded in the
-    calibration file, else the bundled NMRV030 rig.
+    """The rig to analyse with: ``rig_file`` if given, else the rig embedded in the calibration file.
+
+    The points are then checked against what that rig can do (worm_model.cli.validate.Envelope).
 
     Raises:
-        ReportError: the rig file or the embedded rig is invalid (message from load_rig).
+        ReportError: the rig file or the embedded rig is invalid (message from load_rig); the
+            calibration holds no rig and none is given (the bundled one would be a guess); a point
+            far outside the rig's envelope (file, point and field named).
     """
     try:
         if rig_file is not None:
-            return load_rig(rig_file)
-        if points.rig is not None:
-            return rig_from_dict(points.rig, f"{points.source}: rig")
-        return load_rig(None)
+            rig = load_rig(rig_file)
+        elif points.rig is not None:
+            rig = rig_from_dict(points.rig, f"{points.source}: rig")
+        else:
+            raise ReportError(f"{points.source}: field 'rig': missing, so the rig these points were measured on "
+                              "is unknown; pass --rig RIG_FILE")
     except ParameterError as err:
         raise ReportError(str(err)) from None
+    envelope = Envelope.of(rig)
+    for name in COLUMNS:
+        k = envelope.first_outside(name, getattr(points, name))
+        if k is not None:
+            raise ReportError(f"{points.source}: field 'points.{name}' at point {k}: "
+                              f"{envelope.problem(name, float(getattr(points, name)[k]))}")
+    return rig
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from collections.abc import Callable
 from pathlib import Path
 
@@ -20,6 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import Normalize  # noqa: E402
 
+from worm_model.cli.validate import Parser, atomic_dir, check_output, existing_file, run_tool  # noqa: E402
 from worm_model.figures.paper_figures import DRAG_MODELS, PaperFigures, ReportError, compute, read_calibration, rig_for, trends  # noqa: E402
 
 SPEED_CMAP = "coolwarm"
@@ -119,8 +119,7 @@ FIGURES: dict[str, Callable[[plt.Axes, PaperFigures], None]] = {
 
 
 def write_figures(fig: PaperFigures, out: Path, note: str = "") -> list[Path]:
-    """Draw every figure of :data:`FIGURES` into ``out`` (created); returns the paths."""
-    out.mkdir(parents=True, exist_ok=True)
+    """Draw every figure of :data:`FIGURES` into the folder ``out`` (which must exist); returns the paths."""
     written = []
     for name, draw in FIGURES.items():
         figure, ax = plt.subplots(figsize=(7.0, 4.6), dpi=110)
@@ -136,7 +135,7 @@ def write_figures(fig: PaperFigures, out: Path, note: str = "") -> list[Path]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog="report",
         description="Regenerate the paper's Figures 6-11 (normal force, friction force, switching torque, "
                     "mu, mu filtered by Remark 4, mu vs speed) as PNG files from a calibration database.",
@@ -145,10 +144,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("calibration", type=Path,
                    help="calibration database (JSON, format worm_torque_calibration v1, as written by "
                         "'ros2 run torque_estimator calibrate')")
-    p.add_argument("--out", type=Path, required=True, help="directory for the PNG files (created if missing)")
-    p.add_argument("--rig", type=Path, default=None,
+    p.add_argument("--out", type=Path, required=True,
+                   help="directory for the PNG files (created; an existing one only with --force)")
+    p.add_argument("--force", action="store_true", help="replace an existing --out directory")
+    p.add_argument("--rig", type=existing_file, default=None,
                    help="rig parameter YAML (geometry, K_t, drags); default: the rig stored in the "
-                        "calibration file, else the bundled NMRV030 rig")
+                        "calibration file (required if it holds none)")
     p.add_argument("--drag", choices=DRAG_MODELS, default="none",
                    help="input torque: 'none' = K_t i as in the paper (drags show up in F_f); "
                         "'declared' = motor and load-motor drags of the rig file taken out first")
@@ -156,20 +157,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    return run_tool("report", lambda: _main(argv), (ReportError,))
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
-    try:
-        points = read_calibration(args.calibration)
-        rig = rig_for(points, args.rig)
-        fig = compute(points, rig, args.drag)
-    except ReportError as err:
-        print(f"report: error: {err}", file=sys.stderr)
-        return 2
-    try:
-        paths = write_figures(fig, args.out, note=f"{args.calibration.name}, {len(points)} points, "
-                                                   f"rig: {rig.name}, drag: {args.drag}")
-    except OSError as err:
-        print(f"report: error: cannot write into {args.out}: {err}", file=sys.stderr)
-        return 2
+    points = read_calibration(args.calibration)
+    rig = rig_for(points, args.rig)
+    check_output(args.out, args.force, folder=True)
+    fig = compute(points, rig, args.drag)
+    with atomic_dir(args.out, args.force) as folder:
+        written = write_figures(fig, folder, note=f"{args.calibration.name}, {len(points)} points, "
+                                                  f"rig: {rig.name}, drag: {args.drag}")
+    paths = [args.out / p.name for p in written]
     print(f"report: {len(points)} calibration points ({len(fig.speed_setpoints)} speeds x "
           f"{len(fig.torque_setpoints)} torques), drag model '{args.drag}'")
     for name, value in trends(fig).items():

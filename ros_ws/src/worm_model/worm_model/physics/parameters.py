@@ -32,8 +32,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from worm_model.cli.validate import InputError, load_yaml
 from worm_model.physics.friction import FRICTION_MODELS
 from worm_model.physics.units import UNITS, normalize_unit, to_si
 
@@ -332,14 +331,15 @@ def load_rig(path: str | os.PathLike[str] | None = None) -> Rig:
     Raises:
         ParameterError: unreadable file, wrong format/version, missing or unknown field,
             leaf without source/assumption, non-numeric value, unknown or mismatched unit,
+            a key given twice,
             out-of-range value, inconsistent gear geometry.  The message names file and field.
     """
     file = Path(path) if path is not None else default_rig_path()
     origin = str(file)
     try:
-        document = yaml.safe_load(file.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as err:
-        raise ParameterError(origin, "", f"cannot read parameter file: {err}") from err
+        document = load_yaml(file, "rig parameter file")
+    except InputError as err:
+        raise ParameterError(err.where, "", err.what) from None
     if not isinstance(document, Mapping):
         raise ParameterError(origin, "", "not a YAML mapping")
     if document.get("format") != FORMAT_NAME:

@@ -23,7 +23,8 @@ from pathlib import Path
 import numpy as np
 
 from worm_model.physics.parameters import ParameterError, default_rig_path, load_rig
-from worm_model.rig_data.schema import RigDataError
+from worm_model.cli.validate import Envelope, Parser, atomic_dir, check_output, existing_file, integer, number, run_tool
+from worm_model.rig_data.schema import RigDataError, check_envelope
 
 from worm_model.residuals.analysis import Settings, Problem, analyse, extended_effects, make_split
 from worm_model.residuals.data import load_data
@@ -49,7 +50,7 @@ def _names(text: str, known, what: str, parser: argparse.ArgumentParser) -> list
 
 def build_parser() -> argparse.ArgumentParser:
     d = Settings()
-    p = argparse.ArgumentParser(
+    p = Parser(
         prog="residuals",
         description="Fit the declared gearbox + motor model to measured data, rank the effects the model lacks "
                     "(physics.md section 9) by the held-out residual each explains, add the significant ones and "
@@ -62,8 +63,11 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("data", help="measured data: a CSV file in the worm_rig_data schema, or a rosbag2 directory "
                                 "(converted with worm_rig_driver's bag exporter, which must be installed)")
-    p.add_argument("--out", required=True, help="output directory (created): report.json, extended_rig.yaml, PNG plots")
-    p.add_argument("--params", default=None,
+    p.add_argument("--out", required=True,
+                   help="output directory (created; an existing one is replaced only with --force): report.json, "
+                        "extended_rig.yaml, PNG plots")
+    p.add_argument("--force", action="store_true", help="replace an existing --out directory")
+    p.add_argument("--params", type=existing_file, default=None,
                    help=f"rig parameter file (worm_rig_parameters); its optional 'free:' list names the parameters "
                         f"to fit. Default: the bundled {default_rig_path().name}")
     p.add_argument("--free", default=None,
@@ -77,37 +81,39 @@ def build_parser() -> argparse.ArgumentParser:
                         "named as that effect")
     p.add_argument("--candidates", default=",".join(EFFECTS),
                    help="comma-separated candidate effects to consider")
-    p.add_argument("--holdout-fraction", type=float, default=d.holdout_fraction,
+    p.add_argument("--holdout-fraction", type=number("", 0, 1, open_low=True, open_high=True), default=d.holdout_fraction,
                    help="share of the time blocks held out (never fitted; used to rank and accept effects)")
-    p.add_argument("--block", type=float, default=d.block_seconds,
+    p.add_argument("--block", type=number("s", 0, 3600, open_low=True), default=d.block_seconds,
                    help="length of one block of the interleaved train/held-out split [s]")
-    p.add_argument("--guard", type=float, default=d.guard_seconds,
+    p.add_argument("--guard", type=number("s", 0, 3600), default=d.guard_seconds,
                    help="samples this close to a block edge [s] are in neither set (no filter crosses sets)")
-    p.add_argument("--min-speed", type=float, default=d.min_speed,
+    p.add_argument("--min-speed", type=number("rad/s", 0, 1e4), default=d.min_speed,
                    help="samples with |omega_worm| below this [rad/s] are not used (the model is kinetic)")
-    p.add_argument("--min-improvement", type=float, default=d.min_improvement,
+    p.add_argument("--min-improvement", type=number("", 0, 1, open_high=True), default=d.min_improvement,
                    help="relative held-out RMS improvement an effect must bring (besides a lower BIC) to be added")
-    p.add_argument("--max-effects", type=int, default=d.max_effects, help="stop after this many effects")
-    p.add_argument("--alpha-filter", type=float, default=ALPHA_TIME_CONSTANT,
+    p.add_argument("--max-effects", type=integer(0, len(EFFECTS)), default=d.max_effects, help="stop after this many effects")
+    p.add_argument("--alpha-filter", type=number("s", 0, 10, open_low=True), default=ALPHA_TIME_CONSTANT,
                    help="time constant [s] of the zero-phase low-pass around the derivative of omega_worm "
                         "that gives the acceleration of the inertia term")
-    p.add_argument("--reference-temperature", type=float, default=d.reference_temperature,
+    p.add_argument("--reference-temperature", type=number("degC", -60, 250), default=d.reference_temperature,
                    help="oil temperature [degC] at which the rig file's mu holds: the oil_temperature effect scales "
                         "mu by 1 + mu_per_kelvin (T - this) when the data has a temperature column")
-    p.add_argument("--confidence", type=float, default=d.confidence, help="level of the confidence intervals")
+    p.add_argument("--confidence", type=number("", 0, 1, open_low=True, open_high=True), default=d.confidence, help="level of the confidence intervals")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
+    return run_tool("residuals", lambda: _main(argv), (RigDataError, ParameterError))
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     candidates = tuple(_names(args.candidates, EFFECTS, "effect", parser))
-    if not 0.0 < args.holdout_fraction < 1.0:
-        parser.error("--holdout-fraction must lie in (0, 1)")
-    if args.block <= 0 or args.guard < 0 or 2 * args.guard >= args.block:
-        parser.error("need --block > 0 and 0 <= --guard < block / 2")
+    if 2 * args.guard >= args.block:
+        parser.error(f"--guard {args.guard:g} s must be below half of --block {args.block:g} s")
     settings = Settings(holdout_fraction=args.holdout_fraction, block_seconds=args.block, guard_seconds=args.guard,
                         min_speed=args.min_speed, min_improvement=args.min_improvement, max_effects=args.max_effects,
                         alpha_time_constant=args.alpha_filter, confidence=args.confidence, candidates=candidates,
@@ -120,11 +126,11 @@ def main(argv: list[str] | None = None) -> int:
             else read_free(args.params)
         progress.stage("reading data", 1)
         data = load_data(args.data)
+        check_envelope(data, Envelope.of(rig))
         progress.update_to(1)
-    except (RigDataError, ParameterError) as err:
+        check_output(args.out, args.force, folder=True)
+    finally:
         progress.close()
-        print(f"residuals: {err}", file=sys.stderr)
-        return 2
     signals = prepare_signals(rig, data, settings.alpha_time_constant, settings.reference_temperature)
     split = make_split(signals, settings, np.isfinite(data.current_drive))
     for name, mask in (("training", split.train), ("held-out", split.held_out)):
@@ -134,8 +140,12 @@ def main(argv: list[str] | None = None) -> int:
                   f"{settings.min_speed} rad/s (need {MIN_SAMPLES}); record longer or lower --block / --min-speed",
                   file=sys.stderr)
             return 2
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    with atomic_dir(args.out, args.force) as folder:
+        return _analyse(args, rig, free, data, signals, split, settings, progress, folder, Path(args.out))
+
+
+def _analyse(args, rig, free, data, signals, split, settings, progress, out: Path, final: Path) -> int:
+    """The analysis proper; writes into ``out``, the temporary folder that becomes ``final``."""
     print(f"data: {data.source}: {len(data)} samples, {len(np.unique(data.run))} run(s), "
           f"{data.t[-1] - data.t[0]:.1f} s; training {int(split.train.sum())}, held out {int(split.held_out.sum())}"
           + (f"; ignored columns {', '.join(data.ignored_columns)}" if data.ignored_columns else ""))
@@ -170,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
                          f"identified by residuals from {Path(data.source).name}",
                          {"backlash": "angle identified from the transmission error (theta_gear); see report.json"}
                          if "backlash" in after.names else None)
-    files = {"data": data.source, "report": str(out / "report.json"), "parameters": str(params_out)}
+    files = {"data": data.source, "report": str(final / "report.json"), "parameters": str(final / params_out.name)}
     plots = []
     if not args.no_plots:
         progress.stage("plots", 2 + len(result.final.effects))
@@ -180,7 +190,7 @@ def main(argv: list[str] | None = None) -> int:
     progress.close()
     lines = console_summary(problem, result, tau_d)
     print("\n".join(lines[:-1]))
-    print(f"wrote {out / 'report.json'}, {params_out}" + (f", {len(plots)} plots" if plots else ""))
+    print(f"wrote {final / 'report.json'}, {final / params_out.name}" + (f", {len(plots)} plots" if plots else ""))
     print(lines[-1])
     return 0
 

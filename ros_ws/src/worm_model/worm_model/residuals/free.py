@@ -49,8 +49,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
-import yaml
 
+from worm_model.cli.validate import InputError, load_yaml
 from worm_model.physics.parameters import ParameterError, Rig, default_rig_path
 
 #: dotted path -> (SI unit, what it does in the current model)
@@ -170,9 +170,9 @@ def read_free(path: str | Path | None) -> list[str]:
     """
     file = Path(path) if path is not None else default_rig_path()
     try:
-        document = yaml.safe_load(file.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as err:
-        raise ParameterError(str(file), "", f"cannot read parameter file: {err}") from err
+        document = load_yaml(file, "rig parameter file")
+    except InputError as err:
+        raise ParameterError(err.where, "", err.what) from None
     raw = document.get("free", []) if isinstance(document, dict) else []
     if raw is None:
         return []

@@ -24,6 +24,8 @@ from typing import Final, TextIO
 
 from tqdm import tqdm
 
+from worm_model.cli.validate import Envelope, Parser, check_output, existing_file, integer, number, run_tool
+from worm_model.physics.parameters import ParameterError, load_rig
 from worm_model.rig_data.schema import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, RigDataError
 from worm_model.bags.reader import BagMessage, BagReader
 from worm_model.bags.typestore import BagRecordingError
@@ -32,6 +34,8 @@ from worm_model.rig_data.bags import DEFAULT_TOPIC, bag_to_csv, csv_to_bag
 from worm_model.bags.seq_check import StreamCheck
 
 EXIT_BAD_INPUT: Final[int] = 2
+TRUNCATED_HELP: Final[str] = ('read a storage file cut inside a record (messages lost) as far as it goes, '
+                              'instead of refusing it')
 LABEL_WIDTH: Final[int] = 19
 
 
@@ -65,8 +69,11 @@ def _line(out: TextIO, label: str, value: object) -> None:
 
 
 def info(path: Path, out: TextIO) -> int:
-    """``bag info``: files, times and, per topic, the type and the messages read from storage."""
-    with BagReader(path) as reader:
+    """``bag info``: files, times and, per topic, the type and the messages read from storage.
+
+    A storage file cut inside a record is described as far as it goes; the cut is among the warnings.
+    """
+    with BagReader(path, allow_truncated=True) as reader:
         counts = dict.fromkeys(sorted(reader.topics), 0)
         first, last = math.inf, -math.inf
         check = StreamCheck()
@@ -118,9 +125,9 @@ def info(path: Path, out: TextIO) -> int:
     return 0
 
 
-def echo(path: Path, topic: str, count: int | None, out: TextIO) -> int:
+def echo(path: Path, topic: str, count: int | None, out: TextIO, allow_truncated: bool = False) -> int:
     """``bag echo``: messages of one topic as YAML, ``---`` after each, like ``ros2 topic echo``."""
-    with BagReader(path) as reader:
+    with BagReader(path, allow_truncated=allow_truncated) as reader:
         for shown, message in enumerate(reader.messages([topic])):
             if count is not None and shown >= count:
                 break
@@ -129,31 +136,35 @@ def echo(path: Path, topic: str, count: int | None, out: TextIO) -> int:
     return 0
 
 
-def export(path: Path, csv_path: Path, topic: str | None, err: TextIO) -> int:
+def export(path: Path, csv_path: Path, topic: str | None, err: TextIO, allow_truncated: bool = False,
+           force: bool = False) -> int:
     """``bag export``: the RigSample stream as a ``worm_rig_data`` CSV."""
-    data = bag_to_csv(path, csv_path, topic)
-    skipped = ', '.join(f'{n} {why}' for why, n in data.skipped.items()) or 'none'
+    check_output(csv_path, force)
+    data = bag_to_csv(path, csv_path, topic, allow_truncated)
+    skipped = [f'{n} {why}' for why, n in data.skipped.items()]
+    skipped += [f'an unknown number after the cut of a truncated file ({d})' for d in data.damage]
     err.write(f'bag export: {len(data)} rows from {data.source} to {csv_path} '
-              f'(columns {", ".join(data.names)}; samples left out: {skipped})\n')
+              f'(columns {", ".join(data.names)}; samples left out: {", ".join(skipped) or "none"})\n')
     return 0
 
 
 def import_csv(csv_path: Path, bag: Path, storage: str, topic: str, start: float,
-               err: TextIO) -> int:
-    """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample."""
-    n = csv_to_bag(csv_path, bag, storage, topic, round(start * 1e9))
+               err: TextIO, rig: Path | None = None) -> int:
+    """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample (values checked against the rig)."""
+    check_output(bag, folder=True, option='--out')
+    n = csv_to_bag(csv_path, bag, storage, topic, round(start * 1e9), Envelope.of(load_rig(rig)))
     err.write(f'bag import: {n} RigSample messages on {topic} from {csv_path} to {bag} ({storage})\n')
     return 0
 
 
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = Parser(
         prog='bag', description=__doc__.split('\n\n')[0],
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog='Exit codes: 0 done, 2 bad bag or CSV (the message names file and key/line/column).')
     commands = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
 
-    p = commands.add_parser('info', help='files, times, and per topic its type and message count',
+    p = commands.add_parser('info',  help='files, times, and per topic its type and message count',
                             description='Print the bag\'s files, size, storage, ROS distro, '
                             'metadata version, compression, duration, start and end, then per '
                             'topic its type and the number of messages actually read from '
@@ -167,8 +178,9 @@ def _parser() -> argparse.ArgumentParser:
                             'followed by a "---" line (the format of ros2 topic echo).')
     p.add_argument('bag', type=Path, help='bag directory, or one .db3/.mcap(.zstd) file')
     p.add_argument('topic', help='topic to print, e.g. /rig/sample')
-    p.add_argument('-n', '--count', type=int, default=None, metavar='N',
+    p.add_argument('-n', '--count', type=integer(0), default=None, metavar='N',
                    help='print only the first N messages (default: all)')
+    p.add_argument('--allow-truncated', action='store_true', help=TRUNCATED_HELP)
 
     columns = ', '.join([*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS])
     p = commands.add_parser('export', help='RigSample stream -> worm_rig_data CSV',
@@ -179,7 +191,10 @@ def _parser() -> argparse.ArgumentParser:
                             'NaN/inf required channel, or a stamp not after the previous one, are '
                             'left out and counted on stderr.')
     p.add_argument('bag', type=Path, help='bag directory, or one .db3/.mcap(.zstd) file')
-    p.add_argument('--out', type=Path, required=True, metavar='FILE.csv', help='CSV file to write')
+    p.add_argument('--out', type=Path, required=True, metavar='FILE.csv',
+                   help='CSV file to write (an existing one is replaced only with --force)')
+    p.add_argument('--force', action='store_true', help='replace an existing --out file')
+    p.add_argument('--allow-truncated', action='store_true', help=TRUNCATED_HELP)
     p.add_argument('--topic', default=None,
                    help='RigSample topic to export (default: the only one, or /rig/sample)')
 
@@ -195,8 +210,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap',
                    help='storage of the new bag (default: mcap, as rosbag2)')
     p.add_argument('--topic', default=DEFAULT_TOPIC, help=f'topic to write (default: {DEFAULT_TOPIC})')
-    p.add_argument('--start', type=float, default=0.0, metavar='SECONDS',
-                   help='ROS time [s since the epoch] of t = 0 (default: 0)')
+    p.add_argument('--start', type=number('s', 0, 2**31 - 1), default=0.0, metavar='SECONDS',
+                   help='ROS time [s since the epoch] of t = 0 (default: 0); start + t must be >= 0')
+    p.add_argument('--rig', type=existing_file, default=None,
+                   help='rig parameter YAML the values are checked against (default: the bundled NMRV030 rig)')
     return parser
 
 
@@ -204,23 +221,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run one ``bag`` command; returns the exit code."""
     args = _parser().parse_args(argv)
     out, err = sys.stdout, sys.stderr
-    try:
+
+    def run() -> int:
         if args.command == 'info':
             return info(args.bag, out)
         if args.command == 'echo':
-            if args.count is not None and args.count < 0:
-                err.write('bag echo: -n must be >= 0\n')
-                return EXIT_BAD_INPUT
-            return echo(args.bag, args.topic, args.count, out)
+            return echo(args.bag, args.topic, args.count, out, args.allow_truncated)
         if args.command == 'export':
-            return export(args.bag, args.out, args.topic, err)
-        return import_csv(args.csv, args.out, args.storage, args.topic, args.start, err)
-    except (BagRecordingError, RigDataError) as error:
-        err.write(f'bag {args.command}: {error}\n')
-        return EXIT_BAD_INPUT
-    except BrokenPipeError:  # e.g. `bag echo ... | head`
-        sys.stderr.close()
-        return 0
+            return export(args.bag, args.out, args.topic, err, args.allow_truncated, args.force)
+        return import_csv(args.csv, args.out, args.storage, args.topic, args.start, err, args.rig)
+
+    return run_tool(f'bag {args.command}', run, (BagRecordingError, RigDataError, ParameterError))
 
 
 if __name__ == '__main__':

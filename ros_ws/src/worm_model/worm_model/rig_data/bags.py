@@ -17,6 +17,9 @@ export -> import -> export gives the same file.
 from __future__ import annotations
 
 import math
+import os
+import shutil
+import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any, Final
@@ -27,11 +30,14 @@ from worm_model.rig_data.schema import (
     REQUIRED_COLUMNS,
     MeasuredData,
     RigDataError,
+    check_envelope,
     read_rig_csv,
     write_rig_csv,
 )
 from worm_model.rig_data.samples import SAMPLE_TOPICS, SAMPLE_TYPES, iter_samples
 from worm_model.bags.reader import BagReader
+from worm_model.bags.typestore import BagRecordingError
+from worm_model.cli.validate import Envelope, atomic_file
 from worm_model.bags.writer import BagWriter
 from worm_model.bags.typestore import MessageTypes
 
@@ -136,17 +142,43 @@ def samples_to_measured(samples: Iterable[Any], source: str = '<samples>') -> Me
 
 
 def bag_to_measured(path: Path | str, topic: str | None = None,
-                    types: MessageTypes | None = None) -> MeasuredData:
+                    types: MessageTypes | None = None, allow_truncated: bool = False) -> MeasuredData:
     """Read the RigSample stream of a bag (see :func:`find_sample_topic`) as rig data.
+
+    Args:
+        allow_truncated: read storage files cut inside a record as far as they go
+            (listed in :attr:`MeasuredData.damage`) instead of refusing them.
 
     Raises:
         RigDataError: No usable RigSample topic or sample.
-        BagRecordingError: The bag cannot be read.
+        BagRecordingError: The bag cannot be read (or is truncated and allow_truncated is False).
 
     """
-    with BagReader(path, types) as reader:
+    with BagReader(path, types, allow_truncated=allow_truncated) as reader:
         name = find_sample_topic(reader, topic)
-        return samples_to_measured(read_samples(reader, name), f'{path}:{name}')
+        data = samples_to_measured(read_samples(reader, name), f'{path}:{name}')
+        data.damage = tuple(reader.damage)
+        return data
+
+
+def check_stamps(data: MeasuredData, start_ns: int) -> None:
+    """Every ``start + t`` a time a bag can hold: 0 <= stamp < 2**31 s (int32 seconds, unsigned log time).
+
+    Raises:
+        RigDataError: the first sample outside, naming its line (CSV) or index and column ``t``.
+    """
+    if not len(data):
+        return
+    for i in (0, len(data) - 1):  # t increases strictly: the ends decide
+        stamp = start_ns + round(float(data.t[i]) * NS_PER_S)
+        if 0 <= stamp < 2**31 * NS_PER_S:
+            continue
+        when = f't = {float(data.t[i]):g} s with start {start_ns / NS_PER_S:g} s'
+        why = ('is before 1970 (a bag stamp cannot be negative): give --start >= '
+               f'{-float(data.t[0]):g} s' if stamp < 0 else 'is beyond 2038 (int32 seconds of builtin_interfaces/Time)')
+        if data.lines is not None:
+            raise RigDataError(data.source, f'{when} {why}', int(data.lines[i]), 't')
+        raise RigDataError(data.source, f'sample {i}: {when} {why}', column='t')
 
 
 def rig_samples(data: MeasuredData, types: MessageTypes, start_ns: int = 0,
@@ -164,12 +196,10 @@ def rig_samples(data: MeasuredData, types: MessageTypes, start_ns: int = 0,
     time_cls = store.types['builtin_interfaces/msg/Time']
     nan = np.full(len(data), math.nan)
     optional = {c: nan if getattr(data, c) is None else getattr(data, c) for c in SAMPLE_OPTIONAL}
+    check_stamps(data, start_ns)
     for i in range(len(data)):
         stamp = start_ns + round(float(data.t[i]) * NS_PER_S)
         sec, nanosec = divmod(stamp, NS_PER_S)
-        if not -(2**31) <= sec < 2**31:
-            raise RigDataError(data.source, f'stamp {stamp} ns does not fit builtin_interfaces/Time '
-                                            '(int32 seconds)', column='t')
         half = float(optional['current_load'][i]) / 2.0
         sample = sample_cls(
             header=header_cls(stamp=time_cls(sec=sec, nanosec=nanosec), frame_id=frame_id),
@@ -209,28 +239,49 @@ def measured_to_bag(data: MeasuredData, out: Path | str, storage: str = 'mcap',
         return writer.counts[topic]
 
 
-def bag_to_csv(bag: Path | str, csv_path: Path | str, topic: str | None = None) -> MeasuredData:
+def bag_to_csv(bag: Path | str, csv_path: Path | str, topic: str | None = None,
+               allow_truncated: bool = False) -> MeasuredData:
     """``bag export``: the bag's RigSample stream as a ``worm_rig_data`` CSV; returns what was written.
+
+    The CSV is written to a temporary file beside ``csv_path`` and renamed at the end.
 
     Raises:
         RigDataError: No usable RigSample topic or sample, or the CSV cannot be written.
         BagRecordingError: The bag cannot be read.
 
     """
-    data = bag_to_measured(bag, topic)
-    write_rig_csv(csv_path, data)
+    data = bag_to_measured(bag, topic, allow_truncated=allow_truncated)
+    with atomic_file(csv_path, force=True) as tmp:
+        write_rig_csv(tmp, data)
     return data
 
 
 def csv_to_bag(csv_path: Path | str, bag: Path | str, storage: str = 'mcap',
-               topic: str = DEFAULT_TOPIC, start_ns: int = 0) -> int:
+               topic: str = DEFAULT_TOPIC, start_ns: int = 0, envelope: Envelope | None = None) -> int:
     """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample; returns the message count.
 
-    The CSV is read whole first, so a bad file creates no bag.
+    The CSV is read and checked whole first (every stamp a bag can hold; with ``envelope``, every
+    value inside what the rig can do), and the bag is written in a temporary folder beside ``bag``
+    and renamed at the end, so a bad file or a failed write leaves no bag.
 
     Raises:
-        RigDataError: A bad CSV (named by file, line and column), or a stamp out of range.
+        RigDataError: A bad CSV (named by file, line and column), a stamp out of range, or a value
+            outside the envelope.
         BagRecordingError: The bag cannot be created (e.g. ``bag`` exists).
 
     """
-    return measured_to_bag(read_rig_csv(csv_path), bag, storage, topic, start_ns)
+    data = read_rig_csv(csv_path)
+    if envelope is not None:
+        check_envelope(data, envelope)
+    check_stamps(data, start_ns)
+    target = Path(bag)
+    if target.exists():
+        msg = f'{target}: exists; a new bag needs a new name'
+        raise BagRecordingError(msg)
+    work = Path(tempfile.mkdtemp(prefix=f'.{target.name}.', suffix='.tmp', dir=target.absolute().parent))
+    try:
+        n = measured_to_bag(data, work / target.name, storage, topic, start_ns)
+        os.replace(work / target.name, target)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return n

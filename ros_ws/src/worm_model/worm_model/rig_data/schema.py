@@ -50,6 +50,7 @@ from typing import Final
 
 import numpy as np
 
+from worm_model.cli.validate import Envelope
 from worm_model.physics.units import FloatArray
 
 REQUIRED_COLUMNS: Final[dict[str, str]] = {
@@ -109,6 +110,10 @@ class MeasuredData:
     skipped: dict[str, int] = field(default_factory=dict)
     """Samples left out on conversion (e.g. from a bag), by reason."""
     run: np.ndarray = field(default=None)  # type: ignore[assignment]  # run index per sample (int)
+    lines: np.ndarray | None = None
+    """Line of the CSV file each sample came from (None for other sources)."""
+    damage: tuple[str, ...] = ()
+    """Storage files read although truncated (messages lost), and what was lost."""
 
     def __post_init__(self) -> None:
         n = len(self.t)
@@ -139,10 +144,27 @@ class MeasuredData:
     def subset(self, index: np.ndarray) -> MeasuredData:
         """The samples selected by a boolean mask or index array (runs kept)."""
         kwargs = {f.name: getattr(self, f.name) for f in fields(self)}
-        for name in (*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS, "run"):
+        for name in (*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS, "run", "lines"):
             if kwargs[name] is not None:
                 kwargs[name] = np.asarray(kwargs[name])[index]
         return MeasuredData(**kwargs)
+
+
+def check_envelope(data: MeasuredData, envelope: Envelope) -> None:
+    """Every sample inside what the rig can do (worm_model.cli.validate.Envelope, from the rig file).
+
+    Raises:
+        RigDataError: the first sample far outside it, naming the file, the line (CSV) or the
+            sample index, and the column.
+    """
+    for name in data.names:
+        k = envelope.first_outside(name, getattr(data, name))
+        if k is None:
+            continue
+        problem = envelope.problem(name, float(getattr(data, name)[k]))
+        if data.lines is not None:
+            raise RigDataError(data.source, problem, int(data.lines[k]), name)
+        raise RigDataError(data.source, f"sample {k}: {problem}", column=name)
 
 
 def split_runs(t: FloatArray) -> np.ndarray:
@@ -204,10 +226,12 @@ def read_rig_csv(path: str | Path) -> MeasuredData:
             index = {c: header.index(c) for c in (*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS) if c in seen}
             values: dict[str, list[float]] = {c: [] for c in index}
             t = values["t"]
+            lines: list[int] = []
             for row in reader:
                 line = reader.line_num
                 if not row or all(not cell.strip() for cell in row):
                     continue  # blank line
+                lines.append(line)
                 if len(row) != len(header):
                     raise RigDataError(source, f"{len(row)} cells, the header has {len(header)}", line)
                 for name, i in index.items():
@@ -220,6 +244,8 @@ def read_rig_csv(path: str | Path) -> MeasuredData:
         except UnicodeDecodeError as err:
             # decoded in blocks: the line reached so far is not where the bad byte is
             raise RigDataError(source, f"not UTF-8 text ({err.reason})") from None
+        except OSError as err:  # e.g. a folder
+            raise RigDataError(source, f"cannot read: {err.strerror or err}") from None
     if not t:
         raise RigDataError(source, "no data rows after the header")
     arrays = {name: np.asarray(v, dtype=float) for name, v in values.items()}
@@ -227,7 +253,7 @@ def read_rig_csv(path: str | Path) -> MeasuredData:
         if name in arrays and np.all(np.isnan(arrays[name])):
             del arrays[name]  # an all-empty optional column is an absent one
     ignored = tuple(n for n in header if n not in REQUIRED_COLUMNS and n not in OPTIONAL_COLUMNS)
-    return MeasuredData(**arrays, source=source, ignored_columns=ignored)
+    return MeasuredData(**arrays, source=source, ignored_columns=ignored, lines=np.asarray(lines))
 
 
 def _cell(value: float) -> str:

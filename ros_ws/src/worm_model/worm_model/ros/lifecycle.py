@@ -9,15 +9,20 @@ spins until the flag is set.
 from __future__ import annotations
 
 import faulthandler
+import os
 import signal
 import sys
 import threading
 from collections.abc import Callable, Sequence
 
 import rclpy
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
+
+from worm_model.cli.validate import one_line
+from worm_model.ros.parameters import help_text, wants_help
 
 try:  # rclpy >= Jazzy: callbacks dispatched from C++, several times less CPU per message at 1 kHz
     from rclpy.experimental import EventsExecutor as _Executor
@@ -25,8 +30,19 @@ except ImportError:  # Humble
     from rclpy.executors import SingleThreadedExecutor as _Executor
 
 
+def parameter_problem(err: ParameterException) -> str:
+    """rclpy's 'Invalid parameter value (-1) for parameter. Reason: ... : k' as 'parameter k: ...'."""
+    text = one_line(err)
+    message, _, name = text.rpartition(": ")
+    return f"parameter {name}: {message}" if message else text
+
+
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
-    """rclpy.init, build the node, spin until SIGINT/SIGTERM, clean up; returns an exit code."""
+    """rclpy.init, build the node, spin until SIGINT/SIGTERM, clean up; returns an exit code.
+
+    ``-h``/``--help`` prints the node's parameters and returns 0 without starting anything; a bad
+    parameter value is one line ``<program>: parameter <name>: ...`` and exit code 2.
+    """
     return run_nodes([make_node], args)
 
 
@@ -35,6 +51,11 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
 
     Each node takes its own section of a ``--params-file`` by its name, as it would alone.
     """
+    given = sys.argv if args is None else list(args)
+    program, argv = (os.path.basename(given[0]) or "node", given[1:]) if given else ("node", [])
+    if wants_help(argv):  # before rclpy.init: no context, no DDS
+        print(help_text(makers, program))
+        return 0
     stop = threading.Event()
     # A node that does not exit after SIGINT can be asked where it is stuck: SIGUSR1 prints every
     # thread's Python stack to stderr (run_graph and the tests do this before SIGKILL).
@@ -53,8 +74,11 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
             executor.spin_once(timeout_sec=0.1)
     except ExternalShutdownException:
         pass
+    except ParameterException as err:  # a value outside the declared range or of the wrong type
+        print(f"{program}: {parameter_problem(err)}", file=sys.stderr)
+        code = 2
     except (ValueError, OSError) as err:  # bad parameters or files: say so, exit non-zero
-        print(f"[fatal] {err}", file=sys.stderr)
+        print(f"{program}: {one_line(err)}", file=sys.stderr)
         code = 2
     finally:
         executor.shutdown()

@@ -106,9 +106,11 @@ class DriverNode(Node):
         self.get_logger().info(f"rig '{self.rig.name}' on {port} at {baud} baud, telemetry {rate} Hz")
 
     def destroy_node(self) -> None:
-        self.link.stop()
-        # One machine-readable line with the totals (fil_run and the tests read it).
-        self.get_logger().info("link statistics at exit: " + json.dumps(self.link.report(), sort_keys=True))
+        link = self.__dict__.get("link")  # absent when a bad parameter stopped the constructor
+        if link is not None:
+            link.stop()
+            # One machine-readable line with the totals (fil_run and the tests read it).
+            self.get_logger().info("link statistics at exit: " + json.dumps(link.report(), sort_keys=True))
         super().destroy_node()
 
     # --- commands ---------------------------------------------------------------------------

@@ -57,6 +57,7 @@ from types import FrameType
 from typing import Any, Final, TypeVar
 
 import rclpy
+from rclpy.exceptions import ParameterException
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
@@ -75,6 +76,8 @@ from rosbags.interfaces import (
     QosTime,
 )
 
+from worm_model.ros.lifecycle import parameter_problem
+from worm_model.ros.parameters import help_text, wants_help
 from worm_model.bags.writer import (
     STORAGES,
     BagClosedError,
@@ -454,6 +457,10 @@ def main(args: list[str] | None = None) -> int:
     destroyed and rclpy shut down, with no executor thread alive at exit
     (which would abort the process).
     """
+    given = sys.argv if args is None else list(args)
+    if wants_help(given[1:]):  # before rclpy.init: no context, no DDS, no bag
+        print(help_text([RecorderNode], 'recorder'))
+        return 0
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     stop = threading.Event()
 
@@ -474,6 +481,9 @@ def main(args: list[str] | None = None) -> int:
     except BagRecordingError as err:
         print(f'recorder: {err}', file=sys.stderr)
         code = 1
+    except ParameterException as err:
+        print(f'recorder: {parameter_problem(err)}', file=sys.stderr)
+        code = 2
     finally:
         executor.shutdown()
         if node is not None:

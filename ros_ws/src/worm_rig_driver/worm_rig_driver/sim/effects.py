@@ -53,7 +53,6 @@ Every failure raises :class:`EffectsError`, whose message names the file and the
 """
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -63,8 +62,8 @@ from pathlib import Path
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
-import yaml
 
+from worm_model.cli.validate import InputError, Parser, atomic_file, check_output, load_yaml, run_tool
 from worm_model.physics.parameters import ParameterError, Rig, finite_number
 
 import worm_rig_driver.protocol.table as protocol_table
@@ -106,6 +105,13 @@ UNITS: dict[str, tuple[float, str]] = {
     "K/W": (1.0, "K/W"),
     "1/K": (1.0, "1/K"),
     "1": (1.0, "1"), "%": (0.01, "1"),
+}
+
+#: largest magnitude an effect parameter of each unit may have: far beyond what a bench rig like this one
+#: shows (its motors make ~1 N m, turn at ~400 rad/s, draw ~10 A), so only typos and overflows are refused
+PLAUSIBLE: dict[str, float] = {
+    "N m": 100.0, "rad": 2 * math.pi, "rad/s": 1e4, "m/s": 100.0, "A": 100.0, "s": 1e6, "Hz": 1e5,
+    "degC": 300.0, "K/W": 1e3, "1/K": 1.0, "1": 1e6,  # "1" holds counts too (PWM levels, orders)
 }
 
 #: range check name -> (predicate, message)
@@ -712,6 +718,10 @@ def _parameter_value(raw: Any, declared: Parameter, origin: str, where: str) -> 
     predicate, message = CHECKS[declared.check]
     if not predicate(number):
         raise EffectsError(origin, where, f"value {number:g} {declared.unit}: {message}")
+    limit = PLAUSIBLE[declared.unit]
+    if abs(number) > limit:
+        raise EffectsError(origin, where, f"value {number:g} {declared.unit} is far beyond any bench rig "
+                                          f"(|value| <= {limit:g} {declared.unit})")
     return number
 
 
@@ -794,9 +804,9 @@ def load_effects(path: str | os.PathLike[str]) -> EffectsConfig:
     """
     origin = str(path)
     try:
-        document = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as err:
-        raise EffectsError(origin, "", f"cannot read effects file: {err}") from err
+        document = load_yaml(path, "effects file")
+    except InputError as err:
+        raise EffectsError(err.where, "", err.what) from None
     if not isinstance(document, Mapping):
         raise EffectsError(origin, "", "not a YAML mapping")
     if document.get("format") == RIG_FORMAT_NAME:
@@ -938,19 +948,27 @@ def template(names: tuple[str, ...] | None = None) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
+    return run_tool("worm_effects", lambda: _main(argv), (EffectsError,))
+
+
+def _main(argv: list[str] | None) -> int:
+    parser = Parser(
         prog="worm_effects",
         description="The simulator's effect plug-ins (physics.md section 9): list them, write a template "
                     "effects file with every effect at its defaults, or check an effects file.")
     parser.add_argument("--list", action="store_true", help="print every effect, what it changes and its "
                         "parameters with unit, default and meaning")
     parser.add_argument("--template", metavar="FILE", help="write a worm_rig_effects file with every effect at "
-                        "its defaults ('-' for stdout)")
+                        "its defaults ('-' for stdout); an existing file is replaced only with --force")
+    parser.add_argument("--force", action="store_true", help="let --template replace an existing file")
     parser.add_argument("--check", metavar="FILE", help="read an effects file and print what it switches on")
     args = parser.parse_args(argv)
     if not (args.list or args.template or args.check):
         parser.print_help()
         return 0
+    if args.template and args.template != "-":
+        check_output(args.template, args.force, option="--template")
+    config = load_effects(args.check) if args.check else None
     if args.list:
         print(describe())
     if args.template:
@@ -958,13 +976,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.template == "-":
             sys.stdout.write(text)
         else:
-            Path(args.template).write_text(text, encoding="utf-8")
-    if args.check:
-        try:
-            config = load_effects(args.check)
-        except EffectsError as err:
-            print(f"worm_effects: {err}", file=sys.stderr)
-            return 2
+            with atomic_file(args.template, force=True) as tmp:
+                tmp.write_text(text, encoding="utf-8")
+    if config is not None:
         for name, params in config.effects.items():
             units = {k: ("" if p.unit == "1" else " " + p.unit) for k, p in EFFECTS[name].parameters.items()}
             shown = ", ".join(f"{k}={v:g}{units[k]}" for k, v in params.items())

@@ -34,7 +34,6 @@ Simplifications, each small against the effects being studied:
 """
 from __future__ import annotations
 
-import argparse
 import os
 import select
 import signal
@@ -45,6 +44,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from worm_model.cli.validate import InputError, Parser, existing_file, integer, number, run_tool
 from worm_model.physics.parameters import load_rig
 
 import worm_rig_driver.protocol.table as table
@@ -373,32 +373,37 @@ def serve(firmware: VirtualFirmware, port: PtyPort, stop: Callable[[], bool], du
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(
+    return run_tool("virtual_rig", lambda: _main(argv), (ValueError,))  # ParameterError, EffectsError
+
+
+def _main(argv: list[str] | None) -> int:
+    parser = Parser(
         prog="virtual_rig",
         description="The simulated worm-gear rig behind a pseudo-terminal, speaking the rig firmware's serial "
                     "protocol (docs/protocol.md) byte for byte, in real time. Run driver_node with "
                     "port:=<LINK> against it.")
     parser.add_argument("--link", default="/tmp/worm_rig",
                         help="path of the symlink to the pty's slave end, the 'serial port' to give driver_node")
-    parser.add_argument("--rig", default=None, help="rig parameter YAML (default: the bundled NMRV030 rig)")
-    parser.add_argument("--effects", default=None,
+    parser.add_argument("--rig", type=existing_file, default=None,
+                        help="rig parameter YAML (default: the bundled NMRV030 rig)")
+    parser.add_argument("--effects", type=existing_file, default=None,
                         help="worm_rig_effects YAML: effects the model lacks, switched on in the simulator only "
                              "(see worm_effects --list)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
-    parser.add_argument("--substeps", type=int, default=1, help="integration steps per 1 ms tick")
-    parser.add_argument("--duration", type=float, default=0.0, help="stop after this many seconds (0: until SIGINT)")
+    parser.add_argument("--seed", type=integer(0, 2**32 - 1), default=0, help="seed of the sensor noise")
+    parser.add_argument("--substeps", type=integer(1, 1000), default=1, help="integration steps per 1 ms tick")
+    parser.add_argument("--duration", type=number("s", 0, 1e7), default=0.0,
+                        help="stop after this many seconds (0: until SIGINT)")
     args = parser.parse_args(argv)
-    try:
-        rig = load_rig(args.rig)
-        sim = SimulatedRig(rig, n=1, seed=args.seed, substeps=args.substeps, effects=args.effects)
-        firmware = VirtualFirmware(sim)
-    except ValueError as err:  # ParameterError and EffectsError are ValueErrors
-        print(f"virtual_rig: {err}", file=sys.stderr)
-        return 2
     link = Path(args.link)
     if link.exists() and not link.is_symlink():
-        print(f"virtual_rig: {link} exists and is not a symlink: refusing to replace it", file=sys.stderr)
-        return 2
+        raise InputError(f"--link {link}", "exists and is not a symlink: refusing to replace it")
+    if not link.absolute().parent.is_dir():
+        raise InputError(f"--link {link}", f"folder {link.absolute().parent} does not exist")
+    if not os.access(link.absolute().parent, os.W_OK):
+        raise InputError(f"--link {link}", f"folder {link.absolute().parent} is not writable")
+    rig = load_rig(args.rig)
+    sim = SimulatedRig(rig, n=1, seed=args.seed, substeps=args.substeps, effects=args.effects)
+    firmware = VirtualFirmware(sim)
     stopping = []
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stopping.append(True))
