@@ -37,28 +37,51 @@ def worst(runs) -> dict[str, tuple[float, float]]:
     return out
 
 
-@pytest.mark.parametrize("timing, options, expected", [
-    ("firmware", {}, {"off": (4.90, 2.29), "estimate": (3.06, 0.78), "truth": (1.60, 0.68)}),
-    ("graph", {"ff_batch": 5, "ff_latency": 1}, {"off": (4.90, 2.29), "estimate": (3.46, 0.81),
-                                                  "truth": (3.55, 0.73)}),
+SEEDS = (1, 2, 3, 4)  # controller_bench's default runs (--seed 0 --seeds 4)
+TIMINGS = {"firmware": {}, "graph": {"ff_batch": 5, "ff_latency": 1}}
+
+
+@pytest.fixture(scope="module")
+def feedforward(database) -> dict:
+    """(estimator, timing) -> mode -> per seed (worst dip, summed IAE), as controller_bench runs them."""
+    out = {}
+    for name, estimator in (("observer", ObserverEstimator(None)), ("knn", make_estimator("knn", database))):
+        for timing, options in TIMINGS.items():
+            per_seed = [worst(run_scenario(RIG, DEMO_SCENARIO, ("off", "estimate", "truth"), estimator=estimator,
+                                           seed=seed, **options)) for seed in SEEDS]
+            out[name, timing] = {mode: np.array([s[mode] for s in per_seed]) for mode in per_seed[0]}
+    return out
+
+
+@pytest.mark.parametrize("timing, expected", [
+    ("firmware", {"off": (4.93, 2.31), "estimate": (3.43, 0.76), "truth": (1.61, 0.68)}),
+    ("graph", {"off": (4.93, 2.31), "estimate": (3.52, 0.79), "truth": (3.52, 0.73)}),
 ])
-def test_feedforward_table(timing: str, options: dict, expected: dict) -> None:
-    """README, Feedforward: off -> observer -> ideal (controller_bench: seed 0 calibration, run seed 1)."""
-    runs = run_scenario(RIG, DEMO_SCENARIO, ("off", "estimate", "truth"), estimator=ObserverEstimator(None), seed=1,
-                        **options)
-    got = worst(runs)
+def test_feedforward_table(feedforward, timing: str, expected: dict) -> None:
+    """README, Feedforward: off -> observer -> ideal, means of controller_bench's 4 runs."""
+    got = feedforward["observer", timing]
     for mode, (dip, iae) in expected.items():
-        assert got[mode][0] == pytest.approx(dip, abs=0.005), (timing, mode, got[mode])
-        assert got[mode][1] == pytest.approx(iae, abs=0.005), (timing, mode, got[mode])
+        assert got[mode][:, 0].mean() == pytest.approx(dip, abs=0.005), (timing, mode, got[mode])
+        assert got[mode][:, 1].mean() == pytest.approx(iae, abs=0.005), (timing, mode, got[mode])
+    if timing == "firmware":  # README: the observer's runs 3.06-3.63 rad/s; its IAE 1.12 x the ideal
+        assert got["estimate"][:, 0].min() == pytest.approx(3.06, abs=0.005)
+        assert got["estimate"][:, 0].max() == pytest.approx(3.63, abs=0.005)
+        assert got["estimate"][:, 1].mean() <= 1.3 * got["truth"][:, 1].mean()  # issue 14's 1.3 x: met
 
 
-@pytest.mark.parametrize("options, dip, iae", [({}, 4.06, 0.98), ({"ff_batch": 5, "ff_latency": 1}, 4.90, 1.01)])
-def test_the_knn_feedforward(database, options: dict, dip: float, iae: float) -> None:
+@pytest.mark.xfail(strict=True, reason="the dip needs the load known within ~1 ms of the step; the step-size "
+                                       "bound gives 1 sigma = 32 % of a 0.2 N m step after 2 samples")
+def test_the_dip_within_1_3_times_the_ideal(feedforward) -> None:
+    """Issue 14's dip target with the firmware's timing (the README says why it is out of reach)."""
+    got = feedforward["observer", "firmware"]
+    assert got["estimate"][:, 0].mean() <= 1.3 * got["truth"][:, 0].mean()
+
+
+@pytest.mark.parametrize("timing, dip, iae", [("firmware", 4.02, 0.92), ("graph", 4.73, 0.95)])
+def test_the_knn_feedforward(feedforward, timing: str, dip: float, iae: float) -> None:
     """README, Feedforward: the k-NN's figures in both timings (controller_bench --method knn)."""
-    runs = run_scenario(RIG, DEMO_SCENARIO, ("off", "estimate", "truth"), estimator=make_estimator("knn", database),
-                        seed=1, **options)
-    got = worst(runs)["estimate"]
-    assert got[0] == pytest.approx(dip, abs=0.005) and got[1] == pytest.approx(iae, abs=0.005), got
+    got = feedforward["knn", timing]["estimate"]
+    assert got[:, 0].mean() == pytest.approx(dip, abs=0.005) and got[:, 1].mean() == pytest.approx(iae, abs=0.005)
 
 
 def test_the_true_load_fed_forward_late() -> None:

@@ -536,13 +536,15 @@ class LoadObserver:
 
     def _step(self, factor: float, period: float) -> _Step:
         """The discretisation over ``period`` [s] for the inertia of flank factor K_s (Eq. 28), cached:
-        J_eff to 4 decimals of J_w (the first J_eff met in a bin is the one discretised)."""
+        J_eff rounded to 4 decimals of the rigid inertia, and the bin's own value discretised, so the
+        result is a function of the state alone, not of which J_eff the filter met first (a replay
+        that starts later than the live node must reproduce it to the bit)."""
         rigid, geared = self._inertia
-        inertia = rigid + geared * factor  # effective_inertia
-        key = (round(inertia / rigid, 4), period)
+        ratio = round((rigid + geared * factor) / rigid, 4)  # effective_inertia, binned
+        key = (ratio, period)
         step = self._steps.get(key)
         if step is None:
-            step = self._steps[key] = _Step(discretise(self.rig, inertia, period))
+            step = self._steps[key] = _Step(discretise(self.rig, ratio * rigid, period))
         return step
 
     def _initialise(self, current: float, omega: float, theta: float | None) -> None:
