@@ -37,7 +37,12 @@ with the applied drive voltage and the encoder angle (``update``'s ``voltage`` a
 ``theta``; a missing voltage is an invalid input), and its estimate is returned.
 
 A NaN/inf input gives an INVALID_INPUT estimate and leaves every state as it
-was. Used by estimator_node and by the controller benchmark, so both run the
+was. Given each sample's seq, it also follows the stream's continuity: lost
+samples (a seq gap up to MAX_GAP) are skipped over (the observer predicts
+across them; the filters take the next sample as the next, without an
+acceleration across the gap), and a seq that goes back or jumps further
+(a restarted rig or driver, a new rig clock) starts every state again, so
+nothing of the old session leaks into the new one. Used by estimator_node and by the controller benchmark, so both run the
 same code. No ROS.
 
 Why these defaults (bench/controller_bench.py, the bundled rig: tacho noise
@@ -62,6 +67,8 @@ from torque_estimator.estimation.quasi_static import inertia_free_current
 INPUT_FILTER_STAGES = 3
 #: Time constant [s] of the running noise estimate of the change detector.
 NOISE_TIME_CONSTANT = 0.5
+#: Largest seq gap [samples] bridged; a longer one (or a seq going back) is a new rig session.
+MAX_GAP = 100
 
 
 @dataclass(frozen=True)
@@ -175,20 +182,47 @@ class LiveEstimator:
         self.sample_period = sample_period
         self.inertia_compensation = inertia_compensation
         self.transient_acceleration = transient_acceleration
-        self.speed = _Cascade(input_filter, sample_period, INPUT_FILTER_STAGES)
-        self.current = _Cascade(input_filter, sample_period, INPUT_FILTER_STAGES)
-        self.smooth = ChangeGatedLowPass(estimate_filter, sample_period, change_threshold, change_hold)
+        self._filters = (input_filter, estimate_filter, change_threshold, change_hold)
+        self.gaps = 0  # seq gaps bridged (samples lost upstream)
+        self.lost = 0  # samples in them
+        self.restarts = 0  # new rig sessions seen (seq back or far ahead)
+        self._next_seq: int | None = None
+        self._start()
+
+    def _start(self) -> None:
+        """Every state as before the first sample."""
+        input_filter, estimate_filter, change_threshold, change_hold = self._filters
+        self.speed = _Cascade(input_filter, self.sample_period, INPUT_FILTER_STAGES)
+        self.current = _Cascade(input_filter, self.sample_period, INPUT_FILTER_STAGES)
+        self.smooth = ChangeGatedLowPass(estimate_filter, self.sample_period, change_threshold, change_hold)
         self._previous_speed: float | None = None
         self._omega = math.nan  # [rad/s] filtered speed of the last valid sample
         self.alpha = 0.0  # [rad/s^2] acceleration of the filtered speed, last sample
-        make_stream = getattr(estimator, "stream", None)
-        self.stream = make_stream(sample_period) if callable(make_stream) else None
+        make_stream = getattr(self.estimator, "stream", None)
+        self.stream = make_stream(self.sample_period) if callable(make_stream) else None
+
+    def follow(self, seq: int) -> None:
+        """The next sample's seq: bridge a gap or start again (module docstring). update(seq=...) calls it."""
+        expected, self._next_seq = self._next_seq, seq + 1
+        if expected is None or seq == expected:
+            return
+        if seq < expected or seq - expected > MAX_GAP:
+            self.restarts += 1
+            self._start()
+            return
+        self.gaps += 1
+        self.lost += seq - expected
+        if self.stream is not None:
+            self.stream.skip(seq - expected)
+        self._previous_speed = None  # no acceleration across the gap
 
     def update(self, omega_worm: float, current_drive: float, voltage: float | None = None,
-               theta: float | None = None) -> LiveEstimate:
+               theta: float | None = None, seq: int | None = None) -> LiveEstimate:
         """Feed one sample: measured worm speed [rad/s] and drive current [A]; for a streaming
         estimator also the drive voltage applied during this sample's period [V] and the encoder
-        angle [rad] (None: no encoder)."""
+        angle [rad] (None: no encoder); seq: the sample's RigSample seq (None: take it as the next)."""
+        if seq is not None:
+            self.follow(seq)
         if self.stream is not None:
             est = self.stream.update(math.nan if voltage is None else voltage, current_drive, omega_worm, theta)
             return LiveEstimate(est.torque, est.uncertainty, est.flags, est.omega_worm, est.current_drive)
@@ -213,4 +247,4 @@ class LiveEstimator:
         return LiveEstimate(float(result.torque), float(result.uncertainty), flags, float(omega), float(current))
 
 
-__all__ = ["INPUT_FILTER_STAGES", "NOISE_TIME_CONSTANT", "ChangeGatedLowPass", "LiveEstimate", "LiveEstimator"]
+__all__ = ["INPUT_FILTER_STAGES", "MAX_GAP", "NOISE_TIME_CONSTANT", "ChangeGatedLowPass", "LiveEstimate", "LiveEstimator"]

@@ -128,11 +128,15 @@ class EstimatorNode(Node):
         if self.estimator is None or not n:
             return
         omega, current, voltage, theta = batch.omega_worm, batch.current_drive, batch.voltage_drive, batch.theta_worm
+        restarts = self.estimator.restarts
         for k in range(n):
-            est = self.estimator.update(omega[k], current[k], voltage[k], theta[k])
+            est = self.estimator.update(omega[k], current[k], voltage[k], theta[k], batch.first_seq + k)
             if est.flags:
                 for flag in EstimateFlags(est.flags):
                     self.flag_counts[flag.name] += 1
+        if self.estimator.restarts != restarts:
+            self.get_logger().info(f"rig sample stream started again at seq {batch.first_seq} (a restarted rig "
+                                   "or driver): estimator state reset")
         last = n - 1
         msg = TorqueEstimate(seq=batch.first_seq + last, torque=est.torque, uncertainty=est.uncertainty,
                              method=self.method, omega_worm=est.omega_worm, current_drive=est.current_drive,
@@ -157,7 +161,10 @@ class EstimatorNode(Node):
         if self.estimator is None:
             return ERROR, f"no calibration: {self.problem}", {"samples": self.received}
         level = WARN if self.flag_counts["INVALID_INPUT"] else OK
-        return level, "estimating", {"samples": self.received, "malformed_batches": self.malformed, **self.flag_counts}
+        e = self.estimator
+        return level, "estimating", {"samples": self.received, "malformed_batches": self.malformed,
+                                     "seq_gaps": e.gaps, "samples_lost": e.lost, "stream_restarts": e.restarts,
+                                     **self.flag_counts}
 
 
 def main(args=None) -> int:

@@ -205,3 +205,23 @@ def test_deserialize_accepts_fast_cdr_final_padding(types: MessageTypes) -> None
         deserialize_cdr(types.typestore, data + bytes(24), 'sensor_msgs/msg/JointState')
     with pytest.raises(BagReadError, match='plain CDR'):
         deserialize_cdr(types.typestore, b'\x00\x07\x00\x00', 'sensor_msgs/msg/JointState')
+
+
+@pytest.mark.parametrize('storage', ['mcap', 'sqlite3'])
+def test_a_flushed_bag_is_readable_without_close(tmp_path: Path, storage: str) -> None:
+    """What a killed recorder leaves: messages up to its last flush(), read without metadata.yaml."""
+    import shutil
+
+    writer = BagWriter(tmp_path / 'bag', storage)
+    handle = writer.add_topic('/rig/sample', 'worm_msgs/msg/RigSample')
+    for seq in range(30):
+        writer.write(handle, 1000 + seq, bytes(serialize_message(RigSample(seq=seq))))
+        if seq == 19:
+            writer.flush()
+    # as after SIGKILL: copy the files as they are on disk, then let the writer go
+    shutil.copytree(tmp_path / 'bag', tmp_path / 'killed')
+    writer.close()
+    assert not (tmp_path / 'killed' / 'metadata.yaml').exists()
+    seqs = [m.seq for _, m in read_messages(tmp_path / 'killed', '/rig/sample')]
+    assert seqs[:20] == list(range(20)) and len(seqs) <= 30
+    assert os.path.getsize(next((tmp_path / 'killed').iterdir())) > 0

@@ -52,3 +52,17 @@ def test_delivery_check_per_publisher() -> None:
     assert check.report() == [
         '/rig/sample: 6 received from 2 publisher(s), 1 missing in their DDS sequence numbers',
         '/rig/sample: 1 messages without DDS sequence numbers (not checked)']
+
+
+def test_a_stream_of_every_fifth_seq_loses_nothing_by_its_step() -> None:
+    """estimator_node publishes one estimate per batch of 5 samples, model_node about one force per
+    20 ms: their seqs step by 5 and ~20. A missed message is a step too many, timer jitter none."""
+    estimates = SequenceTracker()
+    for seq in [4, 9, 14, 19, 29, 34, 39]:
+        estimates.add(seq)
+    assert (estimates.step, estimates.lost, estimates.gaps) == (5, 1, [(24, 24)])
+    assert estimates.summary() == 'seq 4..39 (every 5): 7 received, lost 1, gaps 24'
+    forces = SequenceTracker()
+    for seq in [19, 39, 59, 74, 99, 119, 159, 179]:
+        forces.add(seq)
+    assert (forces.step, forces.lost) == (20, 1)

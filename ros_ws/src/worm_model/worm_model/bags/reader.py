@@ -525,8 +525,10 @@ class McapFile:
             self.stream.seek(0)
             messages = 0
             size = self.path.stat().st_size
+            end = 0  # where the last complete record ends
             try:
                 for record in StreamReader(self.stream, record_size_limit=None).records:
+                    end = self.stream.tell()
                     if isinstance(record, Schema):
                         schemas[record.id] = record
                     elif isinstance(record, Channel):
@@ -538,9 +540,13 @@ class McapFile:
                     elif isinstance(record, DataEnd):
                         break  # every message is before it: a cut in the summary loses none
             except (McapError, EOFError, ValueError, struct.error) as err:
-                self.damage = (f'{self.path}: truncated: it ends inside a record ({type(err).__name__}) '
-                               f'of its {size} bytes, so the messages of the cut-off part are lost; '
-                               f'{messages} message(s) before the cut can be read')
+                if end == size:  # it ends after a complete record: a writer stopped (killed) between two
+                    self.warnings.append(f'{self.path}: ends after {messages} message(s) without its '
+                                         'footer: the writer stopped before closing it')
+                else:
+                    self.damage = (f'{self.path}: truncated: it ends inside a record ({type(err).__name__}) '
+                                   f'of its {size} bytes, so the messages of the cut-off part are lost; '
+                                   f'{messages} message(s) before the cut can be read')
         self.topics = []
         self._channel_topics: dict[int, str] = {}
         seen: set[str] = set()

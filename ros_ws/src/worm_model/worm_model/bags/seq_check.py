@@ -21,6 +21,7 @@ publisher's own count (the bench compares it) closes that hole.
 from __future__ import annotations
 
 import struct
+from collections import Counter
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Final, cast
@@ -36,6 +37,8 @@ FIRST_SEQ_FIELD: Final = ('first_seq', (Nodetype.BASE, ('uint64', 0)))
 PERIOD_FIELD: Final = ('sample_period', (Nodetype.BASE, ('float64', 0)))
 HEADER_FIELD: Final = ('header', (Nodetype.NAME, 'std_msgs/msg/Header'))
 MAX_GAPS_KEPT: Final[int] = 20
+#: Gaps (by the step known when they came) remembered, to be re-judged by the final step.
+MAX_GAP_CANDIDATES: Final[int] = 10000
 
 
 def header_seq(data: bytes | memoryview) -> int:
@@ -96,15 +99,22 @@ def seq_reader(typestore: Typestore, type_name: str) -> Callable[[bytes | memory
 
 @dataclass
 class SequenceTracker:
-    """Counts of one stream's sequence numbers, fed in receive order."""
+    """Counts of one stream's sequence numbers, fed in receive order.
+
+    A stream need not carry every seq: estimator_node publishes one estimate per batch of 5
+    samples, model_node one force per 20 ms. The stream's step is the most common increment
+    between successive messages (ties: the smaller), and a message is lost where an increment
+    spans more than one step (rounded: timer jitter, 15 or 25 in a stream of 20s, is no loss).
+    """
 
     count: int = 0
     first: int | None = None
     last: int | None = None
-    lost: int = 0
     repeated: int = 0
-    gaps: list[tuple[int, int]] = field(default_factory=list)
-    """The first :data:`MAX_GAPS_KEPT` gaps as (first missing, last missing) seq."""
+    increments: Counter[int] = field(default_factory=Counter)
+    """How often each increment between successive messages occurred."""
+    _candidates: list[tuple[int, int]] = field(default_factory=list)
+    _mode: tuple[int, int] = (0, 0)  # (count, -increment) of the most common increment so far
 
     def add(self, seq: int, count: int = 1) -> None:
         """Account for ``count`` received consecutive seqs from ``seq`` on (a message, or a batch)."""
@@ -118,22 +128,48 @@ class SequenceTracker:
         if seq <= self.last:
             self.repeated += count
             return
-        if seq > self.last + 1:
-            self.lost += seq - self.last - 1
-            if len(self.gaps) < MAX_GAPS_KEPT:
-                self.gaps.append((self.last + 1, seq - 1))
+        step = seq - self.last
+        self.increments[step] += 1
+        self._mode = max(self._mode, (self.increments[step], -step))
+        # a gap by the step known so far (re-judged by the final step in gaps)
+        if step > 1 and 2 * step > 3 * -self._mode[1] and len(self._candidates) < MAX_GAP_CANDIDATES:
+            self._candidates.append((self.last, seq))
         self.last = last
 
+    @property
+    def step(self) -> int:
+        """The stream's seq step (1 until two messages were seen)."""
+        return -self._mode[1] if self.increments else 1
+
+    def _missing(self, increment: int, step: int) -> int:
+        return max(round(increment / step) - 1, 0)
+
+    @property
+    def lost(self) -> int:
+        """Messages missing between the first and the last one seen, in steps of :attr:`step`."""
+        step = self.step
+        return sum(n * self._missing(d, step) for d, n in self.increments.items())
+
+    @property
+    def gaps(self) -> list[tuple[int, int]]:
+        """The first :data:`MAX_GAPS_KEPT` gaps as (first missing, last missing) seq."""
+        step = self.step
+        return [(a + step, b - step) if step > 1 else (a + 1, b - 1)
+                for a, b in self._candidates if self._missing(b - a, step)][:MAX_GAPS_KEPT]
+
     def summary(self) -> str:
-        """One line: range, lost, repeated."""
+        """One line: range (and step), lost, repeated."""
         if self.first is None:
             return 'no messages'
-        text = f'seq {self.first}..{self.last}: {self.count} received, lost {self.lost}'
+        step = self.step
+        every = f' (every {step})' if step > 1 else ''
+        lost = self.lost
+        text = f'seq {self.first}..{self.last}{every}: {self.count} received, lost {lost}'
         if self.repeated:
             text += f', {self.repeated} repeated or out of order'
-        if self.gaps:
-            text += ', gaps ' + ', '.join(f'{a}' if a == b else f'{a}-{b}' for a, b in self.gaps)
-            if self.lost and len(self.gaps) == MAX_GAPS_KEPT:
+        if gaps := self.gaps:
+            text += ', gaps ' + ', '.join(f'{a}' if a == b else f'{a}-{b}' for a, b in gaps)
+            if len(gaps) == MAX_GAPS_KEPT:
                 text += ', ...'
         return text
 

@@ -195,6 +195,27 @@ class BagWriter(ClosesOnExit):
             self.counts[topic] = 0
         return handle
 
+    def flush(self) -> None:
+        """Put what was written so far on disk, so a writer killed without close() leaves it readable.
+
+        rosbags keeps an MCAP chunk in memory until it holds 1 MiB (minutes of our streams), and
+        sqlite3 rows in an open transaction: here the pending chunk is closed and the file
+        flushed (MCAP), or the transaction committed (sqlite3). A reader then reads the bag up to
+        the last flush (without metadata.yaml or the MCAP summary, as :mod:`reader` handles).
+        This reaches into the storage writers of the pinned rosbags release (McapWriter.chunk,
+        .close_chunk, .bio; Sqlite3Writer.conn): test_bag_recording checks it still works.
+        """
+        with self._lock:
+            storage = None if self._writer is None else self._writer.storage
+            if storage is None:
+                return
+            if hasattr(storage, 'close_chunk'):  # MCAP
+                if storage.chunk.msgs:
+                    storage.close_chunk()
+                storage.bio.flush()
+            elif hasattr(storage, 'conn'):  # sqlite3
+                storage.conn.commit()
+
     def write(self, handle: TopicHandle, timestamp_ns: int, cdr_bytes: bytes | memoryview) -> None:
         """Append one serialized message, as received (no re-serialization).
 

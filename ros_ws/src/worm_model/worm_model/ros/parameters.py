@@ -8,6 +8,7 @@ context, no DDS participant, nothing written where the user is. :func:`help_text
 """
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import tempfile
@@ -28,7 +29,8 @@ def declare(node: Node, name: str, default: Any, description: str, *,
 
     Numeric parameters get a FloatingPointRange/IntegerRange from low..high, so
     `ros2 param describe` shows it and out-of-range values are refused by rclpy.
-    String parameters with choices are checked here, naming the parameter.
+    String parameters with choices are checked here, naming the parameter; so is a non-finite double
+    (ValueError: the node's run_node turns it into one line and exit code 2).
     """
     descriptor = ParameterDescriptor(description=description, read_only=read_only)
     if choices:
@@ -44,6 +46,9 @@ def declare(node: Node, name: str, default: Any, description: str, *,
             descriptor.floating_point_range = [FloatingPointRange(from_value=float(lo), to_value=float(hi),
                                                                   step=0.0)]
     value = node.declare_parameter(name, default, descriptor).value
+    # rclpy's range check lets inf through a half-open range and NaN through any; no quantity here is either.
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ValueError(f"parameter {name}: {value!r} is not a finite number")
     if choices and value not in choices:
         raise ValueError(f"parameter {node.get_name()}.{name}={value!r} is not one of {choices}")
     return value

@@ -216,6 +216,7 @@ class TopicRecorder:
         self._subscriptions: dict[str, Subscription[Any]] = {}
         self._failed: set[str] = set()
         self._discovery_timer: Timer | None = None
+        self._flush_timer: Timer | None = None
         self._lock = threading.Lock()
 
     @property
@@ -265,16 +266,19 @@ class TopicRecorder:
                     self._failed.add(topic)
                     self.node.get_logger().error(f'Not recording {topic}: {err}')
 
-    def start_discovery(self, period_s: float) -> None:
-        """Call :meth:`discover` every ``period_s`` seconds on the node's executor."""
+    def start_discovery(self, period_s: float, flush_period_s: float = 1.0) -> None:
+        """Call :meth:`discover` every ``period_s`` seconds on the node's executor, and put what was
+        recorded on disk every ``flush_period_s`` (a recorder killed loses at most that much)."""
         if self._discovery_timer is None:
             self._discovery_timer = self.node.create_timer(period_s, self.discover)
+            self._flush_timer = self.node.create_timer(flush_period_s, self.writer.flush)
 
     def close(self) -> None:
         """Stop discovery, destroy the subscriptions, then close the bag (idempotent)."""
         with self._lock:
             if self._discovery_timer is not None:
                 self.node.destroy_timer(self._discovery_timer)
+                self.node.destroy_timer(self._flush_timer)
                 self._discovery_timer = None
             for subscription in self._subscriptions.values():
                 self.node.destroy_subscription(subscription)

@@ -1,0 +1,172 @@
+"""Faults of the live graph over DDS: each node killed (SIGKILL, no clean-up) during a run at speed, then
+started again, as the README's fault table states.
+
+The graph of sim_graph.yaml runs one process per node (run_graph's default), at 150 rad/s against
++0.1 N m; a probe records the rig's samples, the estimates and the speed commands. Outcomes are judged
+on the streams' own stamps and seqs:
+
+* estimator_node killed: the controller drops the feedforward within its estimate_timeout (0.05 s) of
+  the last estimate (never a stale estimate); restarted, estimates and feedforward come back;
+* model_node killed: the rig, the estimate and the feedforward go on; restarted, its forces come back;
+* sim_node killed: restarted, samples flow again (a new rig clock) and the graph follows them;
+* the recorder killed: the bag it leaves is read by `bag info` up to the kill.
+(controller_node killed: the rig stops driving within 0.1 s: tests/test_controller_node_dds.py.)
+"""
+from __future__ import annotations
+
+import re
+import signal
+import subprocess
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+from worm_msgs.msg import GearboxForces, LoadCommand, RigSamples, SpeedCommand, TorqueEstimate
+
+from torque_estimator.graph.runner import Graph, parse_overrides
+from worm_model.rig_data.samples import unbatch
+from worm_model.ros.ament import find_executable
+from worm_model.ros.qos import COMMAND, STREAM
+from worm_model.ros.testing import probe_node
+
+REPO = Path(__file__).resolve().parents[1]
+GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
+START_TIMEOUT = 45.0  # [s]
+ESTIMATE_TIMEOUT = 0.05  # [s] controller_node's estimate_timeout (sim_graph.yaml)
+
+
+def stamp_s(header) -> float:
+    return header.stamp.sec + header.stamp.nanosec * 1e-9
+
+
+class Streams:
+    """The probe: records what the graph publishes, with receive times."""
+
+    def __init__(self, node, executor) -> None:
+        self.executor = executor
+        self.samples: list = []
+        self.estimates: list = []
+        self.commands: list = []
+        self.forces: list = []
+        node.create_subscription(RigSamples, "/rig/samples", lambda m: self.samples.extend(unbatch(m)), STREAM)
+        node.create_subscription(TorqueEstimate, "/torque_estimate", self.estimates.append, STREAM)
+        node.create_subscription(SpeedCommand, "/rig/speed_command", self.commands.append, STREAM)
+        node.create_subscription(GearboxForces, "/gearbox/forces", self.forces.append, STREAM)
+        self.load = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
+
+    def spin_until(self, done: Callable[[], bool], timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while not done() and time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.02)
+        return done()
+
+    def spin_for(self, seconds: float) -> None:
+        self.spin_until(lambda: False, seconds)
+
+    def clear(self) -> None:
+        for stream in (self.samples, self.estimates, self.commands, self.forces):
+            stream.clear()
+
+
+@pytest.fixture(scope="module")
+def graph(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Graph, Streams]]:
+    log_dir = tmp_path_factory.mktemp("faults")
+    g = Graph(GRAPH_FILE, parse_overrides(["controller_node.speed_setpoint=150.0"]), log_dir)
+    with probe_node("faults_probe") as (node, executor):
+        streams = Streams(node, executor)
+        g.start()
+        try:
+            assert streams.spin_until(lambda: len(streams.estimates) > 20 and len(streams.commands) > 20
+                                      and streams.load.get_subscription_count(),
+                                      START_TIMEOUT), f"the graph did not start; logs in {log_dir}"
+            streams.load.publish(LoadCommand(torque=0.1))
+            streams.spin_for(1.5)
+            yield g, streams
+        finally:
+            g.stop()
+
+
+def restart(g: Graph, name: str) -> None:
+    """Start node ``name`` again, as it was started (its log appended)."""
+    log = open(g.log_dir / f"{name}.log", "ab")
+    g.processes[name] = subprocess.Popen(g.command(name), stdout=log, stderr=subprocess.STDOUT)
+
+
+def kill(g: Graph, name: str) -> float:
+    """SIGKILL node ``name``; returns the time [s, system clock, as the stamps] just before."""
+    at = time.time()
+    g.processes[name].send_signal(signal.SIGKILL)
+    g.processes[name].wait(10)
+    return at
+
+
+def test_killed_estimator_drops_the_feedforward_then_rejoins(graph) -> None:
+    g, s = graph
+    s.clear()
+    s.spin_for(0.5)
+    assert s.commands and all(c.feedforward_torque > 0 for c in s.commands[-20:]), "no feedforward before"
+    kill(g, "estimator_node")
+    s.spin_for(1.0)  # keeps what was in flight: the last estimate stamp is the last one that got out
+    last = max(stamp_s(e.header) for e in s.estimates)
+    late = [c for c in s.commands if stamp_s(c.header) > last + ESTIMATE_TIMEOUT + 0.005]
+    assert len(late) > 10, f"the controller stopped sending commands ({len(late)} after the estimator died)"
+    assert all(c.feedforward_torque == 0.0 for c in late), "a stale estimate was fed forward"
+    assert abs(sum(x.omega_worm for x in s.samples[-200:]) / 200 - 150.0) < 3.0, "the PI alone lost the speed"
+    restart(g, "estimator_node")
+    s.clear()
+    assert s.spin_until(lambda: len(s.estimates) > 50 and s.commands[-1].feedforward_torque > 0, START_TIMEOUT), (
+        f"the restarted estimator did not rejoin; logs in {g.log_dir}")
+
+
+def test_killed_model_node_leaves_the_control_path_alone_then_rejoins(graph) -> None:
+    g, s = graph
+    s.clear()
+    killed = kill(g, "model_node")
+    s.spin_for(1.0)
+    # forces are stamped with their sample's stamp: none of a sample taken after the kill
+    assert max((stamp_s(f.header) for f in s.forces), default=0.0) < killed, "forces after model_node died"
+    assert len(s.estimates) > 100 and all(c.feedforward_torque > 0 for c in s.commands[-20:])
+    restart(g, "model_node")
+    s.clear()
+    assert s.spin_until(lambda: len(s.forces) > 10, START_TIMEOUT), f"model_node did not rejoin; logs in {g.log_dir}"
+
+
+def test_killed_rig_restarts_and_the_graph_follows(graph) -> None:
+    g, s = graph
+    s.clear()
+    killed = kill(g, "sim_node")
+    s.spin_for(0.5)
+    assert s.samples and max(stamp_s(x.header) for x in s.samples) < killed, "samples after the rig died"
+    restart(g, "sim_node")
+    assert s.spin_until(lambda: len(s.samples) > 2000, START_TIMEOUT), f"no samples after the restart ({g.log_dir})"
+    s.load.publish(LoadCommand(torque=0.1))  # the restarted rig also got the latched one, if its publisher lives
+    s.clear()
+    s.spin_for(1.5)
+    assert abs(sum(x.omega_worm for x in s.samples[-200:]) / 200 - 150.0) < 3.0, "the controller did not take it"
+    assert len(s.estimates) > 100 and s.commands[-1].feedforward_torque > 0
+
+
+def test_killed_recorder_leaves_a_readable_bag(graph, ros_env: dict[str, str], tmp_path: Path) -> None:
+    """The recorder flushes its bag every second (flush_period): SIGKILL loses at most the last second."""
+    _g, s = graph
+    bag, log_path = tmp_path / "bag", tmp_path / "recorder.log"
+    with log_path.open("wb") as log:
+        recorder = subprocess.Popen([str(find_executable("recorder")), "--ros-args", "-p", f"output:={bag}",
+                                     "-p", "topics:=[/rig/samples,/torque_estimate]", "-p", "discovery_period:=0.1"],
+                                    env=ros_env, stdout=log, stderr=subprocess.STDOUT)
+    try:
+        assert s.spin_until(lambda: log_path.read_text(errors="replace").count("Recording /") == 2,
+                            START_TIMEOUT), log_path.read_text(errors="replace")
+        s.spin_for(3.0)
+    finally:
+        recorder.send_signal(signal.SIGKILL)
+        recorder.wait(10)
+    done = subprocess.run([str(find_executable("bag")), "info", str(bag)], env=ros_env, capture_output=True,
+                          text=True, timeout=60)
+    print(done.stdout, done.stderr)
+    assert done.returncode == 0, done.stderr
+    counts = {m[1]: int(m[2]) for m in re.finditer(r"Topic: (/\S+) \| Type: \S+ \| Count: (\d+)", done.stdout)}
+    # 3 s at 200 batches/s, less the last second at most: >= 2 s flushed
+    assert counts.get("/rig/samples", 0) > 300 and counts.get("/torque_estimate", 0) > 300, done.stdout
+    assert "lost 0" in done.stdout.split("Sequence check:")[1], done.stdout
