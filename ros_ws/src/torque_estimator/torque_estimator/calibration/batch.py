@@ -66,10 +66,12 @@ class CalibrationGrid:
 
 def measure_on_simulator(rig: Rig, speeds, torques, *, seed: int = 0, gains: PiGains = DEFAULT_GAINS,
                          criterion: SteadyStateCriterion = SteadyStateCriterion(),
-                         progress: Callable[[float], None] | None = None) -> OperatingPoints:
-    """Measure operating points on simulated rigs, one rig per point, all at once."""
+                         progress: Callable[[float], None] | None = None, effects=None) -> OperatingPoints:
+    """Measure operating points on simulated rigs, one rig per point, all at once.
+
+    ``effects``: the simulator's effects the model lacks (SimulatedRig's ``effects``; None: none)."""
     speeds = np.asarray(speeds, dtype=float)
-    sim = SimulatedRig(rig, n=len(speeds), seed=seed)
+    sim = SimulatedRig(rig, n=len(speeds), seed=seed, effects=effects, scalar=False if effects else None)
     controller = SpeedController(rig, gains, n=len(speeds))
     return measure_operating_points(sim, controller, speeds, torques, criterion, progress)
 
@@ -90,7 +92,7 @@ def batch_seed(seed: int, batch: int) -> int:
 def calibrate_simulated(rig: Rig, grid: CalibrationGrid, *, seed: int = 0, gains: PiGains = DEFAULT_GAINS,
                         criterion: SteadyStateCriterion = SteadyStateCriterion(),
                         progress: Callable[[float], None] | None = None, batch_size: int = DEFAULT_BATCH_SIZE,
-                        journal: Path | None = None, resume: bool = False) -> CalibrationDatabase:
+                        journal: Path | None = None, resume: bool = False, effects=None) -> CalibrationDatabase:
     """Run the calibration grid on the simulated rig and return the database.
 
     The plan's points (CalibrationGrid.points() order) are cut into batches of
@@ -102,6 +104,7 @@ def calibrate_simulated(rig: Rig, grid: CalibrationGrid, *, seed: int = 0, gains
         progress: called with the fraction of the grid's points done.
         journal: journal file written after every batch (calibration_journal); None: none.
         resume: continue the journal at `journal` if it exists.
+        effects: effects switched on in the simulator only (SimulatedRig's ``effects``); None: none.
 
     Raises:
         calibration_journal.JournalError: a journal exists and resume is False, or
@@ -113,6 +116,8 @@ def calibrate_simulated(rig: Rig, grid: CalibrationGrid, *, seed: int = 0, gains
     n = len(speeds)
     settings = {"source": "simulator", **grid_settings(grid, rig, criterion), "seed": seed,
                 "gains": {"kp": gains.kp, "ki": gains.ki}, "batch_size": batch_size}
+    if effects is not None:  # only then: journals of runs without effects keep their settings
+        settings["effects"] = effects if isinstance(effects, dict) else str(effects)
     book = CalibrationJournal.open(journal, settings, n, resume)
     pending = set(book.pending().tolist())
     for batch, first in enumerate(range(0, n, batch_size)):
@@ -122,7 +127,7 @@ def calibrate_simulated(rig: Rig, grid: CalibrationGrid, *, seed: int = 0, gains
         done = len(book.points)
         report = None if progress is None else (lambda f, d=done, m=len(members): progress((d + f * m) / n))
         measured = measure_on_simulator(rig, speeds[members], torques[members], seed=batch_seed(seed, batch),
-                                        gains=gains, criterion=criterion, progress=report)
+                                        gains=gains, criterion=criterion, progress=report, effects=effects)
         book.record(members, measured)
         if progress is not None:
             progress(len(book.points) / n)
