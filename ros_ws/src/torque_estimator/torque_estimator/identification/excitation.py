@@ -118,12 +118,13 @@ def setpoints(timeline, t: float) -> tuple[float, float] | None:
 
 def sampled(timeline, period: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(segment index, speed, load) per sample of ``period`` [s]: the set-points in force during each
-    sample period (segment k starts at the sample round(start_k / period))."""
+    sample period, as recording.ExcitationRun walks them (segment k starts at the sample
+    round(start_k / period); its set-points are taken at whole periods from there)."""
     index, speed, load = [], [], []
     start = 0.0
     for k, segment in enumerate(timeline):
         first, last = int(round(start / period)), int(round((start + segment.duration) / period))
-        t = (np.arange(first, last) * period) - start
+        t = np.arange(last - first) * period
         values = np.array([segment.at(x) for x in t]).reshape(-1, 2)
         index.append(np.full(len(t), k))
         speed.append(values[:, 0])
