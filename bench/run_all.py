@@ -51,6 +51,8 @@ def main() -> int:
     print(f"[run_all] graph benchmark on ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}", file=sys.stderr, flush=True)
     ok = run("graph_bench.py", env, GRAPH_METRICS, timeout=600)
     ok &= run("core_bench.py", dict(os.environ), ("calibration_grid_time: nan s",), timeout=600)
+    ok &= run("identify_bench.py", dict(os.environ), ("calibration_rig_time: nan s", "identification_rig_time: nan s",
+                                                      "identification_fit_time: nan s"), timeout=300)
     ok &= run("serial_bench.py", dict(os.environ), SERIAL_METRICS, timeout=300)
     # The 5 minutes at 1 kHz is `python bench/recorder_bench.py`; make bench records 60 s.
     ok &= run("recorder_bench.py", env, RECORDER_METRICS, timeout=240, args=("--duration", "60"))

@@ -29,6 +29,8 @@ setup(
             "run_graph = torque_estimator.graph.run_graph:main",
             "demo = torque_estimator.experiment.demo:main",
             "replay = torque_estimator.graph.replay:main",
+            "identify = torque_estimator.identification.identify:main",
+            "estimate = torque_estimator.experiment.estimate:main",
         ],
     },
 )

@@ -15,9 +15,14 @@ Map (dependencies point up this list; rclpy only in ``nodes`` and the two
                 (``batch``), point by point on a live graph (``live``,
                 ``calibration_node``), the resumable ``journal``, the steady-state
                 ``operating_points``, the ``calibrate`` CLI
+``identification`` the fast road: one short excitation (``excitation``, ``recording``,
+                live over the graph by ``identify_node``, in-process by ``simulated``), the
+                fit of the rig's uncertain parameters and effects (``fit``), the ``identify`` CLI
 ``experiment``  the paper's experiment and the demo: held-out ``evaluation`` and
                 ``evaluate`` CLI, ``scenario`` timelines, ``closed_loop`` (the graph's
-                loop in one process), ``run_analysis``, ``plots``, ``demo``
+                loop in one process), ``run_analysis``, ``plots``, ``demo``; ``estimate``
+                (any estimator over a log, scored against its tau_load); ``identified``
+                (identify vs the k-NN grid on the simulator, for evaluate and bench)
 ``graph``       running the node graph: ``runner`` (start nodes from one parameter
                 file), ``run_graph`` CLI, ``replay`` (the graph's cores over a bag)
 ``nodes``       estimator_node, controller_node, and ``composed`` (several nodes in one

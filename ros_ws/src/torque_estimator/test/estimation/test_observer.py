@@ -35,7 +35,7 @@ def nominal_step():
 
 
 def test_registry() -> None:
-    assert "observer" in ESTIMATORS and NODE_OPTIONS["observer"] == ("rig_file",)
+    assert "observer" in ESTIMATORS and NODE_OPTIONS["observer"] == ("rig_file", "model_file")
     est = make_estimator("observer", None)
     assert callable(est.stream) and isinstance(est.stream(0.001), LoadObserver)
 

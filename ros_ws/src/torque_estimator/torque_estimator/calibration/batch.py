@@ -66,10 +66,12 @@ class CalibrationGrid:
 
 def measure_on_simulator(rig: Rig, speeds, torques, *, seed: int = 0, gains: PiGains = DEFAULT_GAINS,
                          criterion: SteadyStateCriterion = SteadyStateCriterion(),
-                         progress: Callable[[float], None] | None = None) -> OperatingPoints:
-    """Measure operating points on simulated rigs, one rig per point, all at once."""
+                         progress: Callable[[float], None] | None = None, effects=None) -> OperatingPoints:
+    """Measure operating points on simulated rigs, one rig per point, all at once.
+
+    ``effects``: the simulator's effects the model lacks (SimulatedRig's ``effects``; None: none)."""
     speeds = np.asarray(speeds, dtype=float)
-    sim = SimulatedRig(rig, n=len(speeds), seed=seed)
+    sim = SimulatedRig(rig, n=len(speeds), seed=seed, effects=effects, scalar=False if effects else None)
     controller = SpeedController(rig, gains, n=len(speeds))
     return measure_operating_points(sim, controller, speeds, torques, criterion, progress)
 
@@ -91,7 +93,7 @@ def calibrate_simulated(rig: Rig, grid: CalibrationGrid, *, seed: int = 0, gains
                         criterion: SteadyStateCriterion = SteadyStateCriterion(),
                         progress: Callable[[float], None] | None = None, batch_size: int = DEFAULT_BATCH_SIZE,
                         journal: Path | None = None, resume: bool = False,
-                        drop_bad_points: bool = False) -> CalibrationDatabase:
+                        drop_bad_points: bool = False, effects=None) -> CalibrationDatabase:
     """Run the calibration grid on the simulated rig and return the database.
 
     The plan's points (CalibrationGrid.points() order) are cut into batches of
@@ -105,6 +107,7 @@ def calibrate_simulated(rig: Rig, grid: CalibrationGrid, *, seed: int = 0, gains
         resume: continue the journal at `journal` if it exists.
         drop_bad_points: measure again the points the journal holds with bad values
             (CalibrationJournal.open) instead of refusing it.
+        effects: effects switched on in the simulator only (SimulatedRig's ``effects``); None: none.
 
     Raises:
         calibration_journal.JournalError: a journal exists and resume is False, or
@@ -116,6 +119,8 @@ def calibrate_simulated(rig: Rig, grid: CalibrationGrid, *, seed: int = 0, gains
     n = len(speeds)
     settings = {"source": "simulator", **grid_settings(grid, rig, criterion), "seed": seed,
                 "gains": {"kp": gains.kp, "ki": gains.ki}, "batch_size": batch_size}
+    if effects is not None:  # only then: journals of runs without effects keep their settings
+        settings["effects"] = effects if isinstance(effects, dict) else str(effects)
     book = CalibrationJournal.open(journal, settings, n, resume, drop_bad_points)
     pending = set(book.pending().tolist())
     for batch, first in enumerate(range(0, n, batch_size)):
@@ -125,7 +130,7 @@ def calibrate_simulated(rig: Rig, grid: CalibrationGrid, *, seed: int = 0, gains
         done = len(book.points)
         report = None if progress is None else (lambda f, d=done, m=len(members): progress((d + f * m) / n))
         measured = measure_on_simulator(rig, speeds[members], torques[members], seed=batch_seed(seed, batch),
-                                        gains=gains, criterion=criterion, progress=report)
+                                        gains=gains, criterion=criterion, progress=report, effects=effects)
         book.record(members, measured)
         if progress is not None:
             progress(len(book.points) / n)

@@ -9,9 +9,12 @@ The model is a worm_model ``ExtendedModel`` read from a parameter file written b
 effects, i.e. the paper's model (Eqs 28–30).
 
 Construction (once): the model's drive current i(ω, τ_d) at α = 0 is tabulated on a
-uniform grid per rotation direction: |ω| in [0, ω_max] (``speed_points``; ω_max the
-database's largest |ω|, −|ω| on the negative side, −1e−9 at 0), τ_d over the
-database's calibrated torque range [min τ_load, max τ_load] (``torque_points``).
+uniform grid per rotation direction: |ω| in [0, ω_max] (``speed_points``; −|ω| on the
+negative side, −1e−9 at 0), τ_d over [τ_min, τ_max] (``torque_points``).  The ranges
+(:func:`model_ranges`) come from the model file's ``identification:`` section when it
+has one (what ``identify`` recorded), else from the calibration database (largest |ω|,
+[min τ_load, max τ_load]), else from the rig (the no-load speed at the supply voltage,
+± the load motors' torque): no calibration database is needed.
 Periodic effects (runout, tooth-pass, cogging ripple) are averaged out: when the model
 has any, every entry is the mean current over ``angles`` = 7 worm angles spread evenly
 over one gear turn (a harmonic of order q per gear turn cancels unless 7 divides q;
@@ -37,17 +40,25 @@ Per sample (ω, i):
    smoothed live current) through the local slope, plus the table's τ_d step as a
    uniform quantisation; AMBIGUOUS: u = max(u, |τ_other − τ̂|).
 5. NaN/inf input: τ̂ = u = NaN, INVALID_INPUT; never raises. TRANSIENT is the caller's.
+6. The load on the gear, not the load sensor's reading of it: a model fitted to logged data
+   maps the current to the ``tau_load`` the rig's load-current sensors read.  When the model
+   has identified their errors (``sensor_gain``/``sensor_offset`` effects, load_current parts),
+   the estimate is taken back to the true load: τ = τ_read − (g_l τ_read + offset K_t,load count)
+   (:class:`SensorCorrection`; the same first-order relation the residual model fits).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from worm_model.physics.parameters import load_rig
+import yaml
+
+from worm_model.physics.parameters import ParameterError, Rig, load_rig
 from worm_model.residuals.extended import ExtendedModel
 
 from torque_estimator.estimation.database import CalibrationDatabase
@@ -68,11 +79,86 @@ def load_model(model_file: str | Path | None, rig_file: str | Path | None = None
     return ExtendedModel(load_rig(rig_file or None))
 
 
+@dataclass(frozen=True)
+class SensorCorrection:
+    """The identified sensor errors of a model (sensor_gain / sensor_offset effects; zero without them).
+
+    ``drive_gain`` g and ``drive_offset`` [A]: the drive current reads (1 + g) i + offset;
+    ``load_gain`` g_l and ``load_offset`` [N m]: tau_load reads (1 + g_l) tau + offset (the
+    load-current offset through the load motors' K_t and count).
+    """
+
+    drive_gain: float = 0.0
+    drive_offset: float = 0.0
+    load_gain: float = 0.0
+    load_offset: float = 0.0
+
+    @classmethod
+    def of(cls, model: ExtendedModel) -> "SensorCorrection":
+        values = {effect.name: v for effect, v, _g in model.effects}
+        gain, offset = values.get("sensor_gain", {}), values.get("sensor_offset", {})
+        rig = model.rig
+        return cls(float(gain.get("drive_current", 0.0)), float(offset.get("drive_current", 0.0)),
+                   float(gain.get("load_current", 0.0)),
+                   float(offset.get("load_current", 0.0)) * rig.load_motor.torque_constant * rig.load_motor_count)
+
+    def current(self, measured):
+        """The drive current [A] behind a reading."""
+        return (np.asarray(measured, dtype=float) - self.drive_offset) / (1.0 + self.drive_gain)
+
+    def load(self, read):
+        """The load torque [N m] behind a tau_load reading, to first order (as the residual model fits it)."""
+        read = np.asarray(read, dtype=float)
+        return read - (self.load_gain * read + self.load_offset)
+
+
+def identification_ranges(model_file: str | Path) -> dict[str, float] | None:
+    """{speed_max [rad/s], torque_min, torque_max [N m]} of the ``identification:`` section of a file written
+    by ``identify`` (torque_estimator.identification.fit.write_identified); None: no such section.
+
+    Raises:
+        ParameterError: the section is there but malformed.
+    """
+    try:
+        document = yaml.safe_load(Path(model_file).read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as err:
+        raise ParameterError(str(model_file), "", f"cannot read: {err}") from None
+    section = document.get("identification") if isinstance(document, dict) else None
+    if section is None:
+        return None
+    try:
+        out = {k: float(section[k]["value"]) for k in ("speed_max", "torque_min", "torque_max")}
+    except (KeyError, TypeError, ValueError):
+        raise ParameterError(str(model_file), "identification",
+                             "needs speed_max, torque_min and torque_max as {value, unit}") from None
+    if not (out["speed_max"] > 0 and out["torque_max"] > out["torque_min"]):
+        raise ParameterError(str(model_file), "identification", f"empty range {out}")
+    return out
+
+
+def model_ranges(model_file: str | Path | None, database: CalibrationDatabase | None, rig: Rig
+                 ) -> tuple[float, float, float, str]:
+    """(ω_max [rad/s], τ_min, τ_max [N m], where from): the identification's, else the database's, else the rig's."""
+    ranges = identification_ranges(model_file) if model_file else None
+    if ranges is not None:
+        return ranges["speed_max"], ranges["torque_min"], ranges["torque_max"], "identification"
+    if database is not None:
+        if len(database) == 0:
+            raise ValueError("calibration database has no points")
+        lo, hi = float(np.min(database.tau_load)), float(np.max(database.tau_load))
+        if not hi > lo:
+            raise ValueError("calibration database spans no torque range")
+        return float(np.max(np.abs(database.omega_worm))) or 1.0, lo, hi, "calibration"
+    no_load = rig.supply_voltage / rig.drive_motor.back_emf_constant
+    return no_load, -rig.max_load_torque, rig.max_load_torque, "rig"
+
+
 class ExtendedModelEstimator:
     """τ_d by inverting the extended model's tabulated current; method in the module docstring.
 
     Args:
-        database: the calibration map; gives the speed and torque range of the table.
+        database: a calibration map or None; its speed and torque range are the table's when the model
+            file has no ``identification:`` section (:func:`model_ranges`).
         model_file: parameter file with an optional ``effects:`` section (ExtendedModel.load);
             empty/None → ``rig_file`` with no effects (the paper's model).
         rig_file: rig YAML used when ``model_file`` is empty; empty/None → bundled rig.
@@ -80,6 +166,7 @@ class ExtendedModelEstimator:
         speed_points, torque_points: table size per direction (≥ 2 each).
         angles: worm angles averaged when the model has periodic effects (≥ 1).
         current_noise: σ_i [A] for the uncertainty; None → rig.sensors.current_noise_std.
+        ranges: (ω_max, τ_min, τ_max) of the table instead of :func:`model_ranges`' (tests, in-memory models).
 
     Raises:
         ValueError: bad option, empty database or zero torque range.
@@ -88,31 +175,35 @@ class ExtendedModelEstimator:
 
     name = "extended_model"
 
-    def __init__(self, database: CalibrationDatabase, model_file: str | Path | None = None,
+    def __init__(self, database: CalibrationDatabase | None = None, model_file: str | Path | None = None,
                  rig_file: str | Path | None = None, *, model: ExtendedModel | None = None,
                  speed_points: int = 121, torque_points: int = 161, angles: int = ANGLES,
-                 current_noise: float | None = None) -> None:
+                 current_noise: float | None = None, ranges: tuple[float, float, float] | None = None) -> None:
         if speed_points < 2 or torque_points < 2 or angles < 1:
             raise ValueError(f"need speed_points, torque_points >= 2 and angles >= 1, got "
                              f"{speed_points}, {torque_points}, {angles}")
-        if len(database) == 0:
-            raise ValueError("calibration database has no points")
-        tau_lo, tau_hi = float(np.min(database.tau_load)), float(np.max(database.tau_load))
-        if not tau_hi > tau_lo:
-            raise ValueError("calibration database spans no torque range")
         self.model = model if model is not None else load_model(model_file, rig_file)
         rig = self.model.rig
+        if ranges is not None:
+            (omega_max, tau_lo, tau_hi), self.ranges_from = ranges, "given"
+        else:
+            omega_max, tau_lo, tau_hi, self.ranges_from = model_ranges(model_file if model is None else None,
+                                                                       database, rig)
+        if not (omega_max > 0 and tau_hi > tau_lo):
+            raise ValueError(f"empty table range: omega_max {omega_max}, torque [{tau_lo}, {tau_hi}]")
         self.current_noise = float(rig.sensors.current_noise_std if current_noise is None else current_noise)
         if not (math.isfinite(self.current_noise) and self.current_noise >= 0):
             raise ValueError(f"current_noise must be finite and >= 0, got {current_noise!r}")
         #: ω_max [rad/s] of the table
-        self.omega_max = float(np.max(np.abs(database.omega_worm))) or 1.0
+        self.omega_max = float(omega_max)
         self.speeds = np.linspace(0.0, self.omega_max, speed_points)
         self.torques = np.linspace(tau_lo, tau_hi, torque_points)
         self.speed_step = float(self.speeds[1])
         self.torque_step = float(self.torques[1] - self.torques[0])
         periodic = any(effect.family == "periodic" for effect, _v, _g in self.model.effects)
         self.angles = int(angles) if periodic else 1
+        #: the identified load-sensor errors the estimate is corrected for (step 6)
+        self.correction = SensorCorrection.of(self.model)
         #: direction (False: +, True: −) → current table [A], shape (speed_points, torque_points)
         self.tables = {negative: self._tabulate(negative) for negative in (False, True)}
 
@@ -144,6 +235,7 @@ class ExtendedModelEstimator:
             part = slice(start, start + _BATCH)
             torque[part], spread[part], flags[part] = self._invert(w[part], i[part])
         shape = omega.shape
+        torque = self.correction.load(torque)
         return TorqueEstimates(torque.reshape(shape), spread.reshape(shape), flags.reshape(shape))
 
     def _invert(self, w: NDArray[np.float64], i: NDArray[np.float64]
@@ -213,4 +305,5 @@ class ExtendedModelEstimator:
         return torque, spread, flags
 
 
-__all__ = ["ANGLES", "ExtendedModelEstimator", "load_model"]
+__all__ = ["ANGLES", "ExtendedModelEstimator", "SensorCorrection", "identification_ranges", "load_model",
+           "model_ranges"]

@@ -127,9 +127,11 @@ from scipy.stats import chi2
 from worm_model.physics.efficiency import flank_factor, make_flank_factor_float
 from worm_model.physics.friction import friction_coefficient, make_friction_coefficient_float
 from worm_model.physics.parameters import Rig, load_rig
+from worm_model.residuals.extended import ExtendedModel
 
 from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.base import EstimateFlags, TorqueEstimates
+from torque_estimator.estimation.extended_model import SensorCorrection, identification_ranges
 
 #: Below this |ω̂| [rad/s] the worm counts as standing (no mode, no AMBIGUOUS).
 STANDSTILL = 1e-3
@@ -888,20 +890,33 @@ class ObserverEstimator:
         database: calibration map; only its torque and speed range are used (limits for
             OUT_OF_CALIBRATION), may be None.
         rig_file: rig YAML of the observer's model; empty/None → bundled rig.
+        model_file: a rig file written by ``identify`` or ``residuals`` (identified parameters);
+            when given it is the observer's model instead of ``rig_file``. Of its ``effects:``
+            only the identified sensor errors are used (the observer's model is Eqs 28-30 with
+            the drags): the drive current is corrected before the filter sees it, the estimate
+            taken back from the load sensor's scale to the true load
+            (extended_model.SensorCorrection); its ``identification:`` ranges, when present,
+            set the speed and torque limits.
         rig: a Rig instead of a file (tests, robustness studies).
         load: the load process (LoadProcess); None → defaults.
     """
 
     name = "observer"
 
-    def __init__(self, database: CalibrationDatabase | None = None, rig_file: str | None = None, *,
-                 rig: Rig | None = None, load: LoadProcess | None = None) -> None:
-        self.rig = rig if rig is not None else load_rig(rig_file or None)
+    def __init__(self, database: CalibrationDatabase | None = None, rig_file: str | None = None,
+                 model_file: str | None = None, *, rig: Rig | None = None, load: LoadProcess | None = None) -> None:
+        self.rig = rig if rig is not None else load_rig(model_file or rig_file or None)
+        self.correction = SensorCorrection.of(ExtendedModel.load(model_file)) if model_file and rig is None \
+            else SensorCorrection()
         self.load = load or LoadProcess()
         self.map = StaticLoadMap(self.rig)
         self.noise = NoiseFigures.from_rig(self.rig)
         limit, speed = self.rig.max_load_torque, None
-        if database is not None and len(database):
+        ranges = identification_ranges(model_file) if model_file and rig is None else None
+        if ranges is not None:
+            limit = max(limit, abs(ranges["torque_min"]), abs(ranges["torque_max"]))
+            speed = 1.1 * ranges["speed_max"]
+        elif database is not None and len(database):
             limit = max(limit, float(np.max(np.abs(database.tau_load))))
             speed = 1.1 * float(np.max(np.abs(database.omega_worm)))
         self.torque_limit = limit
@@ -909,14 +924,15 @@ class ObserverEstimator:
 
     def stream(self, sample_period: float | None = None) -> LoadObserver:
         """A fresh streaming observer with this estimator's model and limits."""
-        return LoadObserver(self.rig, sample_period, load=self.load, torque_limit=self.torque_limit,
-                            speed_limit=self.speed_limit)
+        stream = LoadObserver(self.rig, sample_period, load=self.load, torque_limit=self.torque_limit,
+                              speed_limit=self.speed_limit)
+        return stream if self.correction == SensorCorrection() else _CorrectedStream(stream, self.correction)
 
     def estimate(self, omega_worm: ArrayLike, current_drive: ArrayLike) -> TorqueEstimates:
         """Quasi-static τ_d [N m] from ω [rad/s] and the inertia-free current i [A]; never raises."""
         w, i = np.broadcast_arrays(np.asarray(omega_worm, dtype=float), np.asarray(current_drive, dtype=float))
         valid = np.isfinite(w) & np.isfinite(i)
-        ws, is_ = np.where(valid, w, 0.0), np.where(valid, i, 0.0)
+        ws, is_ = np.where(valid, w, 0.0), np.where(valid, self.correction.current(i), 0.0)
         motor = self.rig.drive_motor
         t_dist = motor.torque_constant * is_ - motor.viscous_drag * ws
         driving, coast, flags, chosen = self.map.invert(ws, t_dist)
@@ -928,10 +944,29 @@ class ObserverEstimator:
         u = np.where(flags & int(EstimateFlags.AMBIGUOUS), np.maximum(u, np.abs(other - chosen)), u)
         out = (np.abs(chosen) > self.torque_limit) | (np.abs(ws) > (self.speed_limit or np.inf))
         flags = flags | np.where(out, int(EstimateFlags.OUT_OF_CALIBRATION), 0)
-        torque = np.where(valid, chosen, np.nan)
+        torque = np.where(valid, self.correction.load(chosen), np.nan)
         u = np.where(valid, u, np.nan)
         flags = np.where(valid, flags, int(EstimateFlags.INVALID_INPUT)).astype(np.int64)
         return TorqueEstimates(torque, u, flags)
+
+
+class _CorrectedStream:
+    """A LoadObserver fed the drive current corrected for the identified sensor errors, its estimate taken
+    back to the true load (ObserverEstimator's ``model_file``); the plain observer when there are none."""
+
+    def __init__(self, stream: LoadObserver, correction: SensorCorrection) -> None:
+        self.stream = stream
+        self.correction = correction
+        self._gain = 1.0 / (1.0 + correction.drive_gain)
+
+    def update(self, voltage: float, current: float, omega: float, theta: float | None = None) -> ObserverEstimate:
+        c = self.correction
+        est = self.stream.update(voltage, (current - c.drive_offset) * self._gain, omega, theta)
+        torque = est.torque - (c.load_gain * est.torque + c.load_offset)
+        return replace(est, torque=torque)
+
+    def __getattr__(self, name: str):
+        return getattr(self.stream, name)
 
 
 __all__ = ["STANDSTILL", "NoiseFigures", "LoadProcess", "StaticLoadMap", "effective_inertia", "discretise",

@@ -29,12 +29,22 @@ ESTIMATORS: dict[str, Callable[..., TorqueEstimator]] = {
 NODE_OPTIONS: dict[str, tuple[str, ...]] = {
     "knn": ("k", "weighting"),
     "extended_model": ("model_file", "rig_file"),
-    "observer": ("rig_file",),
+    "observer": ("rig_file", "model_file"),
 }
 
 
-#: Estimators that work without a calibration database (their ranges come from the rig file).
-CALIBRATION_OPTIONAL: frozenset[str] = frozenset({"observer"})
+#: Estimators that work without a calibration database (their ranges come from the rig file, or from the
+#: ``identification:`` section of a model file written by ``identify``).
+CALIBRATION_OPTIONAL: frozenset[str] = frozenset({"observer", "extended_model"})
+
+
+def live_rig_file(method: str, rig_file: str, model_file: str) -> str:
+    """The rig file of LiveEstimator's inertia compensation (K_t, inertias): ``rig_file`` when set, else the
+    ``model_file`` of a method that takes one (its identified values), else "" (the bundled rig).
+    estimator_node, replay and ``estimate`` all use this rule."""
+    if rig_file:
+        return rig_file
+    return model_file if model_file and "model_file" in NODE_OPTIONS.get(method, ()) else ""
 
 
 def node_options(name: str, parameters: Mapping[str, Any]) -> dict[str, Any]:
@@ -61,6 +71,7 @@ def make_estimator(name: str, database: CalibrationDatabase | None, **options: A
 __all__ = [
     "CALIBRATION_OPTIONAL",
     "ESTIMATORS",
+    "live_rig_file",
     "make_estimator",
     "NODE_OPTIONS",
     "node_options",

@@ -20,6 +20,11 @@ each
 and the observer's steady noise against the best any estimator can do from these
 sensors at its bandwidth (observer.steady_state_bound, a Cramér-Rao-type bound)
     noise: method=observer std=<x> bound=<x> N m ratio=<x>
+and the fast road (experiment.identified): on the simulated rig with every default effect
+on and the rig file off (mu x1.3, K_t x1.05, drags x2), one `identify` run against the
+k-NN grid calibrated on that rig, the extended model and the observer with the identified
+parameters, on the same held-out points, ending with
+    identify: rig_time_s=<x> identified_mae_pct=<x> identified_max_pct=<x> observer_mae_pct=<x> ...
 
 Errors are |estimated - true| in % of the calibrated torque range (max - min
 of the database's τ_d). The last line printed is
@@ -44,6 +49,7 @@ from torque_estimator.experiment.evaluation import format_table, measure_held_ou
 from torque_estimator.estimation.knn import WEIGHTINGS
 from torque_estimator.estimation.observer import steady_state_bound
 from torque_estimator.experiment.transient import STEP_SPEED, transient_figures
+from torque_estimator.experiment.identified import evaluate_lines as identified_lines
 
 #: seeds of the step experiment (the ramp and the reversal take a third)
 TRANSIENT_SEEDS = 12
@@ -177,6 +183,8 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
                 print(f"  {result.name} [{label}]  {cells}")
     if not args.no_transient:
         side_by_side(args, rig, grid, db)
+        # issue 18: identify from one short run vs the k-NN grid, on the simulated rig with every effect on
+        print("\n".join(identified_lines(rig, args.points, args.seed + 1, args.k, args.weighting)))
     if not args.no_residuals:  # the residuals tool's case matrix (issue 15); ends with its `residuals:` line
         with ProgressBar(len(small_matrix()), "residuals cases", enabled=not args.quiet) as bar:
             print("\n".join(evaluate_lines(progress=bar.update_to)))

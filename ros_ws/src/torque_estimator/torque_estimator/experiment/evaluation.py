@@ -85,13 +85,14 @@ def held_out_setpoints(grid: CalibrationGrid, n: int, seed: int) -> tuple[np.nda
     return np.array(speeds), np.array(torques)
 
 
-def measure_held_out(rig: Rig, grid: CalibrationGrid, n: int = 17, seed: int = 1) -> OperatingPoints:
-    """Measure n held-out points (held_out_setpoints(grid, n, seed)) on the simulated rig.
+def measure_held_out(rig: Rig, grid: CalibrationGrid, n: int = 17, seed: int = 1, effects=None) -> OperatingPoints:
+    """Measure n held-out points (held_out_setpoints(grid, n, seed)) on the simulated rig
+    (with ``effects`` switched on in the simulator, if given).
 
     The noise seed differs from any calibration's (seed + 1000).
     """
     speeds, torques = held_out_setpoints(grid, n, seed)
-    return measure_on_simulator(rig, speeds, torques, seed=seed + 1000)
+    return measure_on_simulator(rig, speeds, torques, seed=seed + 1000, effects=effects)
 
 
 def score(estimator: TorqueEstimator, measured: OperatingPoints, torque_range: float) -> Evaluation:

@@ -69,7 +69,8 @@ from worm_model.rig_data.bags import find_sample_topic
 from worm_model.rig_data.samples import samples_of
 
 from torque_estimator.estimation.database import CalibrationError, load_database
-from torque_estimator.estimation.registry import CALIBRATION_OPTIONAL, ESTIMATORS, make_estimator, node_options
+from torque_estimator.estimation.registry import (CALIBRATION_OPTIONAL, ESTIMATORS, live_rig_file, make_estimator,
+                                                  node_options)
 from torque_estimator.graph.runner import GraphError, default_graph_file, parse_overrides
 from torque_estimator.estimation.live import LiveEstimator
 from worm_model.cli.progress import ProgressBar
@@ -232,7 +233,7 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
     start = time.perf_counter()
     model = LiveModel(load_rig(model_p["rig_file"] or None), bool(model_p["use_acceleration"]),
                       float(model_p["acceleration_filter"]))
-    est_rig = load_rig(est_p["rig_file"] or None)
+    est_rig = load_rig(est_p["rig_file"] or None)  # the envelope of plausible samples
     period = 1.0 / float(est_p["sample_rate"])
     options = {**est_p, "k": int(est_p["k"]), "weighting": str(est_p["weighting"]),
                "model_file": str(est_p["model_file"]), "rig_file": str(est_p["rig_file"])}
@@ -240,7 +241,8 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
         estimators_built = {name: make_estimator(name, database, **node_options(name, options)) for name in names}
     except ValueError as err:  # worm_model's ParameterError is a ValueError: a bad model_file
         raise ReplayError(f"estimator_node: {err}") from None
-    cores = {name: LiveEstimator(est_rig, estimators_built[name],
+    rig_files = {name: live_rig_file(name, str(est_p["rig_file"]), str(est_p["model_file"])) for name in names}
+    cores = {name: LiveEstimator(load_rig(rig_files[name] or None), estimators_built[name],
                                  period, input_filter=float(est_p["input_filter"]),
                                  inertia_compensation=bool(est_p["inertia_compensation"]),
                                  transient_acceleration=float(est_p["transient_acceleration"]),

@@ -42,7 +42,8 @@ from worm_model.physics.parameters import ParameterError, load_rig
 
 from torque_estimator.estimation.database import CalibrationError, load_database
 from torque_estimator.estimation.base import EstimateFlags
-from torque_estimator.estimation.registry import CALIBRATION_OPTIONAL, ESTIMATORS, make_estimator, node_options
+from torque_estimator.estimation.registry import (CALIBRATION_OPTIONAL, ESTIMATORS, live_rig_file, make_estimator,
+                                                  node_options)
 from torque_estimator.estimation.live import LiveEstimator
 
 
@@ -61,9 +62,10 @@ class EstimatorNode(Node):
         weighting = declare(self, "weighting", "inverse_distance", "k-NN weighting of the neighbours.",
                             choices=("inverse_distance", "uniform"))
         model_file = declare(self, "model_file", "",
-                             "Extended model parameter file (rig + effects, written by `residuals`) inverted by the "
-                             "extended_model estimator; empty = rig_file (or the bundled rig) with no effects, "
-                             "the paper's model.")
+                             "Extended model parameter file (rig + effects, written by `identify` or `residuals`): "
+                             "inverted by the extended_model estimator, its identified parameters are the "
+                             "observer's model, and its identification: ranges replace a calibration's; empty = "
+                             "rig_file (or the bundled rig) with no effects, the paper's model.")
         tau = declare(self, "input_filter", 0.003,
                       "Time constant [s] of each of the 3 low-pass stages speed and current pass alike.",
                       low=0.0, high=5.0)
@@ -87,7 +89,10 @@ class EstimatorNode(Node):
                                     "frame_id of that wrench: its z axis is the output shaft, positive rotation "
                                     "about +z.")
 
-        self.rig = load_rig(rig_file or None)
+        try:  # a bad model_file is reported below, where the estimator is built from it
+            self.rig = load_rig(live_rig_file(self.method, rig_file, model_file) or None)
+        except ParameterError:
+            self.rig = load_rig(rig_file or None)
         self.estimator: LiveEstimator | None = None
         self.problem = ""
         try:

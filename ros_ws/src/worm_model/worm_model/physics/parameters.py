@@ -41,9 +41,10 @@ FORMAT_VERSION = 1
 #: relative tolerance of the check n/Z == r_w tan(lambda) / r_g
 RATIO_TOLERANCE = 0.05
 #: optional top-level sections other modules read from the same file (load_rig skips them):
-#: ``free`` (parameters the residual analysis may fit) and ``effects`` (effects beyond
-#: Eqs 19-30, see worm_model.residuals.effects and the simulator's effect plug-ins)
-OPTIONAL_TOP_SECTIONS = frozenset({"free", "effects"})
+#: ``free`` (parameters the residual analysis may fit), ``effects`` (effects beyond
+#: Eqs 19-30, see worm_model.residuals.effects and the simulator's effect plug-ins) and
+#: ``identification`` (what torque_estimator's ``identify`` recorded and found: ranges, corrections)
+OPTIONAL_TOP_SECTIONS = frozenset({"free", "effects", "identification"})
 
 
 class ParameterError(ValueError):

@@ -1,0 +1,91 @@
+"""`identify --from`: a recorded run in, an extended rig file out; bad input is one line and exit 2."""
+from __future__ import annotations
+
+import re
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from worm_model.physics.parameters import load_rig
+from worm_model.residuals.extended import ExtendedModel
+from worm_model.rig_data.schema import write_rig_csv
+from worm_model.ros.ament import find_executable
+
+from torque_estimator.estimation.extended_model import ExtendedModelEstimator, identification_ranges
+from torque_estimator.estimation.observer import ObserverEstimator
+from torque_estimator.experiment.identified import write_declared
+from torque_estimator.identification.excitation import default_excitation
+from torque_estimator.identification.fit import default_refit
+from torque_estimator.identification.identify import main
+from torque_estimator.identification.simulated import record_on_simulator
+
+RIG = load_rig()
+LINE = re.compile(r"^identify: rig_time_s=30\.0 samples=30000 found=\S+ rms_before=[\d.]+ rms_after=[\d.]+ A -> \S+$")
+
+
+@pytest.fixture(scope="module")
+def record(tmp_path_factory) -> tuple[Path, Path]:
+    """A 30 s excitation on the simulated rig (no effects), and a rig file with mu declared 30 % high."""
+    folder = tmp_path_factory.mktemp("identify")
+    write_rig_csv(folder / "run.csv", record_on_simulator(RIG, default_excitation(RIG, 30.0), seed=4))
+    return folder / "run.csv", write_declared(folder / "declared.yaml", RIG, {"friction.scale": 1.3})
+
+
+def test_identify_from_a_record(record, tmp_path, capsys) -> None:
+    csv, declared = record
+    out = tmp_path / "identified.yaml"
+    assert main(["--from", str(csv), "--params", str(declared), "--out", str(out), "--quiet"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert LINE.match(lines[-1]), lines[-1]
+    model = ExtendedModel.load(out)
+    assert load_rig(out).friction.scale == pytest.approx(1.0, abs=0.08)  # declared 1.3; measured 0.944 (30 s record)
+    assert model.rig.drive_motor.torque_constant == pytest.approx(RIG.drive_motor.torque_constant, rel=0.02)
+    ranges = identification_ranges(out)
+    assert ranges["speed_max"] > 330 and ranges["torque_min"] < -0.2 < 0.2 < ranges["torque_max"]
+    section = yaml.safe_load(out.read_text())["identification"]
+    assert section["rig_time_s"] == 30.0 and "friction.scale" in section["fitted"]
+    # the estimators load it without a calibration database
+    est = ExtendedModelEstimator(None, model_file=str(out))
+    assert est.ranges_from == "identification" and est.omega_max == ranges["speed_max"]
+    assert ObserverEstimator(None, model_file=str(out)).rig.friction.scale == load_rig(out).friction.scale
+
+
+def test_default_set_is_the_standard_set_marked_assumption(tmp_path) -> None:
+    fitted, why = default_refit(None)
+    assert "friction.scale" in fitted and "drive_motor.torque_constant" in fitted and "assumption" in why
+    document = yaml.safe_load(Path(load_rig().source).read_text())
+    node = document["drive_motor"]["torque_constant"]
+    node.pop("assumption")
+    node["source"] = "measured on this rig"
+    document["load_motor"] = dict(document["load_motor"]) if isinstance(document["load_motor"], dict) else None
+    (tmp_path / "measured.yaml").write_text(yaml.safe_dump(document))
+    fitted, _ = default_refit(tmp_path / "measured.yaml")
+    assert "drive_motor.torque_constant" not in fitted and "friction.scale" in fitted
+    assert default_refit(None, ["friction.scale"]) == (["friction.scale"], "--free")
+
+
+@pytest.mark.parametrize("args, where", [
+    (["--duration", "120"], "--duration"),
+    (["--from", "/nonexistent.csv"], "--from"),
+    (["--free", "gearbox.lead_angle"], "--free"),
+    (["--params", "/nonexistent.yaml"], "--params"),
+    (["--from", "x.csv", "--resume"], "--from"),
+])
+def test_bad_input_is_one_line_and_exit_2(args, where, tmp_path) -> None:
+    done = subprocess.run([str(find_executable("identify")), "--out", str(tmp_path / "o.yaml"), "--quiet", *args],
+                          capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2, done.stderr
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"identify: {where}: "), lines
+    assert not (tmp_path / "o.yaml").exists()
+
+
+def test_help_explains_every_option() -> None:
+    text = subprocess.run([str(find_executable("identify")), "--help"], capture_output=True, text=True).stdout
+    for option in ("--out", "--params", "--free", "--from", "--duration", "--record", "--resume", "--start-timeout",
+                   "--quiet"):
+        assert option in text
+    assert np.all([len(line) < 130 for line in text.splitlines()])

@@ -1,0 +1,248 @@
+"""estimate: run an estimator over a logged run as estimator_node would, and score it against the log's tau_load.
+
+    ros2 run torque_estimator estimate run.csv|bag --method extended_model --model-file identified_rig.yaml
+    ros2 run torque_estimator estimate run.csv --method knn --calibration calibration.json
+    ros2 run torque_estimator estimate run.csv --method observer [--model-file identified_rig.yaml]
+
+Every sample of the log (a CSV in the worm_rig_data schema or a rosbag2 bag; read by
+worm_model.rig_data.read_rig_data) goes through LiveEstimator with the method, exactly as
+estimator_node runs it on /rig/samples: the same class, the node's parameters (defaults,
+or --params-file's estimator_node section), the same rule for the rig of the inertia
+compensation (rig_file, else model_file, else the bundled rig).  The estimate is written
+as a CSV column (--out): the log's columns, then tau_estimate [N m],
+tau_estimate_uncertainty [N m] and estimate_flags (EstimateFlags bits).
+
+Scoring, when the log has tau_load (the load reading the rig logged): the log is cut into
+consecutive windows of the calibration's averaging window (0.5 s); a window is a *steady
+point* when calibration's steady-state criterion holds within it (operating_points.
+SteadyStateCriterion: the mean speeds of its two halves within 2 % + 0.5 rad/s of each
+other, its mean currents within 0.01 A) and |omega_worm| >= 5 rad/s (the estimators
+are kinetic).  Per steady point the error is |mean estimate - mean tau_load|; the rest
+of the samples (transients; standstill left out) give an RMS of the sample-by-sample error.
+Errors are in % of the log's load range (the 0.5 .. 99.5 percentiles of tau_load).
+Nothing else is used: the figures come from the log and the files given, never from
+knowledge of a simulator.  The last line printed is
+    estimate: method=<m> mae_pct=<x> max_pct=<x> steady_points=<n> transient_rms_pct=<x>
+Methods: knn needs --calibration; extended_model and observer need no calibration (their
+ranges come from the rig file, or from the identification: section of --model-file).
+Exit codes: 0 done, 2 bad input.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from worm_model.physics.parameters import ParameterError, load_rig
+from worm_model.rig_data.reader import read_rig_data
+from worm_model.rig_data.schema import MeasuredData, RigDataError
+
+from torque_estimator.calibration.operating_points import SteadyStateCriterion
+from torque_estimator.estimation.database import CalibrationError, load_database
+from torque_estimator.estimation.live import LiveEstimator
+from torque_estimator.estimation.registry import CALIBRATION_OPTIONAL, ESTIMATORS, live_rig_file, make_estimator, \
+    node_options
+from torque_estimator.graph.replay import ReplayError, node_parameters
+from worm_model.cli.progress import ProgressBar
+
+PROG = "estimate"
+#: windows slower than this [rad/s] are not steady points, and standstill samples are left out of the RMS
+MIN_SPEED = 5.0
+
+
+@dataclass
+class LogEstimate:
+    """Per-sample estimates of one log."""
+
+    torque: np.ndarray  # [N m]
+    uncertainty: np.ndarray  # [N m]
+    flags: np.ndarray  # EstimateFlags bits
+
+
+@dataclass
+class Figures:
+    """The scores of an estimate against the log's tau_load (module docstring)."""
+
+    mae_pct: float
+    max_pct: float
+    steady_points: int
+    transient_rms_pct: float
+    load_range: float  # [N m]
+
+    def line(self, method: str) -> str:
+        return (f"{PROG}: method={method} mae_pct={self.mae_pct:.2f} max_pct={self.max_pct:.2f} "
+                f"steady_points={self.steady_points} transient_rms_pct={self.transient_rms_pct:.2f}")
+
+
+def run_estimator(data: MeasuredData, make_live: Callable[[], LiveEstimator], progress=None) -> LogEstimate:
+    """Feed every sample to a LiveEstimator from ``make_live``: a fresh one per run of the log (a gap in t),
+    as a node restarted there."""
+    n = len(data)
+    torque, spread, flags = np.full(n, np.nan), np.full(n, np.nan), np.zeros(n, dtype=np.int64)
+    voltage = data.voltage_drive if data.voltage_drive is not None else np.full(n, np.nan)
+    omega, current, theta = data.omega_worm.tolist(), data.current_drive.tolist(), data.theta_worm.tolist()
+    volts, runs = voltage.tolist(), data.run
+    core = make_live()
+    for k in range(n):
+        if k and runs[k] != runs[k - 1]:
+            core = make_live()
+        est = core.update(omega[k], current[k], volts[k], theta[k])
+        torque[k], spread[k], flags[k] = est.torque, est.uncertainty, est.flags
+        if progress is not None and k % 2000 == 0:
+            progress(k)
+    return LogEstimate(torque, spread, flags)
+
+
+def steady_windows(data: MeasuredData, criterion: SteadyStateCriterion = SteadyStateCriterion()) -> list[slice]:
+    """The steady points of a log (module docstring): consecutive windows of ``criterion.window`` per run."""
+    size = max(2, int(round(criterion.window / data.sample_period)))
+    half = size // 2
+    out = []
+    for r in np.unique(data.run):
+        idx = np.flatnonzero(data.run == r)
+        for first in range(idx[0], idx[-1] + 1 - size + 1, size):
+            w, i = data.omega_worm[first:first + size], data.current_drive[first:first + size]
+            if not (np.all(np.isfinite(w)) and np.all(np.isfinite(i))):
+                continue
+            mean = float(np.mean(w))
+            if abs(mean) < MIN_SPEED:
+                continue
+            if (abs(np.mean(w[:half]) - np.mean(w[half:])) <= criterion.speed_tolerance * abs(mean) + criterion.speed_floor
+                    and abs(np.mean(i[:half]) - np.mean(i[half:])) <= criterion.current_drift):
+                out.append(slice(first, first + size))
+    return out
+
+
+def figures(data: MeasuredData, estimate: LogEstimate,
+            criterion: SteadyStateCriterion = SteadyStateCriterion()) -> Figures | None:
+    """Scores against the log's tau_load; None when the log has no finite tau_load."""
+    reference = data.tau_load
+    finite = np.isfinite(reference)
+    if not finite.any():
+        return None
+    low, high = np.percentile(reference[finite], [0.5, 99.5])
+    span = float(high - low) or float("nan")
+    windows = steady_windows(data, criterion)
+    errors = []
+    steady = np.zeros(len(data), dtype=bool)
+    for window in windows:
+        est, ref = estimate.torque[window], reference[window]
+        ok = np.isfinite(est) & np.isfinite(ref)
+        steady[window] = True
+        if ok.sum() >= 2:
+            errors.append(abs(float(np.mean(est[ok]) - np.mean(ref[ok]))))
+    errors_pct = 100.0 * np.array(errors) / span
+    rest = ~steady & np.isfinite(estimate.torque) & finite & (np.abs(data.omega_worm) >= MIN_SPEED)
+    rms = float(np.sqrt(np.mean((estimate.torque[rest] - reference[rest]) ** 2))) if rest.any() else math.nan
+    return Figures(float(np.mean(errors_pct)) if len(errors_pct) else math.nan,
+                   float(np.max(errors_pct)) if len(errors_pct) else math.nan,
+                   len(errors_pct), 100.0 * rms / span, span)
+
+
+def write_estimate_csv(path: Path, data: MeasuredData, estimate: LogEstimate) -> None:
+    """The log's columns, then tau_estimate, tau_estimate_uncertainty, estimate_flags."""
+    names = data.names
+    columns = [getattr(data, c).tolist() for c in names] + [estimate.torque.tolist(), estimate.uncertainty.tolist()]
+    cell = (lambda v: "" if math.isnan(v) else repr(v))
+    with path.open("w", newline="", encoding="utf-8") as handle:
+        handle.write(",".join(names + ["tau_estimate", "tau_estimate_uncertainty", "estimate_flags"]) + "\n")
+        for row, flag in zip(zip(*columns), estimate.flags.tolist()):
+            handle.write(",".join(cell(v) for v in row) + f",{flag}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
+                                epilog="\n\n".join(__doc__.split("\n\n")[1:]),
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("log", type=Path, help="the logged run: a worm_rig_data CSV or a rosbag2 bag (directory, .mcap, .db3)")
+    p.add_argument("--method", required=True, choices=sorted(ESTIMATORS), help="the estimator (estimator_node's method)")
+    p.add_argument("--calibration", type=Path, default=None,
+                   help="calibration database (calibrate); required by knn, optional for the others (ranges)")
+    p.add_argument("--model-file", type=Path, default=None,
+                   help="extended rig file (identify or residuals): inverted by extended_model, the observer's model")
+    p.add_argument("--rig", type=Path, default=None,
+                   help="rig file (estimator_node's rig_file; default: the model file, else the bundled rig)")
+    p.add_argument("--params-file", type=Path, default=None,
+                   help="a graph parameter file whose estimator_node section sets the filters (default: the node's "
+                        "defaults)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="CSV to write (default: <log without suffix>_<method>.csv beside the log)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+
+    def fail(where: str, what: str) -> int:
+        print(f"{PROG}: {where}: {what}", file=sys.stderr)
+        return 2
+
+    if args.method not in CALIBRATION_OPTIONAL and args.calibration is None:
+        return fail("--calibration", f"{args.method} needs a calibration database (calibrate --out FILE)")
+    for option, path in (("--calibration", args.calibration), ("--model-file", args.model_file), ("--rig", args.rig),
+                         ("--params-file", args.params_file)):
+        if path is not None and not path.is_file():
+            return fail(option, f"{path}: no such file")
+    out = args.out or args.log.with_name(f"{args.log.stem}_{args.method}.csv")
+    if not out.parent.is_dir():
+        return fail("--out", f"folder {out.parent} does not exist")
+    try:
+        params = node_parameters(args.params_file)["estimator_node"]
+    except ReplayError as err:
+        return fail("--params-file", str(err))
+    try:
+        data = read_rig_data(args.log)
+    except RigDataError as err:
+        return fail("log", str(err))
+    if args.method == "observer" and (data.voltage_drive is None or not np.isfinite(data.voltage_drive).any()):
+        return fail("log", f"{args.log}: the observer needs the voltage_drive column")
+    rig_file = str(args.rig or params.get("rig_file") or "")
+    model_file = str(args.model_file or params.get("model_file") or "")
+    try:
+        database = load_database(args.calibration) if args.calibration is not None else None
+        options = node_options(args.method, {"k": int(params["k"]), "weighting": str(params["weighting"]),
+                                             "model_file": model_file, "rig_file": rig_file})
+        estimator = make_estimator(args.method, database, **options)
+        rig = load_rig(live_rig_file(args.method, rig_file, model_file) or None)
+    except CalibrationError as err:
+        return fail("--calibration", str(err))
+    except ParameterError as err:
+        return fail("--model-file" if model_file else "--rig", str(err))
+    except ValueError as err:
+        return fail("--method", str(err))
+    settings = {"input_filter": float(params["input_filter"]),
+                "inertia_compensation": bool(params["inertia_compensation"]),
+                "transient_acceleration": float(params["transient_acceleration"]),
+                "estimate_filter": float(params["estimate_filter"]),
+                "change_threshold": float(params["change_threshold"])}
+    start = time.monotonic()
+    with ProgressBar(len(data), "samples", enabled=not args.quiet) as bar:
+        estimate = run_estimator(data, lambda: LiveEstimator(rig, estimator, data.sample_period, **settings),
+                                 bar.update_to)
+    try:
+        write_estimate_csv(out, data, estimate)
+    except OSError as err:
+        return fail("--out", f"{out}: cannot write: {err.strerror or err}")
+    ranges = getattr(estimator, "ranges_from", None)
+    print(f"{PROG}: {args.log}: {len(data)} samples, {data.t[-1] - data.t[0]:.1f} s, {len(np.unique(data.run))} run(s); "
+          f"{args.method} from {args.calibration or model_file or rig_file or 'the bundled rig'}"
+          + (f" (table ranges from the {ranges})" if ranges else "")
+          + f"; {time.monotonic() - start:.1f} s -> {out}")
+    score = figures(data, estimate)
+    if score is None:
+        print(f"{PROG}: method={args.method} samples={len(data)} (no tau_load in the log: no figures)")
+        return 0
+    print(f"{PROG}: load range of the log {score.load_range:.4f} N m (0.5..99.5 percentiles of tau_load)")
+    print(score.line(args.method))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,202 @@
+"""identify: calibrate in a minute; fit the rig from one short excitation and write an extended rig file.
+
+    ros2 run torque_estimator identify --out identified_rig.yaml [--params rig.yaml]     # the rig on the graph
+    ros2 run torque_estimator identify --out identified_rig.yaml --resume                # after Ctrl-C
+    ros2 run torque_estimator identify --from run.csv|bag --params rig.yaml --out identified_rig.yaml
+
+Live (no --from): drives whatever rig is on the graph (sim_node or driver_node, held by
+controller_node, which must run) through an excitation of at most 90 s of rig time: at 7
+worm speeds per direction the load goes across the load motors' range in steps and back in
+a ramp; speed steps and ramps between them, a slow reversal through zero and a fast one
+under load (identification/excitation.py); nothing waits for a point to settle.  Every
+sample is recorded (<record>, the worm_rig_data CSV schema), then fitted.
+
+Offline (--from): fits a recorded run (CSV in that schema, or a rosbag2 bag).
+
+The fit (identification/fit.py): the rig file's uncertain parameters (by default the
+standard set of worm_model.residuals.free that the file marks as assumptions: mu scale, K_t,
+drags, rotor inertia; the file's free: list or --free replaces it) and the effects the
+residual analysis accepts.  Output: the extended rig file (the rig file with identified
+values, free:, effects: and an identification: section with the ranges covered), which
+estimator_node loads as model_file (method extended_model or observer), and `estimate`
+with --model-file.
+
+Live runs are resumable like calibrate: after every segment of the excitation its samples
+go to a journal (<out>.partial.json, <out>.partial.csv); after Ctrl-C, SIGTERM or SIGKILL
+the same command with --resume records only the missing segments.  On every exit the rig
+is commanded to stop (speed 0, load 0).  The last line printed is
+    identify: rig_time_s=<x> samples=<n> found=<names|none> rms_before=<x> rms_after=<y> A -> <out>
+Exit codes: 0 done, 1 the live rig failed, 2 bad input, 130 interrupted (journal kept).
+"""
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import time
+from pathlib import Path
+
+from worm_model.cli.progress import Progress, ProgressBar
+from worm_model.physics.parameters import ParameterError, load_rig
+from worm_model.residuals.free import FREE_PARAMETERS
+from worm_model.rig_data.reader import read_rig_data
+from worm_model.rig_data.schema import RigDataError, write_rig_csv
+
+from torque_estimator.calibration.live import LiveRigError
+from torque_estimator.identification.excitation import DEFAULT_DURATION, MAX_DURATION, default_excitation, total_duration
+from torque_estimator.identification.fit import IdentificationError, identify, write_identified
+from torque_estimator.identification.recording import ExcitationRun, Journal, JournalError, journal_paths, run_settings
+
+PROG = "identify"
+EXIT_INTERRUPTED = 130
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
+                                epilog="\n\n".join(__doc__.split("\n\n")[1:]),
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", type=Path, required=True,
+                   help="extended rig file to write (YAML; estimator_node's model_file)")
+    p.add_argument("--params", type=Path, default=None,
+                   help="the rig file to start from (worm_rig_parameters); its assumption: marks and optional "
+                        "free: list choose what is fitted (default: the bundled NMRV030 rig)")
+    p.add_argument("--free", default=None,
+                   help="comma-separated parameters to fit instead of the default set; allowed: "
+                        f"{', '.join(FREE_PARAMETERS)}")
+    p.add_argument("--from", dest="source", type=Path, default=None,
+                   help="fit a recorded run instead of driving the rig: a CSV in the worm_rig_data schema or a "
+                        "rosbag2 bag (directory, .mcap or .db3)")
+    live = p.add_argument_group("live rig (without --from)")
+    live.add_argument("--duration", type=float, default=DEFAULT_DURATION,
+                      help=f"rig time of the excitation [s], at most {MAX_DURATION:g}; shorter runs fit less well "
+                           f"(default {DEFAULT_DURATION:g})")
+    live.add_argument("--record", type=Path, default=None,
+                      help="where to keep the recorded run as CSV (default: <out without suffix>_record.csv)")
+    live.add_argument("--resume", action="store_true",
+                      help="continue the interrupted run in the journal (same --out and --duration required)")
+    live.add_argument("--start-timeout", type=float, default=30.0,
+                      help="wait this long [s] for the rig's samples and controller_node (default 30)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    return p
+
+
+def _fail(where: str, what: str) -> int:
+    print(f"{PROG}: {where}: {what}", file=sys.stderr)
+    return 2
+
+
+def _interrupt(signum, _frame) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    if not args.out.parent.is_dir():
+        return _fail("--out", f"folder {args.out.parent} does not exist")
+    if not 0 < args.duration <= MAX_DURATION:
+        return _fail("--duration", f"must be in (0, {MAX_DURATION:g}] s, got {args.duration:g}")
+    if args.start_timeout <= 0:
+        return _fail("--start-timeout", f"must be > 0, got {args.start_timeout:g}")
+    if args.source is not None and (args.resume or args.record is not None):
+        return _fail("--from", "--resume and --record apply to a live run only")
+    free = None
+    if args.free is not None:
+        free = [name.strip() for name in args.free.split(",") if name.strip()]
+        bad = [name for name in free if name not in FREE_PARAMETERS]
+        if bad or not free:
+            return _fail("--free", f"{bad[0] if bad else args.free!r} cannot be fitted "
+                                   f"(allowed: {', '.join(FREE_PARAMETERS)})")
+    try:
+        rig = load_rig(args.params)
+    except ParameterError as err:
+        return _fail("--params", str(err))
+    signal.signal(signal.SIGTERM, _interrupt)  # `kill` gets the same clean stop as Ctrl-C
+    start = time.monotonic()
+    if args.source is not None:
+        try:
+            data = read_rig_data(args.source)
+        except RigDataError as err:
+            return _fail("--from", str(err))
+        source = str(args.source)
+        journal = None
+    else:
+        record = args.record or args.out.with_name(args.out.stem + "_record.csv")
+        try:
+            journal, data = _record_live(args, rig)
+        except KeyboardInterrupt:
+            state, _csv = journal_paths(args.out)
+            print(f"\n{PROG}: interrupted; the rig was commanded to stop; journal {state}; run the same command "
+                  "with --resume to continue", file=sys.stderr)
+            return EXIT_INTERRUPTED
+        except JournalError as err:
+            return _fail("journal", str(err))
+        except LiveRigError as err:
+            state, _csv = journal_paths(args.out)
+            print(f"{PROG}: live rig: {err}\n{PROG}: the finished segments are in {state}; fix the graph and run "
+                  "the same command with --resume", file=sys.stderr)
+            return 1
+        write_rig_csv(record, data)
+        source = f"{record.name} (live rig, {total_duration(default_excitation(rig, args.duration)):.1f} s excitation)"
+    progress = Progress(enabled=not args.quiet)
+
+    def on_progress(label: str, done: int, total: int) -> None:
+        if progress.name != label:
+            progress.stage(label, total)
+        progress.update_to(done)
+
+    try:
+        ident = identify(data, args.params, free, progress=on_progress)
+        write_identified(args.out, args.params, ident, source)
+    except KeyboardInterrupt:
+        progress.close()
+        print(f"\n{PROG}: interrupted while fitting" + ("; the record is in the journal: run the same command with "
+                                                       "--resume to fit it" if journal is not None else ""),
+              file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except ParameterError as err:
+        progress.close()
+        return _fail("--free" if free else "--params", str(err))
+    except IdentificationError as err:
+        progress.close()
+        return _fail("--from" if args.source else "record", str(err))
+    progress.close()
+    if journal is not None:
+        journal.remove()
+    for line in summary(ident, time.monotonic() - start):
+        print(line)
+    print(f"{PROG}: rig_time_s={ident.rig_time:.1f} samples={ident.samples} found={','.join(ident.model.names) or 'none'} "
+          f"rms_before={ident.analysis.rms_before:.4f} rms_after={ident.analysis.final.rms_held_out:.4f} A -> {args.out}")
+    return 0
+
+
+def _record_live(args, rig):
+    """The live path: journal, excitation on the graph; the ROS shell is imported only here."""
+    from torque_estimator.identification.identify_node import run_live  # noqa: PLC0415
+
+    timeline = default_excitation(rig, args.duration)
+    journal = Journal.open(args.out, run_settings(timeline, {}, "live"), args.resume)
+    run = ExcitationRun(timeline, journal, 1.0 / rig.sensors.sample_rate_hz)
+    with ProgressBar(run.total_samples, "excitation [samples]", enabled=not args.quiet) as bar:
+        bar.update_to(run.samples_done)
+        if not run.finished:
+            run_live(run, start_timeout=args.start_timeout, on_tick=lambda: bar.update_to(run.samples_done))
+    if run.skipped_samples:
+        print(f"{PROG}: skipped {run.skipped_samples} samples with a NaN/inf channel", file=sys.stderr)
+    return journal, journal.data(str(journal.csv_path))
+
+
+def summary(ident, wall: float) -> list[str]:
+    """What was fitted and found, for the console."""
+    lines = [f"record: {ident.samples} samples, {ident.rig_time:.1f} s of rig time; speeds up to "
+             f"{ident.speed_max:.0f} rad/s, loads {ident.torque_range[0]:+.3f} .. {ident.torque_range[1]:+.3f} N m",
+             f"fitted ({ident.choice}): {', '.join(ident.fitted) or 'none'}"]
+    for name, (declared, value, ci) in ident.corrections.items():
+        lines.append(f"  correction {name}: declared {declared:.4g}, identified {value:.4g} +- {ci:.2g}")
+    lines.append(f"effects: {', '.join(ident.model.names) or 'none'}; held-out current RMS "
+                 f"{ident.analysis.rms_before:.4f} A (rig file as declared) -> {ident.analysis.final.rms_held_out:.4f} A; "
+                 f"{wall:.1f} s")
+    return lines
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
