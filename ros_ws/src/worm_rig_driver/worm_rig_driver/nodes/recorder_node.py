@@ -10,6 +10,9 @@ Parameters:
     output (string): bag directory to create; must not exist. Empty: a
         ``rosbag2_YYYY_MM_DD-HH_MM_SS`` directory in the working directory.
     storage (string): ``mcap`` (default) or ``sqlite3``.
+    compression (string): ``none`` (default) or ``zstd``: MCAP chunk compression, as
+        ``ros2 bag record --storage-preset-profile zstd_fast`` writes it (Foxglove and
+        PlotJuggler open such files as they are); mcap only.
     topics (string array): topics to record. Unset or empty: every topic of
         the graph, hidden ones (a ``_``-prefixed name part) and ``exclude`` excepted.
     exclude (string array): topics left out when recording every topic
@@ -76,6 +79,7 @@ from rosbags.interfaces import (
 )
 
 from worm_model.bags.writer import (
+    COMPRESSIONS,
     STORAGES,
     BagClosedError,
     BagRecordingError,
@@ -374,6 +378,10 @@ class RecorderNode(Node):
             'storage', 'mcap', 'Storage plugin of the bag',
             additional_constraints=f'one of {sorted(STORAGES)}',
         )
+        compression: str = self._parameter(
+            'compression', 'none', 'Chunk compression of an MCAP bag',
+            additional_constraints=f'one of {list(COMPRESSIONS)}; zstd with storage mcap only',
+        )
         topics: list[str] | None = self._parameter(
             'topics', Parameter.Type.STRING_ARRAY,
             'Topics to record; unset or empty: all non-hidden ones, as they appear',
@@ -391,8 +399,10 @@ class RecorderNode(Node):
             integer_range=[IntegerRange(from_value=1, to_value=1_000_000, step=1)],
         )
         path = Path(output or datetime.now().strftime('rosbag2_%Y_%m_%d-%H_%M_%S'))
-        self.recorder = TopicRecorder(self, BagWriter(path, storage), queue_depth=depth)
-        self.get_logger().info(f'Recording into {path} ({storage})')
+        writer = BagWriter(path, storage, compression=compression)
+        self.recorder = TopicRecorder(self, writer, queue_depth=depth)
+        zstd = ', zstd chunks' if compression == 'zstd' else ''
+        self.get_logger().info(f'Recording into {path} ({storage}{zstd})')
         if topics:
             for topic in topics:
                 self.recorder.subscribe(topic)
