@@ -4,6 +4,7 @@
 #   2. A venv with every Python dependency pinned in the distribution's lock file.
 #   3. The known fixes the ROS 2 PyPI wheels need (shared/docs/ros2-from-pypi.md).
 #   4. colcon build of ros_ws/ (only when a source file changed since the last build).
+#   5. The npm packages of the Foxglove decoding test (tests/foxglove, pinned by its package-lock.json).
 # The ROS 2 distribution is ROS_DISTRO (kilted by default, or jazzy; tools/distro.sh): each has its own
 # lock file, venv and colcon build/install/log folders, so both can be set up side by side.
 set -euo pipefail
@@ -32,6 +33,9 @@ need "command -v avrdude" avrdude
 need "pkg-config --exists simavr" libsimavr-dev
 need "pkg-config --exists libelf" libelf-dev
 need "command -v pkg-config" pkg-config
+# Foxglove's own decoders (npm) for the test that decodes our bags as Foxglove does.
+need "command -v node" nodejs
+need "command -v npm" npm
 if [ ${#missing[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then
     say "installing Debian packages: ${missing[*]}"
@@ -100,4 +104,13 @@ fi
 [ -f "$listing" ] || echo "$current" > "$listing"
 exec 9>&-
 
+# --- 5. npm packages of the Foxglove test ----------------------------------------
+# `npm ci` installs exactly package-lock.json; redone when the lock file changes.
+FOXGLOVE=tests/foxglove
+npm_hash=$(sha256sum "$FOXGLOVE/package-lock.json" | cut -d' ' -f1)
+if [ "$(cat "$FOXGLOVE/node_modules/.package-lock.sha256" 2>/dev/null)" != "$npm_hash" ]; then
+  say "installing the Foxglove test's npm packages (npm ci in $FOXGLOVE)"
+  (cd "$FOXGLOVE" && npm ci --silent --no-audit --no-fund >/dev/null)
+  echo "$npm_hash" > "$FOXGLOVE/node_modules/.package-lock.sha256"
+fi
 say "ready (source ${VENV#"$ROOT/"}/bin/activate && source ${WS_INSTALL#"$ROOT/"}/setup.bash)"
