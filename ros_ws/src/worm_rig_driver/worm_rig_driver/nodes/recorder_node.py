@@ -259,6 +259,8 @@ class TopicRecorder:
                 for topic, _types in self.node.get_topic_names_and_types():
                     if not is_hidden(topic) and topic not in self.excluded:
                         self.wanted.setdefault(topic, None)
+            for topic in self._subscriptions:  # only needed where rclpy does not name publishers (Jazzy)
+                self.deliveries.publishers_seen(topic, self.node.count_publishers(topic))
             for topic in self.wanted.keys() - self._subscriptions.keys() - self._failed:
                 try:
                     self._try_subscribe(topic)
@@ -310,6 +312,7 @@ class TopicRecorder:
             subscription_qos(publishers, self.queue_depth),
             raw=True,
         )
+        self.deliveries.publishers_seen(topic, len(publishers))
         self.node.get_logger().info(f'Recording {topic} [{type_name}]')
         return True
 
