@@ -1,6 +1,11 @@
 # Front doors. Each target sets everything up from nothing first (make setup).
-.PHONY: setup demo evaluate test bench clean
+# ROS_DISTRO=kilted (default) or jazzy: which ROS 2 wheels to build and run against (tools/distro.sh);
+# each has its own lock file, venv and colcon folders. TESTS: pytest arguments (default: every test).
+.PHONY: setup demo evaluate test test-system bench clean
 RUN := tools/run.sh
+ROS_DISTRO ?= kilted
+export ROS_DISTRO
+TESTS ?=
 
 setup:
 	@bash tools/setup.sh
@@ -12,7 +17,17 @@ evaluate: setup
 	@$(RUN) python -m torque_estimator.experiment.evaluate --out out/evaluate --force
 
 test: setup
-	@$(RUN) python -m pytest
+	@$(RUN) python -m pytest $(TESTS)
+
+# The system tests: nodes as processes over DDS, the driver over a pty, the firmware in simavr, the demo, the
+# README's commands, Foxglove decoding our bags. Left out: the tests that never touch ROS (residual analysis on
+# the simulator, the README's computed figures, static import/dependency checks). CI's run on the second
+# distribution (.ci/run: make test-system ROS_DISTRO=jazzy).
+NOT_SYSTEM := tests/test_residuals_cases.py tests/test_residuals_sim.py tests/test_readme_figures.py \
+              tests/test_layout.py tests/test_package_deps.py
+SYSTEM_TESTS := $(filter-out $(NOT_SYSTEM),$(sort $(wildcard tests/test_*.py)))
+test-system: setup
+	@$(RUN) python -m pytest $(SYSTEM_TESTS) $(TESTS)
 
 bench: setup
 	@$(RUN) python bench/run_all.py
@@ -24,4 +39,4 @@ fil: setup
 	@$(RUN) python -m worm_rig_driver.fil.run --elf $(FIRMWARE)/build/rig.elf --harness $(FIRMWARE)/build/libwormfil.so
 
 clean:
-	rm -rf ros_ws/build ros_ws/install ros_ws/log out
+	rm -rf ros_ws/build ros_ws/install ros_ws/log ros_ws/build-jazzy ros_ws/install-jazzy ros_ws/log-jazzy out

@@ -20,6 +20,7 @@ from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from worm_msgs.msg import RigSample
+from worm_model.bags.reader import BagReader
 from worm_model.bags.writer import (
     BagClosedError,
     BagReadError,
@@ -64,9 +65,9 @@ def types() -> MessageTypes:
     return MessageTypes()
 
 
-def write_bag(path: Path, storage: str, types: MessageTypes) -> BagWriter:
+def write_bag(path: Path, storage: str, types: MessageTypes, compression: str = 'none') -> BagWriter:
     """Write N_SAMPLES RigSamples and N_JOINTS JointStates, interleaved in time."""
-    with BagWriter(path, storage, types=types) as writer:
+    with BagWriter(path, storage, types=types, compression=compression) as writer:
         samples = writer.add_topic(SAMPLE_TOPIC, 'worm_msgs/msg/RigSample')
         joints = writer.add_topic(JOINT_TOPIC, 'sensor_msgs/JointState')
         for seq in range(N_SAMPLES):
@@ -128,6 +129,30 @@ def test_mcap_readable_by_independent_decoder(tmp_path: Path, types: MessageType
         assert log_time == T0_NS + seq * 1_000_000
         assert_sample_fields(msg, seq)
     assert list(joints[3][3].velocity) == [1.5]
+
+
+def test_zstd_chunks_read_by_every_reader(tmp_path: Path, types: MessageTypes) -> None:
+    """compression='zstd': MCAP chunks compressed with zstd, the bag otherwise the same to every reader."""
+    plain, packed = tmp_path / 'plain', tmp_path / 'zstd'
+    write_bag(plain, 'mcap', types)
+    write_bag(packed, 'mcap', types, compression='zstd')
+    (mcap_file,) = packed.glob('*.mcap')
+    with mcap_file.open('rb') as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None and {c.compression for c in summary.chunk_indexes} == {'zstd'}
+    assert [d[:3] for d in mcap_messages(packed)] == [d[:3] for d in mcap_messages(plain)]
+    assert read_bag_counts(packed) == read_bag_counts(plain)
+    for seq, (_t, msg) in enumerate(read_messages(packed, SAMPLE_TOPIC)):
+        assert_sample_fields(msg, seq)
+    with BagReader(packed) as reader:
+        assert reader.compression_mode == ''  # MCAP's own compression; not rosbag2's file/message modes
+
+
+@pytest.mark.parametrize(('storage', 'compression'), [('sqlite3', 'zstd'), ('mcap', 'lz4'), ('mcap', 'file')])
+def test_compression_refused_where_it_does_not_apply(tmp_path: Path, storage: str, compression: str) -> None:
+    with pytest.raises(BagRecordingError, match=compression):
+        BagWriter(tmp_path / 'bag', storage, compression=compression)
+    assert not (tmp_path / 'bag').exists()
 
 
 def test_embedded_hash_matches_rosidl(tmp_path: Path, types: MessageTypes) -> None:

@@ -66,3 +66,24 @@ def test_a_stream_of_every_fifth_seq_loses_nothing_by_its_step() -> None:
     for seq in [19, 39, 59, 74, 99, 119, 159, 179]:
         forces.add(seq)
     assert (forces.step, forces.lost) == (20, 1)
+
+
+def test_delivery_check_without_publisher_gid() -> None:
+    """rclpy < Kilted gives no publisher_gid: a topic's only publisher is tracked; with two, nothing is."""
+    check = DeliveryCheck()
+    check.publishers_seen('/one', 1)
+    check.publishers_seen('/two', 1)
+    for number in (1, 2, 4):
+        check.add('/one', {'publication_sequence_number': number})
+    for number in (1, 1, 2, 2):  # interleaved from two publishers, the second not yet seen
+        check.add('/two', {'publication_sequence_number': number})
+    check.publishers_seen('/two', 2)
+    check.publishers_seen('/two', 1)  # a publisher left: still not one publisher's numbers
+    check.add('/two', {'publication_sequence_number': 5})
+    check.add('/unknown', {'publication_sequence_number': 1})  # never told how many
+    assert check.lost == 1  # /one's 3
+    assert check.report() == [
+        '/one: 3 received from 1 publisher(s), 1 missing in their DDS sequence numbers'
+        ' (not named by this rclpy: the only one the topic had)',
+        '/two: 5 messages without DDS sequence numbers (not checked)',
+        '/unknown: 1 messages without DDS sequence numbers (not checked)']

@@ -39,6 +39,8 @@ HEADER_FIELD: Final = ('header', (Nodetype.NAME, 'std_msgs/msg/Header'))
 MAX_GAPS_KEPT: Final[int] = 20
 #: Gaps (by the step known when they came) remembered, to be re-judged by the final step.
 MAX_GAP_CANDIDATES: Final[int] = 10000
+UNNAMED: Final[bytes] = b'<unnamed>'
+"""DeliveryCheck's key for a topic's only publisher when rclpy does not name it (no ``publisher_gid``)."""
 
 
 def header_seq(data: bytes | memoryview) -> int:
@@ -233,20 +235,41 @@ class DeliveryCheck:
     Fed with rclpy's message info (``publication_sequence_number``,
     ``publisher_gid``); a message without them (an RMW that does not report
     them) is counted as untracked.
+
+    rclpy before Kilted (Jazzy's 7.x) hands over the number but no
+    ``publisher_gid``. Such a message is tracked as from the topic's only
+    publisher while :meth:`publishers_seen` has never been told of more than one
+    on that topic; once it is, the topic's unnamed numbers (interleaved from
+    several publishers, so their gaps mean nothing) become untracked.
     """
 
     def __init__(self) -> None:
         self.trackers: dict[str, dict[bytes, SequenceTracker]] = {}
         self.untracked: dict[str, int] = {}
+        self.most_publishers: dict[str, int] = {}
+        """Topic -> most publishers the caller has seen on it at once."""
+
+    def publishers_seen(self, topic: str, count: int) -> None:
+        """Tell how many publishers ``topic`` has now (for messages whose publisher is not named)."""
+        self.most_publishers[topic] = most = max(count, self.most_publishers.get(topic, 0))
+        unnamed = self.trackers.get(topic, {}).get(UNNAMED)
+        if most > 1 and unnamed is not None:
+            del self.trackers[topic][UNNAMED]
+            if not self.trackers[topic]:
+                del self.trackers[topic]
+            self.untracked[topic] = self.untracked.get(topic, 0) + unnamed.count
 
     def add(self, topic: str, info: Mapping[str, object] | None) -> None:
         """Account for one message of ``topic`` with its message info."""
         number = info.get('publication_sequence_number') if info else None
         gid = info.get('publisher_gid') if info else None
-        if not isinstance(number, int) or not isinstance(gid, Mapping):
+        if isinstance(number, int) and gid is None and self.most_publishers.get(topic) == 1:
+            key = UNNAMED  # rclpy < Kilted: the topic's only publisher
+        elif not isinstance(number, int) or not isinstance(gid, Mapping):
             self.untracked[topic] = self.untracked.get(topic, 0) + 1
             return
-        key = bytes(cast('bytes', gid.get('data', b'')))
+        else:
+            key = bytes(cast('bytes', gid.get('data', b'')))
         self.trackers.setdefault(topic, {}).setdefault(key, SequenceTracker()).add(number)
 
     @property
@@ -260,8 +283,9 @@ class DeliveryCheck:
         for topic, publishers in sorted(self.trackers.items()):
             received = sum(t.count for t in publishers.values())
             lost = sum(t.lost for t in publishers.values())
+            unnamed = ' (not named by this rclpy: the only one the topic had)' if UNNAMED in publishers else ''
             lines.append(f'{topic}: {received} received from {len(publishers)} publisher(s), '
-                         f'{lost} missing in their DDS sequence numbers')
+                         f'{lost} missing in their DDS sequence numbers{unnamed}')
         lines += [f'{topic}: {n} messages without DDS sequence numbers (not checked)'
                   for topic, n in sorted(self.untracked.items())]
         return lines

@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Final, Literal
 
 from rosbags.interfaces import Connection, Qos
-from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer, WriterError
 from rosbags.typesys import TypesysError
 
 from worm_model.bags.reader import BagReader
@@ -49,6 +49,7 @@ from worm_model.bags.typestore import (
 )
 
 __all__ = [
+    'COMPRESSIONS',
     'STOCK_STORE',
     'STORAGES',
     'BagClosedError',
@@ -72,6 +73,13 @@ STORAGES: Final[Mapping[str, StoragePlugin]] = {
     'sqlite3': StoragePlugin.SQLITE3,
 }
 """Storage name (as ``ros2 bag record -s`` spells it) -> rosbags plugin."""
+
+COMPRESSIONS: Final[tuple[str, ...]] = ('none', 'zstd')
+"""Compression of an MCAP bag's chunks: ``none`` (what ``ros2 bag record`` writes by
+default) or ``zstd`` (as ``ros2 bag record -s mcap --storage-preset-profile zstd_fast``
+does). Chunk compression is MCAP's own, so every MCAP reader (Foxglove, PlotJuggler,
+``mcap`` CLI) opens the file as it is; rosbag2's file and message compression are not
+offered here: Foxglove and PlotJuggler open neither."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,6 +112,7 @@ class BagWriter(ClosesOnExit):
         *,
         types: MessageTypes | None = None,
         version: Literal[8, 9] = Writer.VERSION_LATEST,
+        compression: str = 'none',
     ) -> None:
         """Create the bag directory and open its storage file.
 
@@ -113,10 +122,11 @@ class BagWriter(ClosesOnExit):
             types: Type store to take definitions from; a new
                 :class:`MessageTypes` over ``AMENT_PREFIX_PATH`` when None.
             version: rosbag2 metadata version.
+            compression: One of :data:`COMPRESSIONS`; ``zstd`` for MCAP only.
 
         Raises:
-            BagRecordingError: Unknown storage, the path exists, or it cannot
-                be created.
+            BagRecordingError: Unknown storage or compression, zstd with
+                sqlite3, the path exists, or it cannot be created.
 
         """
         self.path = Path(path)
@@ -126,7 +136,14 @@ class BagWriter(ClosesOnExit):
                 f'expected one of {sorted(STORAGES)}'
             )
             raise BagRecordingError(msg)
+        if compression not in COMPRESSIONS or (compression != 'none' and storage != 'mcap'):
+            msg = (
+                f'Compression {compression!r} for bag {self.path} ({storage}); expected one of '
+                f'{list(COMPRESSIONS)}, and zstd (MCAP chunk compression) with storage mcap only'
+            )
+            raise BagRecordingError(msg)
         self.storage = storage
+        self.compression = compression
         self.types = MessageTypes() if types is None else types
         self.counts: dict[str, int] = {}
         """Messages written so far, per topic."""
@@ -135,6 +152,8 @@ class BagWriter(ClosesOnExit):
         self._writer: Writer | None = None
         try:
             writer = Writer(self.path, version=version, storage_plugin=plugin)
+            if compression == 'zstd':
+                writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
             writer.open()
         except (WriterError, OSError) as err:
             msg = f'Cannot create bag {self.path}: {err}'

@@ -10,6 +10,9 @@ Parameters:
     output (string): bag directory to create; must not exist. Empty: a
         ``rosbag2_YYYY_MM_DD-HH_MM_SS`` directory in the working directory.
     storage (string): ``mcap`` (default) or ``sqlite3``.
+    compression (string): ``none`` (default) or ``zstd``: MCAP chunk compression, as
+        ``ros2 bag record --storage-preset-profile zstd_fast`` writes it (Foxglove and
+        PlotJuggler open such files as they are); mcap only.
     topics (string array): topics to record. Unset or empty: every topic of
         the graph, hidden ones (a ``_``-prefixed name part) and ``exclude`` excepted.
     exclude (string array): topics left out when recording every topic
@@ -79,6 +82,7 @@ from rosbags.interfaces import (
 from worm_model.ros.lifecycle import parameter_problem
 from worm_model.ros.parameters import help_text, wants_help
 from worm_model.bags.writer import (
+    COMPRESSIONS,
     STORAGES,
     BagClosedError,
     BagRecordingError,
@@ -259,6 +263,8 @@ class TopicRecorder:
                 for topic, _types in self.node.get_topic_names_and_types():
                     if not is_hidden(topic) and topic not in self.excluded:
                         self.wanted.setdefault(topic, None)
+            for topic in self._subscriptions:  # only needed where rclpy does not name publishers (Jazzy)
+                self.deliveries.publishers_seen(topic, self.node.count_publishers(topic))
             for topic in self.wanted.keys() - self._subscriptions.keys() - self._failed:
                 try:
                     self._try_subscribe(topic)
@@ -313,6 +319,7 @@ class TopicRecorder:
             subscription_qos(publishers, self.queue_depth),
             raw=True,
         )
+        self.deliveries.publishers_seen(topic, len(publishers))
         self.node.get_logger().info(f'Recording {topic} [{type_name}]')
         return True
 
@@ -381,6 +388,10 @@ class RecorderNode(Node):
             'storage', 'mcap', 'Storage plugin of the bag',
             additional_constraints=f'one of {sorted(STORAGES)}',
         )
+        compression: str = self._parameter(
+            'compression', 'none', 'Chunk compression of an MCAP bag',
+            additional_constraints=f'one of {list(COMPRESSIONS)}; zstd with storage mcap only',
+        )
         topics: list[str] | None = self._parameter(
             'topics', Parameter.Type.STRING_ARRAY,
             'Topics to record; unset or empty: all non-hidden ones, as they appear',
@@ -398,8 +409,10 @@ class RecorderNode(Node):
             integer_range=[IntegerRange(from_value=1, to_value=1_000_000, step=1)],
         )
         path = Path(output or datetime.now().strftime('rosbag2_%Y_%m_%d-%H_%M_%S'))
-        self.recorder = TopicRecorder(self, BagWriter(path, storage), queue_depth=depth)
-        self.get_logger().info(f'Recording into {path} ({storage})')
+        writer = BagWriter(path, storage, compression=compression)
+        self.recorder = TopicRecorder(self, writer, queue_depth=depth)
+        zstd = ', zstd chunks' if compression == 'zstd' else ''
+        self.get_logger().info(f'Recording into {path} ({storage}{zstd})')
         if topics:
             for topic in topics:
                 self.recorder.subscribe(topic)
