@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 
@@ -51,4 +52,8 @@ def start_graph(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactor
     finally:
         codes = {str(graph.log_dir): graph.stop() for graph in graphs}
     unclean = {logs: c for logs, c in codes.items() if any(code != 0 for code in c.values())}
-    assert not unclean, f"nodes did not exit cleanly (exit codes by log folder): {unclean}"
+    # a node killed after the grace period printed its threads' stacks (SIGUSR1) into its log: show them,
+    # pytest's temporary folders do not outlive three runs
+    tails = "".join(f"\n--- {logs}/{name}.log (end) ---\n" + (Path(logs) / f"{name}.log").read_text(
+        errors="replace")[-4000:] for logs, c in unclean.items() for name, code in c.items() if code != 0)
+    assert not unclean, f"nodes did not exit cleanly (exit codes by log folder): {unclean}{tails}"

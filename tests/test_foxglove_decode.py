@@ -252,7 +252,7 @@ def rig_csv(path: Path, rows: int) -> None:
         for i in range(rows):
             t = i * 1e-3
             writer.writerow([repr(t), repr(0.3 + 0.01 * math.sin(i)), repr(150.0 + 1e-13 * i), repr(150.0 * t),
-                             repr(0.1 if i < rows // 2 else -0.2), repr(6.0 + i / 7),
+                             repr(0.1 if i < rows // 2 else -0.2), repr(6.0 + (i % 70) / 7),
                              "" if i % 10 == 3 else repr(150.0 * t / 30.0), repr(-1.5e-300 * i), repr(25.0)])
 
 
