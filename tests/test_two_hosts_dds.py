@@ -3,9 +3,10 @@
 Two network namespaces joined by a veth pair stand for the two hosts (the test creates and removes them;
 it needs root, as CI has): the rig computer runs sim_node and controller_node, the workstation runs
 model_node, estimator_node and a recorder. DDS finds its peers across the link by multicast
-(ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET). Fast DDS is kept to UDP (FASTDDS_BUILTIN_TRANSPORTS=UDPv4): two
-namespaces of one machine share /dev/shm, and its shared-memory transport would carry the data past a cut
-link, which two real hosts never do.
+(ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET). Fast DDS is kept to UDP (FASTDDS_BUILTIN_TRANSPORTS=UDPv4), the
+only transport two real hosts share: two namespaces of one machine also share /dev/shm, and whether the
+shared-memory transport pairs them depends on how a Fast DDS version tells hosts apart (Kilted's did not
+here; the data stopped at the cut either way).
 
 The rig runs at 150 rad/s against +0.1 N m; then the link is taken down for CUT seconds and brought back.
 Judged on the streams' own stamps, in bags recorded on each side:

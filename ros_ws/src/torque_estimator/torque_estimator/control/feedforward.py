@@ -21,9 +21,10 @@ class FeedforwardGate:
     The latest estimate offered is held. It is used for a control period at
     time ``now`` only if feedforward is enabled, its torque is finite, it is not
     flagged INVALID_INPUT or OUT_OF_CALIBRATION (an extrapolated value is not
-    trusted as a command), and it is at most ``timeout`` [s] older than ``now``
-    (the sample being controlled): a stalled estimator must not leave a stale
-    torque in the loop. Otherwise the PI alone holds the speed.
+    trusted as a command), and its sample's stamp is at most ``timeout`` [s]
+    older than ``now`` (when the command goes out: controller_node takes its
+    clock, so an estimate that arrives late is as stale as a stalled estimator's):
+    a stale torque must not stay in the loop. Otherwise the PI alone holds the speed.
     AMBIGUOUS and TRANSIENT estimates are used: the nearest branch is the best
     guess, and a transient estimate still points the right way. An estimate of a
     load larger than ``max_load`` [N m] (what the rig can meet; the estimator may

@@ -21,7 +21,8 @@ for that type). Those carry no flags: only fresh, finite, plausible values are u
 
 The feedforward is the estimated load tau_d reflected through the gearbox at the
 set-point speed (Eq. 28, worm_model.physics.steady_state.balancing_torque), from
-usable estimates only (younger than estimate_timeout, not flagged invalid or out
+usable estimates only (younger than estimate_timeout: the sample's stamp against this node's clock
+when the command goes out, so a late estimate is a stale one; not flagged invalid or out
 of calibration: control.feedforward.FeedforwardGate); otherwise it is 0 and the
 PI alone holds the speed. `feedforward`, `speed_setpoint`, `kp`, `ki` and
 `voltage_limit` may be changed at run time (ros2 param set).
@@ -122,7 +123,7 @@ class ControllerNode(Node):
     def on_estimate(self, msg: TorqueEstimate) -> None:
         self.gate.offer(msg.torque, msg.flags, seconds(msg.header.stamp))
         self.estimate = msg
-        self.send(seconds(msg.header.stamp))
+        self.send()
 
     def on_joint_state(self, msg: JointState) -> None:
         if self.joint_name not in msg.name:
@@ -138,16 +139,20 @@ class ControllerNode(Node):
         """An estimate from a standard message: no seq, no flags (only freshness and plausibility)."""
         self.gate.offer(tau_d, 0, seconds(header.stamp))
         self.estimate = None
-        self.send(seconds(header.stamp))
+        self.send()
 
     def on_timer(self) -> None:
-        now = self.get_clock().now().nanoseconds * 1e-9
-        if now - self.last_sent >= 0.5 * self.command_period:
-            self.send(now)
+        if self.get_clock().now().nanoseconds * 1e-9 - self.last_sent >= 0.5 * self.command_period:
+            self.send()
 
-    def send(self, now: float) -> None:
-        """One speed command for the rig, feedforward from the estimate usable at ``now`` [s]."""
-        tau_d = self.gate.load(now)
+    def send(self) -> None:
+        """One speed command for the rig, now (the node's clock), with the feedforward of the estimate
+        usable now: an estimate's age is its sample's stamp against this clock, so one that arrives late
+        (a loaded machine, a slow link) is as stale as one that never came. The rig's stamps and this
+        clock are one computer's (or synchronised: the rig stamps on the rig computer, where the
+        controller runs; use_sim_time makes both the simulation's)."""
+        clock_now = self.get_clock().now()
+        tau_d = self.gate.load(clock_now.nanoseconds * 1e-9)
         tau_ff = 0.0 if tau_d is None else self.balancing_torque(tau_d, self.speed_setpoint)
         cmd = SpeedCommand(speed_setpoint=self.speed_setpoint, feedforward_torque=tau_ff, kp=self.kp, ki=self.ki,
                            voltage_limit=self.voltage_limit)
@@ -158,7 +163,6 @@ class ControllerNode(Node):
             if tau_d is not None:
                 cmd.feedforward_stamp = self.estimate.header.stamp
                 self.feedforward_used += 1
-        clock_now = self.get_clock().now()
         cmd.header.stamp = clock_now.to_msg()
         self.pub.publish(cmd)
         self.commands += 1
