@@ -1,6 +1,8 @@
 """Which estimate controller_node may feed forward (FeedforwardGate)."""
 from __future__ import annotations
 
+import pytest
+
 from torque_estimator.control.feedforward import FeedforwardGate
 from torque_estimator.estimation.base import EstimateFlags
 
@@ -32,3 +34,33 @@ def test_feedforward_gate_refuses_implausible_loads() -> None:
     assert gate.load(1.0) == 0.39
     gate.offer(-0.41, int(EstimateFlags.TRANSIENT), stamp=2.0)
     assert gate.load(2.0) is None
+
+
+def test_feedforward_gate_ages_a_late_estimate_by_its_lateness() -> None:
+    """The rig's clock 60 ms behind the controller's (a simulated rig behind real time): estimates that
+    arrive with the stream's usual lag are fresh; one 80 ms later than usual is stale at once; with
+    none coming the held one ages on the controller's clock; a rig that catches up resets the lag."""
+    gate = FeedforwardGate(timeout=0.05)
+    for k in range(100):  # every 5 ms, lag 60 ms (+ up to 1 ms of transit)
+        stamp = 10.0 + 0.005 * k
+        gate.offer(0.2, 0, stamp, arrival=stamp + 0.060 + 0.001 * (k % 2))
+        assert gate.load(stamp + 0.061) == 0.2
+    assert gate.clock_lag == pytest.approx(0.060)
+    stamp = 10.5
+    gate.offer(0.3, 0, stamp, arrival=stamp + 0.140)  # 80 ms later than the stream's best
+    assert gate.age(stamp + 0.140) == pytest.approx(0.080) and gate.load(stamp + 0.140) is None
+    gate.offer(0.3, 0, 10.6, arrival=10.661)
+    assert gate.load(10.661 + 0.049) == 0.3 and gate.load(10.661 + 0.052) is None  # the estimator went quiet
+    gate.offer(0.3, 0, 10.7, arrival=10.701)  # the rig caught up: the least lag is 1 ms at once
+    assert gate.clock_lag == pytest.approx(0.001) and gate.load(10.701 + 0.049) == 0.3
+    # the old lag leaves the window after clock_window (2 s): a rig that falls behind is stale meanwhile
+    for k in range(1, 500):
+        stamp = 10.7 + 0.005 * k
+        gate.offer(0.3, 0, stamp, arrival=stamp + 0.1)
+    assert gate.clock_lag == pytest.approx(0.1) and gate.load(stamp + 0.1) == 0.3
+
+
+def test_feedforward_gate_without_arrivals_judges_on_one_clock() -> None:
+    gate = FeedforwardGate(timeout=0.05)
+    gate.offer(0.2, 0, 1.0)
+    assert gate.clock_lag == 0.0 and gate.load(1.0499) == 0.2 and gate.load(1.0501) is None

@@ -11,6 +11,7 @@ the worm is positive when it turns the worm positively.
 from __future__ import annotations
 
 import math
+from collections import deque
 
 from torque_estimator.estimation.base import EstimateFlags
 
@@ -21,30 +22,58 @@ class FeedforwardGate:
     The latest estimate offered is held. It is used for a control period at
     time ``now`` only if feedforward is enabled, its torque is finite, it is not
     flagged INVALID_INPUT or OUT_OF_CALIBRATION (an extrapolated value is not
-    trusted as a command), and its sample's stamp is at most ``timeout`` [s]
-    older than ``now`` (when the command goes out: controller_node takes its
-    clock, so an estimate that arrives late is as stale as a stalled estimator's):
-    a stale torque must not stay in the loop. Otherwise the PI alone holds the speed.
-    AMBIGUOUS and TRANSIENT estimates are used: the nearest branch is the best
-    guess, and a transient estimate still points the right way. An estimate of a
-    load larger than ``max_load`` [N m] (what the rig can meet; the estimator may
-    not have flagged it) is not used either: an implausible torque must not reach
-    the drive as a command.
+    trusted as a command), and it is at most ``timeout`` [s] old at ``now``: a
+    stale torque must not stay in the loop. AMBIGUOUS and TRANSIENT estimates are
+    used: the nearest branch is the best guess, and a transient estimate still
+    points the right way. An estimate of a load larger than ``max_load`` [N m]
+    (what the rig can meet; the estimator may not have flagged it) is not used
+    either: an implausible torque must not reach the drive as a command.
+
+    Age. An estimate carries the stamp of its rig sample, on the rig's clock;
+    ``now`` and ``arrival`` are the controller's clock. The two clocks need not
+    agree (a simulated rig that runs behind real time, another computer): the
+    gate takes the smallest lag ``arrival - stamp`` seen over the last
+    ``clock_window`` [s] as the clocks' offset plus the graph's best transit
+    time, and an estimate's age at ``now`` is ``now - stamp - that lag``. So an
+    estimate that arrives later than the stream's best (a loaded machine, a
+    slow link) is older by exactly that, and one that never comes ages with the
+    controller's clock. Without ``arrival`` (a replay, the benchmark's loop on
+    one clock) the lag is 0 and the age is ``now - stamp``.
     """
 
     UNUSABLE = EstimateFlags.INVALID_INPUT | EstimateFlags.OUT_OF_CALIBRATION
 
-    def __init__(self, timeout: float, enabled: bool = True, max_load: float = math.inf) -> None:
+    def __init__(self, timeout: float, enabled: bool = True, max_load: float = math.inf,
+                 clock_window: float = 2.0) -> None:
         self.timeout = timeout
         self.enabled = enabled
         self.max_load = max_load
+        self.clock_window = clock_window
         self._torque: float | None = None
         self._flags = 0
         self._stamp = 0.0
+        self._lags: deque[tuple[float, float]] = deque()  # (arrival, lag), lags increasing: a sliding minimum
 
-    def offer(self, torque: float, flags: int, stamp: float) -> None:
-        """Hold a new estimate: τ_d [N m], EstimateFlags bits, stamp of the sample it came from [s]."""
+    def offer(self, torque: float, flags: int, stamp: float, arrival: float | None = None) -> None:
+        """Hold a new estimate: τ_d [N m], EstimateFlags bits, stamp of the sample it came from [s, rig's
+        clock], when it arrived [s, controller's clock] (None: on the rig's clock, no transit)."""
         self._torque, self._flags, self._stamp = float(torque), int(flags), float(stamp)
+        if arrival is None or not math.isfinite(lag := arrival - stamp):
+            arrival, lag = stamp, 0.0
+        while self._lags and self._lags[-1][1] >= lag:
+            self._lags.pop()
+        self._lags.append((arrival, lag))
+        while self._lags[0][0] < arrival - self.clock_window:
+            self._lags.popleft()
+
+    @property
+    def clock_lag(self) -> float:
+        """The least ``arrival - stamp`` over the window [s]: the rig's clock's offset + the best transit."""
+        return self._lags[0][1] if self._lags else 0.0
+
+    def age(self, now: float) -> float:
+        """Age [s] at ``now`` (controller's clock) of the held estimate; inf if none."""
+        return now - self._stamp - self.clock_lag if self._torque is not None else math.inf
 
     def load(self, now: float) -> float | None:
         """The usable held τ_d [N m] for a control period at time ``now`` [s], or None."""
@@ -52,7 +81,7 @@ class FeedforwardGate:
         if (not self.enabled or torque is None or self._flags & self.UNUSABLE or not math.isfinite(torque)
                 or abs(torque) > self.max_load):
             return None
-        return torque if now - self._stamp <= self.timeout else None
+        return torque if self.age(now) <= self.timeout else None
 
 
 __all__ = ["FeedforwardGate"]

@@ -21,8 +21,8 @@ for that type). Those carry no flags: only fresh, finite, plausible values are u
 
 The feedforward is the estimated load tau_d reflected through the gearbox at the
 set-point speed (Eq. 28, worm_model.physics.steady_state.balancing_torque), from
-usable estimates only (younger than estimate_timeout: the sample's stamp against this node's clock
-when the command goes out, so a late estimate is a stale one; not flagged invalid or out
+usable estimates only (younger than estimate_timeout when the command goes out: an estimate that
+arrives late counts as that much older, FeedforwardGate; not flagged invalid or out
 of calibration: control.feedforward.FeedforwardGate); otherwise it is 0 and the
 PI alone holds the speed. `feedforward`, `speed_setpoint`, `kp`, `ki` and
 `voltage_limit` may be changed at run time (ros2 param set).
@@ -121,7 +121,7 @@ class ControllerNode(Node):
         self.speed_setpoint = msg.data
 
     def on_estimate(self, msg: TorqueEstimate) -> None:
-        self.gate.offer(msg.torque, msg.flags, seconds(msg.header.stamp))
+        self.gate.offer(msg.torque, msg.flags, seconds(msg.header.stamp), self.clock_seconds())
         self.estimate = msg
         self.send()
 
@@ -137,20 +137,22 @@ class ControllerNode(Node):
 
     def _offer_plain(self, tau_d: float, header) -> None:
         """An estimate from a standard message: no seq, no flags (only freshness and plausibility)."""
-        self.gate.offer(tau_d, 0, seconds(header.stamp))
+        self.gate.offer(tau_d, 0, seconds(header.stamp), self.clock_seconds())
         self.estimate = None
         self.send()
 
     def on_timer(self) -> None:
-        if self.get_clock().now().nanoseconds * 1e-9 - self.last_sent >= 0.5 * self.command_period:
+        if self.clock_seconds() - self.last_sent >= 0.5 * self.command_period:
             self.send()
+
+    def clock_seconds(self) -> float:
+        """This node's clock [s]."""
+        return self.get_clock().now().nanoseconds * 1e-9
 
     def send(self) -> None:
         """One speed command for the rig, now (the node's clock), with the feedforward of the estimate
-        usable now: an estimate's age is its sample's stamp against this clock, so one that arrives late
-        (a loaded machine, a slow link) is as stale as one that never came. The rig's stamps and this
-        clock are one computer's (or synchronised: the rig stamps on the rig computer, where the
-        controller runs; use_sim_time makes both the simulation's)."""
+        usable now (FeedforwardGate: an estimate that arrives later than the stream's best is older by
+        that much, one that never comes ages with this clock)."""
         clock_now = self.get_clock().now()
         tau_d = self.gate.load(clock_now.nanoseconds * 1e-9)
         tau_ff = 0.0 if tau_d is None else self.balancing_torque(tau_d, self.speed_setpoint)
@@ -172,6 +174,7 @@ class ControllerNode(Node):
         level = WARN if self.gate.enabled and self.commands and not self.feedforward_used else OK
         return level, ("feedforward wanted but no usable estimate" if level == WARN else "controlling"), {
             "commands": self.commands, "feedforward_used": self.feedforward_used,
+            "estimate_clock_lag_ms": round(self.gate.clock_lag * 1e3, 3),
             "speed_setpoint": self.speed_setpoint, "feedforward": self.gate.enabled}
 
 
