@@ -11,7 +11,6 @@ the worm is positive when it turns the worm positively.
 from __future__ import annotations
 
 import math
-from collections import deque
 
 from torque_estimator.estimation.base import EstimateFlags
 
@@ -31,28 +30,31 @@ class FeedforwardGate:
 
     Age. An estimate carries the stamp of its rig sample, on the rig's clock;
     ``now`` and ``arrival`` are the controller's clock. The two clocks need not
-    agree (a simulated rig that runs behind real time, another computer): the
-    gate takes the smallest lag ``arrival - stamp`` seen over the last
-    ``clock_window`` [s] as the clocks' offset plus the graph's best transit
-    time, and an estimate's age at ``now`` is ``now - stamp - that lag``. So an
-    estimate that arrives later than the stream's best (a loaded machine, a
-    slow link) is older by exactly that, and one that never comes ages with the
-    controller's clock. Without ``arrival`` (a replay, the benchmark's loop on
-    one clock) the lag is 0 and the age is ``now - stamp``.
+    agree (a simulated rig that runs behind real time, another computer), so the
+    gate keeps a lag: the least ``arrival - stamp`` seen, allowed to rise by at
+    most ``max_drift`` [s per s] of the controller's clock (a rig falling behind
+    real time, a clock slewing); an estimate's age at ``now`` is
+    ``now - stamp - lag``. So an estimate that arrives later than the stream's
+    best (a loaded machine, a slow link, one held in a queue while a link was
+    down) is older by that much, one that never comes ages with the
+    controller's clock, and a steady offset is not age. Without ``arrival`` (a
+    replay, the benchmark's loop on one clock) the lag is 0 and the age is
+    ``now - stamp``.
     """
 
     UNUSABLE = EstimateFlags.INVALID_INPUT | EstimateFlags.OUT_OF_CALIBRATION
 
     def __init__(self, timeout: float, enabled: bool = True, max_load: float = math.inf,
-                 clock_window: float = 2.0) -> None:
+                 max_drift: float = 0.05) -> None:
         self.timeout = timeout
         self.enabled = enabled
         self.max_load = max_load
-        self.clock_window = clock_window
+        self.max_drift = max_drift
         self._torque: float | None = None
         self._flags = 0
         self._stamp = 0.0
-        self._lags: deque[tuple[float, float]] = deque()  # (arrival, lag), lags increasing: a sliding minimum
+        self._lag: float | None = None
+        self._last_arrival = 0.0
 
     def offer(self, torque: float, flags: int, stamp: float, arrival: float | None = None) -> None:
         """Hold a new estimate: τ_d [N m], EstimateFlags bits, stamp of the sample it came from [s, rig's
@@ -60,16 +62,16 @@ class FeedforwardGate:
         self._torque, self._flags, self._stamp = float(torque), int(flags), float(stamp)
         if arrival is None or not math.isfinite(lag := arrival - stamp):
             arrival, lag = stamp, 0.0
-        while self._lags and self._lags[-1][1] >= lag:
-            self._lags.pop()
-        self._lags.append((arrival, lag))
-        while self._lags[0][0] < arrival - self.clock_window:
-            self._lags.popleft()
+        if self._lag is None or lag <= self._lag:
+            self._lag = lag
+        else:  # a later arrival than the best: only a bounded part of it may be the clocks drifting
+            self._lag = min(lag, self._lag + self.max_drift * max(0.0, arrival - self._last_arrival))
+        self._last_arrival = arrival
 
     @property
     def clock_lag(self) -> float:
-        """The least ``arrival - stamp`` over the window [s]: the rig's clock's offset + the best transit."""
-        return self._lags[0][1] if self._lags else 0.0
+        """The lag [s]: the rig's clock's offset + the best transit, as far as the estimates tell."""
+        return self._lag or 0.0
 
     def age(self, now: float) -> float:
         """Age [s] at ``now`` (controller's clock) of the held estimate; inf if none."""
