@@ -12,20 +12,17 @@ steady-state detection and the journal live in live_calibration.
 """
 from __future__ import annotations
 
-import signal
 import time
 from collections.abc import Callable
 
-import rclpy
-from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
 from worm_msgs.msg import LoadCommand, RigSamples, SpeedCommand
 
 from worm_model.ros.qos import COMMAND, STREAM
 
 from torque_estimator.calibration.live import TOPICS, LiveRigError, PointByPoint
+from torque_estimator.calibration.rig_session_node import rig_session
 
 
 class CalibrationClient(Node):
@@ -53,6 +50,9 @@ class CalibrationClient(Node):
         self.speed_commands += 1
         self.controller_setpoint = msg.speed_setpoint
 
+    def stop_rig(self) -> None:
+        self.command(0.0, 0.0)
+
     def command(self, speed: float, torque: float) -> None:
         """Ask for a worm speed [rad/s] and a load torque [N m] (positive opposing + rotation)."""
         load = LoadCommand(torque=float(torque))
@@ -79,40 +79,8 @@ def run_live(run: PointByPoint, *, start_timeout: float = 30.0, ack_timeout: flo
         KeyboardInterrupt: Ctrl-C (or SIGTERM turned into it by the caller).
     On every exit the load torque and the speed set-point are commanded to 0.
     """
-    # Ctrl-C and SIGTERM only set a flag; spin_until turns it into a KeyboardInterrupt between two
-    # executor steps. An interrupt raised asynchronously could land inside the executor or a
-    # callback that is writing the journal, and the clean-up below would then run on a broken
-    # executor (seen as a traceback instead of exit 130, about 1 run in 10 on a loaded machine).
-    interrupted: list[int] = []
-    previous = {sig: signal.signal(sig, lambda signum, _frame: interrupted.append(signum))
-                for sig in (signal.SIGINT, signal.SIGTERM)}
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = CalibrationClient(run)
-    executor = EventsExecutor()
-    executor.add_node(node)
-
-    def spin_until(done: Callable[[], bool], timeout: float) -> bool:
-        deadline = time.monotonic() + timeout
-        next_tick = time.monotonic()
-        while not done():
-            if interrupted:
-                raise KeyboardInterrupt(f"signal {interrupted[0]}")
-            now = time.monotonic()
-            if now > deadline:
-                return False
-            if on_tick is not None and now >= next_tick:
-                on_tick()
-                next_tick = now + 0.1
-            executor.spin_once(timeout_sec=0.02)
-        return True
-
-    try:
-        if not spin_until(lambda: node.samples > 0, start_timeout):
-            raise LiveRigError(f"no samples on {TOPICS['samples']} within {start_timeout:g} s: "
-                               "is sim_node (or driver_node) running on this ROS_DOMAIN_ID?")
-        if not spin_until(lambda: node.speed_commands > 0, start_timeout):
-            raise LiveRigError(f"no speed commands on {TOPICS['speed_command']} within {start_timeout:g} s: "
-                               "is controller_node running?")
+    with rig_session(lambda: CalibrationClient(run), start_timeout=start_timeout, on_tick=on_tick) as (
+            node, spin_until):
         while (point := run.current) is not None:
             node.command(point.speed, point.torque)
             if not spin_until(lambda: node.controller_setpoint == point.speed, ack_timeout):
@@ -128,19 +96,6 @@ def run_live(run: PointByPoint, *, start_timeout: float = 30.0, ack_timeout: flo
                                    f"(point {point.plan_index}: {point.speed:g} rad/s, {point.torque:g} N m)")
             if on_point is not None:
                 on_point()
-    finally:
-        # Leave the rig unloaded and stopped; reliable + latched, so give discovery a moment.
-        node.command(0.0, 0.0)
-        interrupted.clear()  # a second Ctrl-C must not cut the stop command short
-        try:
-            spin_until(lambda: False, 0.3)
-        except KeyboardInterrupt:
-            pass
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
 
 
 __all__ = ["CalibrationClient", "run_live"]

@@ -10,20 +10,17 @@ set-point.  Timeline, samples and journal: identification.recording (no ROS ther
 """
 from __future__ import annotations
 
-import signal
 import time
 from collections.abc import Callable
 
-import rclpy
-from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import Float64
 from worm_msgs.msg import LoadCommand, RigSamples, SpeedCommand
 
 from worm_model.ros.qos import COMMAND, STREAM
 
 from torque_estimator.calibration.live import TOPICS, LiveRigError
+from torque_estimator.calibration.rig_session_node import rig_session
 from torque_estimator.identification.recording import ExcitationRun
 
 #: a set-point is published again once it moved by this much (speed [rad/s], load [N m])
@@ -65,6 +62,10 @@ class IdentifyClient(Node):
         self.speed_commands += 1
         self.controller_setpoint = msg.speed_setpoint
 
+    def stop_rig(self) -> None:
+        self.recording = False
+        self.command(0.0, 0.0, force=True)
+
     def command(self, speed: float, torque: float, force: bool = False) -> None:
         """Ask for a worm speed [rad/s] and a load torque [N m] (sent when it moved by RESEND or ``force``)."""
         if not force and self.sent is not None and abs(speed - self.sent[0]) < RESEND[0] \
@@ -87,36 +88,8 @@ def run_live(run: ExcitationRun, *, start_timeout: float = 30.0, ack_timeout: fl
         KeyboardInterrupt: Ctrl-C or SIGTERM (turned into it between two executor steps).
     On every exit the load torque and the speed set-point are commanded to 0: the rig is left stopped.
     """
-    interrupted: list[int] = []  # signals only set a flag (see calibration_node.run_live: why)
-    previous = {sig: signal.signal(sig, lambda signum, _frame: interrupted.append(signum))
-                for sig in (signal.SIGINT, signal.SIGTERM)}
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = IdentifyClient(run)
-    executor = EventsExecutor()
-    executor.add_node(node)
-
-    def spin_until(done: Callable[[], bool], timeout: float) -> bool:
-        deadline = time.monotonic() + timeout
-        next_tick = time.monotonic()
-        while not done():
-            if interrupted:
-                raise KeyboardInterrupt(f"signal {interrupted[0]}")
-            now = time.monotonic()
-            if now > deadline:
-                return False
-            if on_tick is not None and now >= next_tick:
-                on_tick()
-                next_tick = now + 0.1
-            executor.spin_once(timeout_sec=0.02)
-        return True
-
-    try:
-        if not spin_until(lambda: node.samples > 0, start_timeout):
-            raise LiveRigError(f"no samples on {TOPICS['samples']} within {start_timeout:g} s: "
-                               "is sim_node (or driver_node) running on this ROS_DOMAIN_ID?")
-        if not spin_until(lambda: node.speed_commands > 0, start_timeout):
-            raise LiveRigError(f"no speed commands on {TOPICS['speed_command']} within {start_timeout:g} s: "
-                               "is controller_node running?")
+    with rig_session(lambda: IdentifyClient(run), start_timeout=start_timeout, on_tick=on_tick) as (
+            node, spin_until):
         first = run.setpoints()
         if first is not None:
             node.command(*first, force=True)
@@ -129,19 +102,6 @@ def run_live(run: ExcitationRun, *, start_timeout: float = 30.0, ack_timeout: fl
             if not run.finished:
                 raise LiveRigError(f"no samples on {TOPICS['samples']} for {stall_timeout:g} s "
                                    f"(segment {run.segment} of {len(run.timeline)})")
-    finally:
-        node.recording = False
-        node.command(0.0, 0.0, force=True)
-        interrupted.clear()  # a second Ctrl-C must not cut the stop command short
-        try:
-            spin_until(lambda: False, 0.3)
-        except KeyboardInterrupt:
-            pass
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
 
 
 __all__ = ["IdentifyClient", "run_live"]

@@ -40,7 +40,7 @@ from worm_rig_driver.link.serial_link import SUPPORTED_BAUDS, SerialLink
 from worm_rig_driver.drive.realtime import make_realtime
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
-from worm_rig_driver.nodes.rig_topics import FIELDS, RigTopics, speed_command_from_msg, subscribe_commands
+from worm_rig_driver.nodes.rig_topics import FIELDS, RigTopics, log_refusal, speed_command_from_msg, subscribe_commands
 
 
 class DriverNode(Node):
@@ -117,16 +117,7 @@ class DriverNode(Node):
     def _refused(self, what: str, reason: str | None) -> None:
         if not reason:
             return
-        text, log = f"rejected {what} command: {reason}", self.get_logger()
-        # One call site per kind: rclpy throttles per call site, so a refused speed command must not
-        # silence a refused drive command. (.warning, not .warn: rclpy keys a call site's throttle
-        # filter on its caller, and .warn (deprecated) is one caller for every site.)
-        if what == "speed":
-            log.warning(text, throttle_duration_sec=1.0)
-        elif what == "drive":
-            log.warning(text, throttle_duration_sec=1.0)
-        else:
-            log.warning(text, throttle_duration_sec=1.0)
+        log_refusal(self, what, reason)
 
     def on_drive_command(self, msg: DriveCommand) -> None:
         reason = self.link.core.limits.drive_problem(msg.voltage)

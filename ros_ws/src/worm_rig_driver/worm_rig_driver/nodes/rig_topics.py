@@ -151,4 +151,21 @@ def subscribe_commands(node: Node, on_speed: Callable[[SpeedCommand], None],
     subscribe_command(node, LoadCommand, "/rig/load_command", on_load)
 
 
-__all__ = ["FIELDS", "RigTopics", "speed_command_from_msg", "subscribe_commands"]
+def log_refusal(node: Node, what: str, reason: str) -> None:
+    """Warn that a ``what`` ("speed", "drive", "load") command was refused, at most once a second per kind.
+
+    One call site per kind: rclpy throttles per call site, so a refused speed command must not
+    silence a refused drive command. (.warning, not .warn: rclpy keys a call site's throttle filter on
+    its caller, and .warn (deprecated) is one caller for every site; a throttled .warn followed by
+    another .warn made this rclpy's logger raise.)
+    """
+    text, log = f"rejected {what} command: {reason}", node.get_logger()
+    if what == "speed":
+        log.warning(text, throttle_duration_sec=1.0)
+    elif what == "drive":
+        log.warning(text, throttle_duration_sec=1.0)
+    else:
+        log.warning(text, throttle_duration_sec=1.0)
+
+
+__all__ = ["FIELDS", "RigTopics", "log_refusal", "speed_command_from_msg", "subscribe_commands"]

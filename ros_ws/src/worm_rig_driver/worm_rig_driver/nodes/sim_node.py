@@ -39,7 +39,7 @@ from worm_model.ros.parameters import declare
 from worm_rig_driver.drive.realtime import make_realtime
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
-from worm_rig_driver.nodes.rig_topics import RigTopics, speed_command_from_msg, subscribe_commands
+from worm_rig_driver.nodes.rig_topics import RigTopics, log_refusal, speed_command_from_msg, subscribe_commands
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 _WATCHDOG = RigSample.STATUS_WATCHDOG_STOP
@@ -113,16 +113,7 @@ class SimNode(Node):
         if not reason:
             return
         self.rejected_commands += 1
-        text, log = f"rejected {what} command: {reason}", self.get_logger()
-        # One call site per kind: rclpy throttles per call site, so a refused speed command must not
-        # silence a refused drive command. (.warning, not .warn: a throttled .warn followed by another
-        # .warn makes rclpy's logger raise.)
-        if what == "speed":
-            log.warning(text, throttle_duration_sec=1.0)
-        elif what == "drive":
-            log.warning(text, throttle_duration_sec=1.0)
-        else:
-            log.warning(text, throttle_duration_sec=1.0)
+        log_refusal(self, what, reason)
 
     def on_speed_command(self, msg: SpeedCommand) -> None:
         self._refused("speed", self.loop.command_speed(speed_command_from_msg(msg), self._now()))
