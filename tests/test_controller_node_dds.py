@@ -136,5 +136,6 @@ controller_node:
     expected = float(balancing_torque(load_rig(), 0.15, 150.0))
     fed = [c.feedforward_torque for c in commands]
     assert len(fed) > 50, len(fed)
-    assert sum(fed) / len(fed) == pytest.approx(expected, rel=0.1), (sum(fed) / len(fed), expected)
+    assert sum(fed) / len(fed) == pytest.approx(expected, rel=0.1), (
+        sum(fed) / len(fed), expected, (graph.log_dir / "controller_node.log").read_text()[-3000:])
     assert not graph.failed(), graph.failed()

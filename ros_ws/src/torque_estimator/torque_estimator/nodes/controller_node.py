@@ -104,6 +104,7 @@ class ControllerNode(Node):
         self.last_sent = -math.inf  # [s] node clock
         self.commands = 0
         self.feedforward_used = 0
+        self.late_estimates = 0
         Diagnostics(self, self.report)
 
     def on_parameters(self, params) -> SetParametersResult:
@@ -122,8 +123,19 @@ class ControllerNode(Node):
 
     def on_estimate(self, msg: TorqueEstimate) -> None:
         self.gate.offer(msg.torque, msg.flags, seconds(msg.header.stamp), self.clock_seconds())
+        self._check_late()
         self.estimate = msg
         self.send()
+
+    def _check_late(self) -> None:
+        """Count, and say at most once a second, that an estimate arrived too late to be fed forward."""
+        late = self.gate.age(self.clock_seconds())
+        if late > self.gate.timeout:
+            self.late_estimates += 1
+            self.get_logger().warning(
+                f"estimate arrived {late * 1e3:.0f} ms later than the stream's usual lag "
+                f"({self.gate.clock_lag * 1e3:.1f} ms): not fed forward (estimate_timeout "
+                f"{self.gate.timeout * 1e3:.0f} ms)", throttle_duration_sec=1.0)
 
     def on_joint_state(self, msg: JointState) -> None:
         if self.joint_name not in msg.name:
@@ -138,6 +150,7 @@ class ControllerNode(Node):
     def _offer_plain(self, tau_d: float, header) -> None:
         """An estimate from a standard message: no seq, no flags (only freshness and plausibility)."""
         self.gate.offer(tau_d, 0, seconds(header.stamp), self.clock_seconds())
+        self._check_late()
         self.estimate = None
         self.send()
 
@@ -174,7 +187,7 @@ class ControllerNode(Node):
         level = WARN if self.gate.enabled and self.commands and not self.feedforward_used else OK
         return level, ("feedforward wanted but no usable estimate" if level == WARN else "controlling"), {
             "commands": self.commands, "feedforward_used": self.feedforward_used,
-            "estimate_clock_lag_ms": round(self.gate.clock_lag * 1e3, 3),
+            "estimate_clock_lag_ms": round(self.gate.clock_lag * 1e3, 3), "late_estimates": self.late_estimates,
             "speed_setpoint": self.speed_setpoint, "feedforward": self.gate.enabled}
 
 
