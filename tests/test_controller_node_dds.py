@@ -116,6 +116,7 @@ controller_node:
   ros__parameters:
     speed_setpoint: 150.0
     feedforward_source: joint_state
+    estimate_timeout: 1.0  # the source is the subject here; lateness is FeedforwardGate's and the two-host test's
 """, "controller_joint_state")
     with probe_node("controller_joint_state_probe") as (node, executor):
         commands: list = []
