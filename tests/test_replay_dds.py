@@ -101,7 +101,9 @@ def test_replay_equals_live_to_round_off(recorded: tuple[Path, list[str], str]) 
     assert estimates is not None and forces is not None
     for comparison, every in ((estimates, BATCH), (forces, FORCES_EVERY)):
         print(comparison)
-        assert comparison.compared > 0.5 * (RECORD_S - WARMUP_S) * 1000 / every, comparison
+        # enough answers to trust the equality (0.5 s of them); how many live answered is not this test's
+        # subject (a live estimator on a busy machine may miss batches: CI once saw 70 % answered)
+        assert comparison.compared >= 500 / every, comparison
         for name, value in comparison.max_abs.items():
             assert value <= ROUND_OFF, (comparison.topic, name, value)
     # follow-live fed the estimator exactly the batches live answered: the other samples of each are all
