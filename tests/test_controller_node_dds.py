@@ -116,7 +116,6 @@ controller_node:
   ros__parameters:
     speed_setpoint: 150.0
     feedforward_source: joint_state
-    estimate_timeout: 1.0  # the source is the subject here; lateness is FeedforwardGate's and the two-host test's
 """, "controller_joint_state")
     with probe_node("controller_joint_state_probe") as (node, executor):
         commands: list = []
@@ -127,6 +126,13 @@ controller_node:
             executor.spin_once(timeout_sec=0.05)
         assert commands, f"no speed commands; logs in {graph.log_dir}"
         load.publish(LoadCommand(torque=0.15))
+        # the estimator may still be starting (a loaded machine: its first JointState came >3 s after the
+        # controller's first command in CI): wait for the first feedforward, then for the speed to settle
+        deadline = time.monotonic() + 30.0
+        while not any(c.feedforward_torque for c in commands[-10:]) and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert any(c.feedforward_torque for c in commands[-10:]), (
+            f"no feedforward from the JointState source; logs in {graph.log_dir}")
         deadline = time.monotonic() + 2.0
         while time.monotonic() < deadline:
             executor.spin_once(timeout_sec=0.05)
