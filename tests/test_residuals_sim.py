@@ -53,28 +53,14 @@ from worm_model.residuals.model import prepare_signals
 from worm_model.rig_data.schema import MeasuredData, read_rig_csv, write_rig_csv
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
+import torque_estimator.experiment.residual_cases as rc
+
 REPO = Path(__file__).resolve().parents[1]
 RIG = load_rig()
 FREE = ["friction.scale"]
 
-#: excitation profiles: drive voltage offsets [V] and load torque offset and swing ranges [N m];
-#: "square": the load switches between offset -/+ swing (steps through zero); "reverse": every third
-#: rig (j % 3 == 1, so that some of them land in held-out blocks) reverses its drive smoothly, with
-#: almost no load (a flank change at each reversal)
-PROFILES = {
-    "standard": {"volts": (1.5, 20.0), "load": (-0.12, 0.2), "swing": (0.02, 0.15)},
-    "low_speed": {"volts": (1.0, 4.0), "load": (0.1, 0.3), "swing": (0.02, 0.08)},
-    "wide_load": {"volts": (3.0, 20.0), "load": (-0.05, 0.3), "swing": (0.1, 0.2)},
-    "high_load": {"volts": (4.0, 20.0), "load": (0.1, 0.3), "swing": (0.02, 0.08)},
-    "slow_high_load": {"volts": (2.0, 10.0), "load": (0.12, 0.3), "swing": (0.02, 0.08)},
-    # low speed (8-50 rad/s: mu 0.06-0.09, the current most sensitive to it) at nearly full load
-    "slow_full_load": {"volts": (1.0, 3.0), "load": (0.2, 0.24), "swing": (0.02, 0.03)},
-    "flank": {"volts": (3.0, 16.0), "load": (-0.03, 0.05), "swing": (0.08, 0.2), "square": True, "reverse": True},
-}
-
-#: oil sump sensor of the oil-temperature case: resolution [K] (a MAX31855-class thermocouple amplifier)
-#: and noise [K]
-OIL_SENSOR = (0.25, 0.2)
+#: excitation profiles and the oil sump sensor: torque_estimator.experiment.residual_cases (PROFILES,
+#: OIL_SENSOR), whose simulate() makes every data set here
 
 
 @dataclass(frozen=True)
@@ -133,48 +119,12 @@ CASES = {
 
 def simulate(effects: dict | None, profile: str = "standard", n: int = 10, seconds: float = 4.0,
              seed: int = 1, oil_start: tuple[float, ...] = ()) -> MeasuredData:
-    """n runs of `seconds` each (1 s gaps between them in t), sampled like the rig at 1 kHz.
-
-    oil_start: oil temperatures [degC] at the start, cycled over the rigs; then the oil temperature
-    is recorded in the ``temperature`` column through OIL_SENSOR.
-    """
-    p = PROFILES[profile]
-    rng = np.random.default_rng(seed)
-    sim = SimulatedRig(RIG, n=n, seed=seed, effects=effects)
-    if oil_start:
-        oil = next(e for e in sim.plant.fx.effects if e.name == "oil_temperature")
-        oil.temperature = np.resize(np.asarray(oil_start, dtype=float), n)  # each rig's conditioned start
-    steps = int(round(seconds * RIG.sensors.sample_rate_hz))
-    dt = 1.0 / RIG.sensors.sample_rate_hz
-    v0 = rng.permutation(np.linspace(*p["volts"], n)) * np.where(np.arange(n) % 2, 1.0, -1.0)
-    v1, f1 = rng.uniform(0.1, 0.3, n) * np.abs(v0), rng.uniform(0.5, 3.0, n)
-    l0, l1, f2 = rng.uniform(*p["load"], n), rng.uniform(*p["swing"], n), rng.uniform(0.2, 1.0, n)
-    reverse = (np.arange(n) % 3 == 1) if p.get("reverse") else np.zeros(n, dtype=bool)
-    if p.get("square"):  # steps of the load through zero, 0.7-1.5 Hz, and a steady drive
-        v1, f2 = np.zeros(n), rng.uniform(0.7, 1.5, n)
-    l0, l1 = np.where(reverse, rng.uniform(-0.005, 0.005, n), l0), np.where(reverse, 0.0, l1)
-    f_rev = rng.uniform(0.25, 0.5, n)
-    wave = np.sign if p.get("square") else (lambda x: x)
-    keys = ("current_drive", "omega_worm", "theta_worm", "theta_gear", "tau_load", "voltage_drive")
-    rec = {k: np.empty((steps, n)) for k in keys}
-    oil_temperature = np.empty((steps, n))
-    for k in range(steps):
-        t = k * dt
-        volts = v0 + v1 * np.sin(2 * np.pi * f1 * t)
-        sim.command(voltage_drive=np.where(reverse, v0 * np.sin(2 * np.pi * f_rev * t + 0.3), volts),
-                    load_torque=l0 + l1 * wave(np.sin(2 * np.pi * f2 * t)))
-        m = sim.sample()
-        for key in keys:
-            rec[key][k] = getattr(m, key)
-        if oil_start:
-            oil_temperature[k] = sim.plant.fx.observe()["oil_temperature"]
-    t = np.concatenate([np.arange(steps) * dt + j * (seconds + 1.0) for j in range(n)])
-    extra = {}
-    if oil_start:
-        lsb, noise = OIL_SENSOR
-        measured = np.round((oil_temperature + rng.normal(0.0, noise, oil_temperature.shape)) / lsb) * lsb
-        extra["temperature"] = measured.T.ravel()
-    return MeasuredData(t=t, **{k: v.T.ravel() for k, v in rec.items()}, **extra, source=f"sim:{profile}")
+    """n runs of `seconds` each (1 s gaps between them in t), sampled like the rig at 1 kHz
+    (residual_cases.simulate: drive and load profiles, and with oil_start the oil temperature in the
+    ``temperature`` column through its sump sensor)."""
+    case = rc.Case(profile, dict(effects or {}), profile, oil_start=tuple(oil_start), runs=n, seconds=seconds,
+                   seed=seed)
+    return rc.simulate(case, RIG)
 
 
 def simulate_case(name: str) -> MeasuredData:
