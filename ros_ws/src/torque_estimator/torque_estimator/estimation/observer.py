@@ -645,21 +645,19 @@ class LoadObserver:
         theta = None if theta is None else float(theta)
         if not self.initialised:
             self._initialise(current, omega, theta)
-        nu, h, R = self._measurement(current, omega, theta, voltage)
-        x, P = self.x, self.P
-        PhT = P @ h.T
-        S = h @ PhT + R
-        s_inv = _inverse(S)
-        if not float(nu @ s_inv @ nu) <= RESTART_NIS:  # (also NaN) not this rig's continuation: start again
-            self.restarts += 1
-            self._clear_glr()
-            self._phi_prev = None
-            self._initialise(current, omega, theta)
+        for restarted in (False, True):
             nu, h, R = self._measurement(current, omega, theta, voltage)
             x, P = self.x, self.P
             PhT = P @ h.T
             S = h @ PhT + R
             s_inv = _inverse(S)
+            if restarted or float(nu @ s_inv @ nu) <= RESTART_NIS:
+                break
+            # (also NaN) not this rig's continuation: start again from this sample
+            self.restarts += 1
+            self._clear_glr()
+            self._phi_prev = None
+            self._initialise(current, omega, theta)
         K = PhT @ s_inv
         xf = x + K @ nu
         Pf = P - K @ PhT.T  # K S K' = P H' S⁻¹ H P (P symmetric)
