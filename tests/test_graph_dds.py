@@ -58,6 +58,7 @@ SLOW_TOPICS = {"/rig/currents": MotorCurrents, "/rig/joint_states": JointState,
 #: Best effort on a loaded 2-core machine: at least this share of what was sent must arrive.
 DELIVERED = 0.9
 RATE_WINDOW = 3.0  # [s]
+STEADY_WINDOW = 1.0  # [s] the graph answers at pace over this long before the tests measure
 
 START_TIMEOUT = 45.0  # [s] for the graph's first sample to reach the probe
 MATCH_TIMEOUT = 15.0  # [s] for a new subscription's first message
@@ -125,6 +126,25 @@ class Probe:
     def wait_all_flowing(self, rec: Recording, timeout: float = MATCH_TIMEOUT) -> bool:
         return self.spin_until(lambda: all(rec.messages.values()), timeout)
 
+    def wait_steady(self, timeout: float) -> bool:
+        """Spin until the estimator answers the rig's batches at pace: in one STEADY_WINDOW, estimates
+        for at least DELIVERED of the batches, counted on the stream's seqs. The graph's processes
+        start on a machine that may be busy (imports, discovery, a CPU hog): the tests measure the
+        graph once it runs, start-up has its own tests (the fault tests' restarts)."""
+        rec, subs = self.record({"/rig/samples": RigSamples, "/torque_estimate": TorqueEstimate})
+        try:
+            deadline = time.monotonic() + timeout
+            while time.monotonic() < deadline:
+                rec.clear()
+                self.spin_for(STEADY_WINDOW)
+                ends = {b.first_seq + BATCH - 1 for b in rec.messages["/rig/samples"]}
+                answered = {m.seq for m in rec.messages["/torque_estimate"]} & ends
+                if ends and len(answered) >= DELIVERED * len(ends):
+                    return True
+            return False
+        finally:
+            self.unsubscribe(subs)
+
     def unsubscribe(self, subs: list) -> None:
         for sub in subs:
             self.node.destroy_subscription(sub)
@@ -186,6 +206,9 @@ def graph(ros_env: dict[str, str], probe: Probe, calibration_file: Path,
         if not flowing or g.failed():
             pytest.fail(f"/rig/samples did not flow within {START_TIMEOUT:g} s "
                         f"(exited nodes: {g.failed()}):\n{running.logs()}")
+        if not probe.wait_steady(START_TIMEOUT):
+            pytest.fail(f"the estimator did not answer {DELIVERED:.0%} of the rig's batches over any "
+                        f"{STEADY_WINDOW:g} s within {START_TIMEOUT:g} s of the first sample:\n{running.logs()}")
         yield running
     finally:
         codes = g.stop()

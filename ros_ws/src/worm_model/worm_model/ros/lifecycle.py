@@ -23,6 +23,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from worm_model.cli.validate import one_line
 from worm_model.ros.parameters import help_text, wants_help
+from worm_model.ros.teardown import deadline
 
 try:  # rclpy >= Jazzy: callbacks dispatched from C++, several times less CPU per message at 1 kHz
     from rclpy.experimental import EventsExecutor as _Executor
@@ -81,8 +82,10 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
         print(f"{program}: {one_line(err)}", file=sys.stderr)
         code = 2
     finally:
-        executor.shutdown()
-        for node in nodes:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        # bounded: a middleware hang in the teardown must not keep a stopped node alive (ros.teardown)
+        with deadline(code):
+            executor.shutdown()
+            for node in nodes:
+                node.destroy_node()
+            rclpy.try_shutdown()
     return code

@@ -80,6 +80,7 @@ from rosbags.interfaces import (
 )
 
 from worm_model.ros.lifecycle import parameter_problem
+from worm_model.ros.teardown import deadline
 from worm_model.ros.parameters import help_text, wants_help
 from worm_model.bags.writer import (
     COMPRESSIONS,
@@ -509,8 +510,10 @@ def main(args: list[str] | None = None) -> int:
             except BagRecordingError as err:
                 print(f'recorder: {err}', file=sys.stderr)
                 code = 1
-            node.destroy_node()
-        rclpy.try_shutdown()
+        with deadline(code):  # the bag is closed: a middleware hang must not keep the process alive
+            if node is not None:
+                node.destroy_node()
+            rclpy.try_shutdown()
     return code
 
 
