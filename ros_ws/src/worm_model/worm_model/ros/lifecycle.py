@@ -9,6 +9,7 @@ spins until the flag is set.
 from __future__ import annotations
 
 import faulthandler
+import gc
 import os
 import signal
 import sys
@@ -36,6 +37,20 @@ def parameter_problem(err: ParameterException) -> str:
     text = one_line(err)
     message, _, name = text.rpartition(": ")
     return f"parameter {name}: {message}" if message else text
+
+
+def freeze_built_objects() -> None:
+    """Put every object that exists now out of the cyclic collector's sight (``gc.freeze``).
+
+    Call it once a node is built: what exists then (modules, the node, its tables) lives as long as
+    the process, and a full collection then walks only what the running node allocates. Measured:
+    ~94k tracked objects once rclpy, numpy and the graph's nodes are loaded; a full collection of
+    them took 35 ms holding the GIL, the executor and sim_node's 1 kHz rig thread standing still
+    (bench/graph_bench.py, rig computer, idle, 30 s windows: graph_latency_p99 3 ms before, 2 ms in
+    each of three runs after).
+    """
+    gc.collect()
+    gc.freeze()
 
 
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
@@ -71,6 +86,7 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
         for make_node in makers:
             nodes.append(make_node())
             executor.add_node(nodes[-1])
+        freeze_built_objects()
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
     except ExternalShutdownException:

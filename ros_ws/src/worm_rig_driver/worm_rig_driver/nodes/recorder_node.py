@@ -79,7 +79,7 @@ from rosbags.interfaces import (
     QosTime,
 )
 
-from worm_model.ros.lifecycle import parameter_problem
+from worm_model.ros.lifecycle import freeze_built_objects, parameter_problem
 from worm_model.ros.teardown import deadline
 from worm_model.ros.parameters import help_text, wants_help
 from worm_model.bags.writer import (
@@ -493,6 +493,7 @@ def main(args: list[str] | None = None) -> int:
     try:
         node = RecorderNode()
         executor.add_node(node)
+        freeze_built_objects()  # a full collection would stall the 1 kHz reader for tens of ms
         while not stop.is_set():
             executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
         drain(executor, node.recorder)
