@@ -42,3 +42,7 @@ def test_a_teardown_that_returns_is_not_cut_short() -> None:
         print("finished")
     """)
     assert (done.returncode, done.stdout, done.stderr) == (0, "finished\n", "")
+
+
+def test_the_limit_is_the_one_the_readme_states() -> None:
+    assert teardown.TEARDOWN_LIMIT_S == 5.0  # README, fault table: "gives the teardown 5 s"
