@@ -137,7 +137,7 @@ class Probe:
             while time.monotonic() < deadline:
                 rec.clear()
                 self.spin_for(STEADY_WINDOW)
-                ends = {b.first_seq + BATCH - 1 for b in rec.messages["/rig/samples"]}
+                ends = batch_ends(rec.messages["/rig/samples"])
                 answered = {m.seq for m in rec.messages["/torque_estimate"]} & ends
                 if ends and len(answered) >= DELIVERED * len(ends):
                     return True
@@ -148,6 +148,11 @@ class Probe:
     def unsubscribe(self, subs: list) -> None:
         for sub in subs:
             self.node.destroy_subscription(sub)
+
+
+def batch_ends(batches: list) -> set[int]:
+    """The seqs of the batches' newest samples: the samples the estimator answers."""
+    return {b.first_seq + BATCH - 1 for b in batches}
 
 
 def node_logs(log_dir: Path) -> str:
@@ -253,7 +258,7 @@ def test_every_topic_flows_at_its_configured_rate(graph: RunningGraph, probe: Pr
         "stamps off the rig's clock"
     dilated = sum(dt - n * period_ns for dt, n in steps) // period_ns
     assert dilated <= 0.1 * span, f"the rig's clock was dilated by {dilated} periods in {span}"
-    ends = {b.first_seq + BATCH - 1 for b in batches}
+    ends = batch_ends(batches)
     report = [f"/rig/samples {len(batches)} batches, {len(seqs)} of {span} samples"]
     for topic in PER_BATCH_TOPICS:
         answered = {m.seq for m in rec.messages[topic]} & ends
