@@ -59,6 +59,9 @@ class OperatingPoints:
     tau_true: np.ndarray  # [N m] mean load torque actually applied (simulator truth)
     samples: np.ndarray  # samples averaged
     settled: np.ndarray  # bool: the criterion held (else: the last window at timeout)
+    #: [rad] encoder worm angle of each sample of the kept window, shape (n, samples), time order;
+    #: None when the angles were not given (an estimator that takes the gear ripple out uses them)
+    theta_worm: np.ndarray | None = None
 
 
 class SteadyStateDetector:
@@ -91,16 +94,23 @@ class SteadyStateDetector:
         self.std = {name: np.full(n, np.nan) for name in self.CHANNELS}
         self.settled = np.zeros(n, dtype=bool)
         self.finished = False
+        self._theta_buffer = np.full((self.window, n), np.nan)
+        self._theta_kept = np.full((self.window, n), np.nan)
+        self._has_theta = False
 
-    def add(self, omega_worm, current_drive, tau_load, tau_true=np.nan) -> bool:
+    def add(self, omega_worm, current_drive, tau_load, tau_true=np.nan, theta_worm=None) -> bool:
         """Feed one sample of every point: speed [rad/s], current [A], load torque [N m]
-        (measured, and the applied truth if known). Returns True when a window was checked."""
+        (measured, and the applied truth if known), the encoder's worm angle [rad] if known
+        (kept per window: OperatingPoints.theta_worm). Returns True when a window was checked."""
         if self.finished:
             raise RuntimeError("SteadyStateDetector is finished; start a new one for new points")
         row = self.count % self.window
         self.count += 1
         for name, value in zip(self.CHANNELS, (omega_worm, current_drive, tau_load, tau_true)):
             self._buffers[name][row] = value
+        if theta_worm is not None:
+            self._theta_buffer[row] = theta_worm
+            self._has_theta = True
         if self.count < self.first_check or self.count % self.window:
             return False
         buffers = self._buffers
@@ -117,6 +127,7 @@ class SteadyStateDetector:
         for name, buf in buffers.items():
             self.mean[name] = np.where(take, means[name], self.mean[name])
             self.std[name] = np.where(take, buf.std(axis=0), self.std[name])
+        self._theta_kept[:, take] = self._theta_buffer[:, take]
         self.settled |= steady
         self.finished = last or bool(self.settled.all())
         return True
@@ -129,7 +140,7 @@ class SteadyStateDetector:
             current_drive=self.mean["current_drive"], current_std=self.std["current_drive"],
             tau_load=self.mean["tau_load"], tau_std=self.std["tau_load"],
             tau_true=self.mean["tau_true"], samples=np.full(len(self.speed_setpoints), self.window),
-            settled=self.settled.copy())
+            settled=self.settled.copy(), theta_worm=self._theta_kept.T.copy() if self._has_theta else None)
 
 
 def measure_operating_points(
@@ -159,7 +170,7 @@ def measure_operating_points(
     while not detector.finished:
         measured = sim.sample()
         checked = detector.add(measured.omega_worm, measured.current_drive, measured.tau_load,
-                               sim.applied_load_torque)
+                               sim.applied_load_torque, measured.theta_worm)
         out = controller.update(sim.sample_period, speed_sp, measured.omega_worm)
         sim.command(voltage_drive=out.voltage)
         if checked and progress is not None:

@@ -22,6 +22,18 @@ the NMRV030's 30 teeth and one start give q = 1, 30, 30·k); without periodic ef
 θ = 0 is used. The thermal effect is evaluated at its reference oil temperature
 (every table entry is its own run, so the first-order warming is 0).
 
+Ripple slower than the averaging: the first harmonic per gear turn (gear runout) is not averaged
+out by a live estimate or a 0.5 s window at low speed (at 20 rad/s the gear turns 0.33 rad in
+0.5 s), so when the worm angle is given (``estimate(..., theta_worm=)``, the encoder), its
+current is taken out: the 7 table angles are 7 gear phases 2πj/7, and their discrete Fourier
+coefficients give c₁(ω, τ_d), s₁(ω, τ_d) [A], the current's first gear harmonic (orders 6, 8,
+13, ... per gear turn would alias onto it; the NMRV030's are 1, 30, 420). The measured current
+is corrected by −(c₁ cos φ + s₁ sin φ), φ = θ_worm × ratio the gear angle, at a first estimate,
+and inverted again. θ given as an extra trailing axis (a window's samples) uses the window's
+mean cos φ and sin φ, i.e. the window's mean ripple. The phase is the identification's: the
+encoder's origin must be the one ``identify`` recorded from (the simulated rig, which starts
+at 0; on a real rig without an index pulse, the same power cycle), else pass no angle.
+
 Per sample (ω, i):
 
 1. Direction σ = sign(ω), or sign(i) at ω = 0 (as the k-NN).
@@ -204,11 +216,22 @@ class ExtendedModelEstimator:
         self.angles = int(angles) if periodic else 1
         #: the identified load-sensor errors the estimate is corrected for (step 6)
         self.correction = SensorCorrection.of(self.model)
+        tabulated = {negative: self._tabulate(negative) for negative in (False, True)}
         #: direction (False: +, True: −) → current table [A], shape (speed_points, torque_points)
-        self.tables = {negative: self._tabulate(negative) for negative in (False, True)}
+        self.tables = {negative: mean for negative, (mean, _c, _s) in tabulated.items()}
+        #: direction → (c₁, s₁) [A]: the current's first harmonic per gear turn (module docstring); None
+        #: when the model has no periodic effect or too few angles to resolve it
+        self.gear_harmonic = ({negative: (c, s) for negative, (_m, c, s) in tabulated.items()}
+                              if self.angles >= 3 else None)
 
-    def _tabulate(self, negative: bool) -> NDArray[np.float64]:
-        """Mean model current over the angles, α = 0, on the (|ω|, τ_d) grid of one direction."""
+    @property
+    def uses_angle(self) -> bool:
+        """Whether :meth:`estimate` takes the gear ripple out given the worm angle (``theta_worm``)."""
+        return self.gear_harmonic is not None
+
+    def _tabulate(self, negative: bool) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """Mean model current over the angles, α = 0, on the (|ω|, τ_d) grid of one direction, and the
+        first gear harmonic's cos and sin coefficients [A] (zero with one angle)."""
         rig = self.model.rig
         speed = -np.maximum(self.speeds, _NEGATIVE_ZERO) if negative else self.speeds
         gear_turn = 2.0 * math.pi / rig.gearbox.ratio  # worm angle [rad] of one gear turn
@@ -216,27 +239,68 @@ class ExtendedModelEstimator:
         w, tau, th = (a.ravel() for a in np.meshgrid(speed, self.torques, theta, indexing="ij"))
         signals = self.model.signals(w, 0.0, tau, th, run=np.arange(len(w)))
         current = np.asarray(self.model.current(signals), dtype=float)
-        return current.reshape(len(speed), len(self.torques), self.angles).mean(axis=2)
+        current = current.reshape(len(speed), len(self.torques), self.angles)
+        phase = 2.0 * np.pi * np.arange(self.angles) / self.angles  # gear angle of each table angle
+        scale = 2.0 / self.angles if self.angles >= 3 else 0.0
+        return current.mean(axis=2), scale * (current @ np.cos(phase)), scale * (current @ np.sin(phase))
 
     # ------------------------------------------------------------------ estimation
-    def estimate(self, omega_worm: ArrayLike, current_drive: ArrayLike) -> TorqueEstimates:
+    def estimate(self, omega_worm: ArrayLike, current_drive: ArrayLike,
+                 theta_worm: ArrayLike | None = None) -> TorqueEstimates:
         """Estimate τ_d [N·m] from ω_w [rad/s] and the inertia-free drive current i [A].
 
-        Inputs broadcast; outputs have the broadcast shape (scalars → 0-d arrays).
-        Never raises for NaN/inf samples.
+        ``theta_worm`` [rad]: the encoder's worm angle of each sample, or with one more trailing axis the
+        angles of the samples a mean (ω, i) was taken over; given, the gear ripple is taken out (module
+        docstring; ignored when :attr:`uses_angle` is False). Inputs broadcast; outputs have the
+        broadcast shape (scalars → 0-d arrays). Never raises for NaN/inf samples.
         """
         omega, current = np.broadcast_arrays(np.asarray(omega_worm, dtype=np.float64),
                                              np.asarray(current_drive, dtype=np.float64))
         w, i = omega.ravel(), current.ravel()
+        harmonics = None
+        if theta_worm is not None and self.gear_harmonic is not None:
+            theta = np.asarray(theta_worm, dtype=np.float64)
+            phase = theta * self.model.rig.gearbox.ratio  # gear angle [rad]
+            mean_cos, mean_sin = np.cos(phase), np.sin(phase)
+            if theta.ndim > omega.ndim:  # a window of angles per (ω, i): its mean ripple
+                mean_cos, mean_sin = mean_cos.mean(axis=-1), mean_sin.mean(axis=-1)
+            harmonics = [np.broadcast_to(x, omega.shape).ravel() for x in (mean_cos, mean_sin)]
         torque = np.full(len(w), np.nan)
         spread = np.full(len(w), np.nan)
         flags = np.zeros(len(w), dtype=np.int64)
         for start in range(0, len(w), _BATCH):
             part = slice(start, start + _BATCH)
             torque[part], spread[part], flags[part] = self._invert(w[part], i[part])
+            if harmonics is not None:  # take the gear ripple at the first estimate out, invert again
+                ripple = self._gear_ripple(w[part], torque[part], harmonics[0][part], harmonics[1][part])
+                torque[part], spread[part], flags[part] = self._invert(w[part], i[part] - ripple)
         shape = omega.shape
         torque = self.correction.load(torque)
         return TorqueEstimates(torque.reshape(shape), spread.reshape(shape), flags.reshape(shape))
+
+    def _gear_ripple(self, w: NDArray[np.float64], tau: NDArray[np.float64], mean_cos: NDArray[np.float64],
+                     mean_sin: NDArray[np.float64]) -> NDArray[np.float64]:
+        """c₁ cos φ + s₁ sin φ [A] at (ω, τ) (bilinear in the tables of its direction; 0 where τ is NaN)."""
+        ok = np.isfinite(w) & np.isfinite(tau) & np.isfinite(mean_cos) & np.isfinite(mean_sin)
+        w, tau = np.where(ok, w, 0.0), np.where(ok, tau, 0.0)
+        position = np.minimum(np.abs(w), self.omega_max) / self.speed_step
+        row = np.minimum(position.astype(np.int64), len(self.speeds) - 2)
+        fr = position - row
+        where_tau = np.clip((tau - self.torques[0]) / self.torque_step, 0.0, len(self.torques) - 1.0)
+        col = np.minimum(where_tau.astype(np.int64), len(self.torques) - 2)
+        fc = where_tau - col
+        negative = w < 0
+        out = np.zeros(len(w))
+        for side in (False, True):
+            rows = negative == side
+            if not rows.any():
+                continue
+            r, c, a, b = row[rows], col[rows], fr[rows], fc[rows]
+            for table, weight in zip(self.gear_harmonic[side], (mean_cos[rows], mean_sin[rows])):
+                value = ((1 - a) * ((1 - b) * table[r, c] + b * table[r, c + 1])
+                         + a * ((1 - b) * table[r + 1, c] + b * table[r + 1, c + 1]))
+                out[rows] += value * weight
+        return np.where(ok, out, 0.0)
 
     def _invert(self, w: NDArray[np.float64], i: NDArray[np.float64]
                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]:

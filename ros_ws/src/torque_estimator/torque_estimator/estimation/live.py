@@ -30,6 +30,9 @@ A disturbance observer in front of a quasi-static map. Per sample (ω_w [rad/s],
 3. The configured estimator (e.g. k-NN) maps (ω_f, smoothed i) to τ_d [N·m]
    (positive opposing positive worm rotation) with an uncertainty and flags;
    a sample taken while |α| > ``transient_acceleration`` is flagged TRANSIENT.
+   One that takes the gear ripple out (``uses_angle``: extended_model with periodic
+   effects) also gets the sample's encoder angle ``theta`` (the ripple it removes turns
+   once per gear turn, slow beside the filters' delay).
 
 Streaming estimators (those with a ``stream(sample_period)`` method, e.g. the model-based
 observer of observer.py) replace steps 1-3: every sample goes to the stream as it is,
@@ -187,6 +190,7 @@ class LiveEstimator:
         self.lost = 0  # samples in them
         self.restarts = 0  # new rig sessions seen (seq back or far ahead)
         self._next_seq: int | None = None
+        self._uses_angle = bool(getattr(estimator, "uses_angle", False))
         self._start()
 
     def _start(self) -> None:
@@ -238,7 +242,10 @@ class LiveEstimator:
         else:  # hold: the estimate of the state as it was
             omega = self._omega
             current = math.nan if self.smooth.value is None else self.smooth.value
-        result = self.estimator.estimate(omega, current)
+        if self._uses_angle and theta is not None:  # the gear ripple taken out at this angle (extended_model)
+            result = self.estimator.estimate(omega, current, theta_worm=theta)
+        else:
+            result = self.estimator.estimate(omega, current)
         flags = int(result.flags)
         if not (math.isfinite(omega_worm) and math.isfinite(current_drive)):
             flags |= EstimateFlags.INVALID_INPUT

@@ -96,8 +96,12 @@ def measure_held_out(rig: Rig, grid: CalibrationGrid, n: int = 17, seed: int = 1
 
 
 def score(estimator: TorqueEstimator, measured: OperatingPoints, torque_range: float) -> Evaluation:
-    """Estimate every measured point and compare with the applied load."""
-    result = estimator.estimate(measured.omega_worm, measured.current_drive)
+    """Estimate every measured point and compare with the applied load (an estimator that takes the gear
+    ripple out, ``uses_angle``, also gets each window's encoder angles, as it gets every sample's live)."""
+    if getattr(estimator, "uses_angle", False) and measured.theta_worm is not None:
+        result = estimator.estimate(measured.omega_worm, measured.current_drive, theta_worm=measured.theta_worm)
+    else:
+        result = estimator.estimate(measured.omega_worm, measured.current_drive)
     return Evaluation(omega_worm=measured.omega_worm, current_drive=measured.current_drive,
                       tau_true=measured.tau_true, tau_estimated=np.asarray(result.torque),
                       flags=np.asarray(result.flags), torque_range=torque_range)
