@@ -31,6 +31,15 @@ few-ms transient at each flank change, of the size of the declared model's own
 transient error there, so its evidence is the transmission error, which jumps by the gap
 at every flank change.  The case uses load steps through zero and smooth reversals
 (``flank`` profile); the same profile without backlash must give nothing.
+
+PWM (the last section): the simulator adds to the sampled drive current the PWM ripple at the PWM
+phase of the ADC's sampling instant; a sample tick is exactly 20 PWM periods (one crystal), so that
+phase is the same on every sample and the ripple is a bias that depends on the duty.  The vocabulary's
+``pwm`` models that bias from the declared model's voltage; the tests check its timing constants and
+formula against the simulator's, the bias of steady operating points, and the analysis naming it (with
+its phase and amplitude) or not.  At the simulator's default 2 kHz sensor filter the bias peaks at
+7 mA, under the noise: the analysis ranks pwm first but stays within 1.1 x the floor, so the naming
+case uses a 10 kHz filter (residual_cases.ALONE).  Model-only checks: worm_model/test/residuals/test_pwm.py.
 """
 
 from __future__ import annotations
@@ -48,9 +57,15 @@ import yaml
 
 from worm_model.physics.parameters import default_rig_path, load_rig
 import worm_model.residuals.analysis as an
+from worm_model.residuals.effects import (CURRENT_HOLD_DELAY, EFFECTS, PWM_FREQUENCY, Pwm, firmware_sampling_phase,
+                                          sampled_ripple)
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
 from worm_model.residuals.model import prepare_signals
 from worm_model.rig_data.schema import MeasuredData, read_rig_csv, write_rig_csv
+import worm_rig_driver.protocol.table as protocol_table
+from worm_rig_driver.sim.effects import EFFECTS as SIM_EFFECTS
+from worm_rig_driver.sim.effects import SenseContext
+from worm_rig_driver.sim.sensors import AdcChain
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 import torque_estimator.experiment.residual_cases as rc
@@ -306,3 +321,110 @@ def test_cli_rejects_a_missing_file(tmp_path: Path) -> None:
     run = _residuals(str(tmp_path / "nope.csv"), "--out", str(tmp_path / "out"))
     assert run.returncode == 2 and "no such file" in run.stderr
 
+
+# --------------------------------------------------------------------------- pwm: the sampled PWM ripple
+PWM = EFFECTS["pwm"]
+
+
+def test_timing_constants_are_the_simulators_and_its_sampling_phase_is_constant(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    sim_pwm = SIM_EFFECTS["pwm"]
+    assert CURRENT_HOLD_DELAY == pytest.approx(AdcChain().sample_times()["current_drive"], rel=1e-12)  # 12 us
+    assert PWM_FREQUENCY == sim_pwm.parameters["frequency"].default \
+        == protocol_table.F_CPU_HZ / (protocol_table.PWM_TOP + 1)
+    assert Pwm.filter_cutoff == sim_pwm.parameters["filter_cutoff"].default
+    assert RIG.sensors.sample_rate_hz == protocol_table.SAMPLE_RATE_HZ
+    # the phase the simulator's pwm effect computes, on every sample of a 3 s run, on both sensor paths
+    phases: list[float] = []
+    for hook in ("sense", "sense_float"):
+        def spy(self, signals, context, original=getattr(sim_pwm, hook)):
+            phases.append((context.channel_time["current_drive"] * self.p["frequency"]) % 1.0)
+            return original(self, signals, context)
+
+        monkeypatch.setattr(sim_pwm, hook, spy)
+    for scalar in (True, False):
+        phases.clear()
+        sim = SimulatedRig(RIG, n=1, seed=0, effects={"pwm": {}}, scalar=scalar)
+        sim.command(voltage_drive=12.0, load_torque=0.1)
+        for _ in range(3000):
+            sim.sample()
+        assert len(phases) == 3000
+        np.testing.assert_allclose(phases, firmware_sampling_phase(), atol=1e-8)
+    assert firmware_sampling_phase() == pytest.approx(0.24)
+
+
+@pytest.mark.parametrize("phase", [0.1, 0.24, 0.7])
+def test_the_bias_is_what_the_simulators_pwm_adds(phase: float) -> None:
+    """The simulator's sense hook at a given phase against sign(V) amplitude sampled_ripple(d, phase)."""
+    volts = np.array([-23.0, -12.0, -5.76, -1.0, 0.0, 0.5, 5.76, 10.0, 17.76, 23.9, 24.0])
+    sim = SimulatedRig(RIG, n=len(volts), seed=0, effects={"pwm": {"filter_cutoff": 5000.0}}, scalar=False)
+    effect = next(e for e in sim.plant.fx.effects if e.name == "pwm")
+    signals = {"current_drive": np.zeros(len(volts))}
+    effect.sense(signals, SenseContext({"current_drive": 7.0 + phase / PWM_FREQUENCY}, volts, RIG.supply_voltage))
+    values, _grid = PWM.from_simulator_entry({"filter_cutoff": 5000.0}, RIG)
+    expected = np.sign(volts) * values["amplitude"] * sampled_ripple(np.abs(volts) / RIG.supply_voltage, phase)
+    np.testing.assert_allclose(signals["current_drive"], expected, atol=1e-9)
+
+
+def test_steady_operating_points_carry_the_bias_the_model_predicts() -> None:
+    """Open-loop steady points across the duty range, the simulator's pwm at its defaults (2 kHz filter: bias up to
+    7 mA): 2 s window means of the measured current against the declared model with and without ``pwm``.
+    Measured: RMS over the 8 points 4.5 mA without, 0.5 mA with (the means' own error is 0.5 mA)."""
+    duties = np.array([0.1, 0.24, 0.4, 0.6, 0.74, 0.9, -0.24, -0.74])
+    load = np.array([0.1, 0.05, 0.15, 0.1, 0.05, 0.1, -0.05, -0.1])
+    sim = SimulatedRig(RIG, n=len(duties), seed=3, effects={"pwm": {}}, scalar=False)
+    settle, window = 500, 2000
+    keys = ("current_drive", "omega_worm", "tau_load")
+    sums = {k: np.zeros(len(duties)) for k in keys}
+    for k in range(settle + window):
+        sim.command(voltage_drive=duties * RIG.supply_voltage, load_torque=load)
+        m = sim.sample()
+        if k >= settle:
+            for key in keys:
+                sums[key] += getattr(m, key)
+    mean = {k: v / window for k, v in sums.items()}
+    values, grid = PWM.from_simulator_entry({}, RIG)
+    with_pwm = ExtendedModel(RIG, [(PWM, values, grid)])
+    sig = with_pwm.signals(mean["omega_worm"], 0.0, mean["tau_load"], 0.0)
+    without = mean["current_drive"] - with_pwm.without_effects().current(sig)
+    with_it = mean["current_drive"] - with_pwm.current(sig)
+    rms_without, rms_with = (float(np.sqrt(np.mean(r**2))) for r in (without, with_it))
+    print(f"pwm bias at steady points: residual RMS {rms_without * 1e3:.2f} mA without, {rms_with * 1e3:.2f} mA with; "
+          f"per point without [mA] {np.round(without * 1e3, 2)}, with {np.round(with_it * 1e3, 2)}")
+    noise = RIG.sensors.current_noise_std / math.sqrt(window)  # 0.45 mA: the means' own scatter
+    assert rms_without > 8 * noise  # the bias is there, and the declared model misses it
+    assert rms_with < 0.25 * rms_without and np.max(np.abs(with_it)) < 3.5 * noise
+
+
+def test_residual_analysis_names_pwm_with_its_phase_and_amplitude(tmp_path: Path) -> None:
+    """The case matrix's pwm case (10 kHz sensor filter: amplitude 0.36 A, bias up to 33 mA); measured: phase 0.24,
+    amplitude 0.360 +- 0.012 A, held-out RMS 0.0276 -> 0.0227 A (floor 0.0216)."""
+    case = rc.case_of(["pwm"])
+    result = analyse(rc.simulate(case, RIG), free=())  # the case matrix's: nothing declared free
+    truth, truth_grid = PWM.from_simulator_entry(rc.ALONE["pwm"][1], RIG)
+    fitted = result.final.effects[0] if result.final.effects else None
+    print(f"pwm: found {result.found}, held-out RMS {result.rms_before:.4f} -> {result.final.rms_held_out:.4f} A; "
+          + (f"phase {fitted.grid['phase']:.2f} (true {truth_grid['phase']:.2f}), amplitude "
+             f"{fitted.values['amplitude']:.4f} +- {fitted.ci['amplitude']:.4f} A (true {truth['amplitude']:.4f})"
+             if fitted else ""))
+    assert result.found == ["pwm"]
+    assert fitted.grid["phase"] == pytest.approx(truth_grid["phase"], abs=0.021)  # the grid's step is 0.02
+    assert fitted.values["amplitude"] == pytest.approx(truth["amplitude"], rel=0.05)
+    # written as the extended model, an entry the simulator takes (its filter cut-off near the true 10 kHz), and
+    # loaded back with the firmware's phase
+    model = ExtendedModel(*an.extended_effects(result))
+    params = tmp_path / "extended.yaml"
+    write_parameter_file(params, default_rig_path(), model, list(result.final.free), result.final.free_ci, "test")
+    section = yaml.safe_load(params.read_text())["effects"]
+    assert SimulatedRig(load_rig(params), n=1, effects=section).effects.names == ("pwm",)
+    assert section["pwm"]["filter_cutoff"] == pytest.approx(10000.0, rel=0.1)
+    (_effect, values, grid), = ExtendedModel.load(params).effects
+    assert grid["phase"] == pytest.approx(0.24) and values["amplitude"] == pytest.approx(truth["amplitude"], rel=0.05)
+
+
+def test_residual_analysis_does_not_name_pwm_on_a_clean_record(noise_standard: MeasuredData) -> None:
+    result = analyse(noise_standard)
+    pwm = next(c for c in result.rounds[0].candidates if c.name == "pwm")
+    print(f"clean: found {result.found}; pwm screened: improvement {pwm.improvement:.4f}, dBIC {pwm.delta_bic:.1f}")
+    assert result.found == []
+    assert not pwm.note  # it was screened (not ruled out), and left out

@@ -16,18 +16,21 @@ has one (what ``identify`` recorded), else from the calibration database (larges
 [min τ_load, max τ_load]), else from the rig (the no-load speed at the supply voltage,
 ± the load motors' torque): no calibration database is needed.
 Periodic effects (runout, tooth-pass, cogging ripple) are averaged out: when the model
-has any, every entry is the mean current over ``angles`` = 7 worm angles spread evenly
-over one gear turn (a harmonic of order q per gear turn cancels unless 7 divides q;
-the NMRV030's 30 teeth and one start give q = 1, 30, 30·k); without periodic effects
-θ = 0 is used. The thermal effect is evaluated at its reference oil temperature
+has any, every entry is the mean current over A worm angles spread evenly over one gear
+turn, A ≥ ``angles`` (7) the smallest count that no harmonic of the model aliases onto the
+mean or the first gear harmonic (:func:`angle_count`: a harmonic of order q per gear turn
+sampled at A even phases shows as order q mod A; the NMRV030's are 1 (gear runout), 30
+(worm runout, tooth-pass) and 14 · 30 = 420 (the motor's cogging), and 420 = 7 · 60 would
+have put the cogging ripple's value at θ = 0 into every entry with A = 7: A = 11); without
+periodic effects θ = 0 is used. The thermal effect is evaluated at its reference oil temperature
 (every table entry is its own run, so the first-order warming is 0).
 
 Ripple slower than the averaging: the first harmonic per gear turn (gear runout) is not averaged
 out by a live estimate or a 0.5 s window at low speed (at 20 rad/s the gear turns 0.33 rad in
 0.5 s), so when the worm angle is given (``estimate(..., theta_worm=)``, the encoder), its
-current is taken out: the 7 table angles are 7 gear phases 2πj/7, and their discrete Fourier
-coefficients give c₁(ω, τ_d), s₁(ω, τ_d) [A], the current's first gear harmonic (orders 6, 8,
-13, ... per gear turn would alias onto it; the NMRV030's are 1, 30, 420). The measured current
+current is taken out: the A table angles are A gear phases 2πj/A, and their discrete Fourier
+coefficients give c₁(ω, τ_d), s₁(ω, τ_d) [A], the current's first gear harmonic (no other
+harmonic of the model aliases onto it, by the choice of A). The measured current
 is corrected by −(c₁ cos φ + s₁ sin φ), φ = θ_worm × ratio the gear angle, at a first estimate,
 and inverted again. θ given as an extra trailing axis (a window's samples) uses the window's
 mean cos φ and sin φ, i.e. the window's mean ripple. The phase is the identification's: the
@@ -76,8 +79,29 @@ from worm_model.residuals.extended import ExtendedModel
 from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.base import EstimateFlags, TorqueEstimates
 
-#: Worm angles averaged per table entry when the model has periodic effects.
+#: Fewest worm angles averaged per table entry when the model has periodic effects (angle_count).
 ANGLES = 7
+
+
+def gear_orders(model: ExtendedModel) -> list[float]:
+    """Harmonic orders per gear turn of the model's periodic effects (a worm-shaft order q is q / ratio)."""
+    ratio = model.rig.gearbox.ratio
+    out = []
+    for effect, _values, grid in model.effects:
+        if effect.family == "periodic" and "order" in grid:
+            q = float(grid["order"])
+            out.append(q if getattr(effect, "angle", "theta_worm") == "theta_gear" else q / ratio)
+    return out
+
+
+def angle_count(orders: list[float], minimum: int = ANGLES, limit: int = 64) -> int:
+    """Smallest A >= ``minimum`` such that no integer order q > 1 of ``orders`` shows at A even gear phases as
+    the mean (q mod A = 0) or the first harmonic (q mod A = ±1); ``limit`` if none below it does."""
+    whole = [round(q) for q in orders if abs(q - round(q)) < 1e-6 and round(q) > 1]
+    for a in range(max(minimum, 3), limit):
+        if all(q % a not in (0, 1, a - 1) for q in whole):
+            return a
+    return limit
 #: Samples per batch of the vectorised inversion (bounds memory: batch × torque_points floats).
 _BATCH = 4096
 #: |ω| [rad/s] used for the ω = 0 row of the negative-direction table (the model reads ω < 0).
@@ -176,7 +200,7 @@ class ExtendedModelEstimator:
         rig_file: rig YAML used when ``model_file`` is empty; empty/None → bundled rig.
         model: an ExtendedModel to use instead of reading a file (tests, benches).
         speed_points, torque_points: table size per direction (≥ 2 each).
-        angles: worm angles averaged when the model has periodic effects (≥ 1).
+        angles: fewest worm angles averaged when the model has periodic effects (≥ 1; :func:`angle_count`).
         current_noise: σ_i [A] for the uncertainty; None → rig.sensors.current_noise_std.
         ranges: (ω_max, τ_min, τ_max) of the table instead of :func:`model_ranges`' (tests, in-memory models).
 
@@ -213,7 +237,7 @@ class ExtendedModelEstimator:
         self.speed_step = float(self.speeds[1])
         self.torque_step = float(self.torques[1] - self.torques[0])
         periodic = any(effect.family == "periodic" for effect, _v, _g in self.model.effects)
-        self.angles = int(angles) if periodic else 1
+        self.angles = angle_count(gear_orders(self.model), int(angles)) if periodic else 1
         #: the identified load-sensor errors the estimate is corrected for (step 6)
         self.correction = SensorCorrection.of(self.model)
         tabulated = {negative: self._tabulate(negative) for negative in (False, True)}
@@ -369,5 +393,6 @@ class ExtendedModelEstimator:
         return torque, spread, flags
 
 
-__all__ = ["ANGLES", "ExtendedModelEstimator", "SensorCorrection", "identification_ranges", "load_model",
+__all__ = ["ANGLES", "ExtendedModelEstimator", "SensorCorrection", "angle_count", "gear_orders",
+           "identification_ranges", "load_model",
            "model_ranges"]

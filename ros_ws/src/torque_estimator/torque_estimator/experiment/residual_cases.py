@@ -290,9 +290,13 @@ ALONE: dict[str, tuple[str, dict[str, float]]] = {
     "sensor_gain": ("high_load", {"drive_current": 0.3}),
     "sensor_offset": ("standard", {}),
     "inertia_error": ("standard", {"worm": 1.0}),
+    # the PWM ripple's sampling bias at the simulator's default 2 kHz sensor filter peaks at 7 mA: ranked first but
+    # within 1.1 x the floor (not named, by design); a 10 kHz filter (amplitude 0.36 A, bias up to 33 mA) is named
+    "pwm": ("standard", {"filter_cutoff": 10000.0}),
 }
 
-#: pairs: each effect of the vocabulary at least once, on the profile the more demanding one needs
+#: pairs: each effect of the vocabulary at least once (pwm alone only), on the profile the more demanding
+#: one needs
 PAIRS: tuple[tuple[str, str], ...] = (
     ("motor_cogging", "bearing_coulomb"),
     ("gear_runout", "load_dependent_mu"),

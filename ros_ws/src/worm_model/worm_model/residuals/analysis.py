@@ -73,6 +73,9 @@ class Settings:
     guard_seconds: float = 0.05  # excluded at both ends of every block [s]
     min_speed: float = 5.0  # samples slower than this [rad/s] are not used (no kinetic model at rest)
     min_improvement: float = 0.02  # relative held-out RMS improvement an effect must bring
+    # relative held-out RMS rise of the *other* signal (current vs transmission error) an effect may cause;
+    # None: min_improvement (a tiny min_improvement would otherwise refuse an effect for a 1e-4 wobble there)
+    other_signal_tolerance: float | None = None
     max_effects: int = 6
     alpha_time_constant: float = ALPHA_TIME_CONSTANT  # [s]
     reference_temperature: float = REFERENCE_TEMPERATURE  # [degC] oil temperature at which the declared mu holds
@@ -738,7 +741,9 @@ def accepts(before: Fit, after: Fit, settings: Settings, signal: str = "current_
             continue
         if name == signal and old - new < settings.min_improvement * old:
             return False
-        if name != signal and new - old > settings.min_improvement * old:
+        other = settings.min_improvement if settings.other_signal_tolerance is None \
+            else settings.other_signal_tolerance
+        if name != signal and new - old > other * old:
             return False
     return delta_bic(before, after) < 0.0
 

@@ -35,7 +35,7 @@ from worm_model.residuals.model import ALPHA_TIME_CONSTANT, prepare_signals
 from worm_model.cli.progress import Progress
 from worm_model.residuals.report import build_report, console_summary, windowed_rms, write_json, write_plots
 
-MIN_SAMPLES = 200  # per set: fewer cannot rank 13 candidates
+MIN_SAMPLES = 200  # per set: fewer cannot rank the 14 candidates (effects.EFFECTS)
 
 
 def _names(text: str, known, what: str, parser: argparse.ArgumentParser) -> list[str]:
