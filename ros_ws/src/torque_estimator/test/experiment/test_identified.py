@@ -11,17 +11,37 @@ from __future__ import annotations
 
 from worm_model.physics.parameters import load_rig
 
+import json
+
+import pytest
+import yaml
+
+from worm_model.physics.parameters import default_rig_path
+from worm_model.residuals.effects import EFFECTS as VOCABULARY
+from worm_model.rig_data.schema import write_rig_csv
+
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
+from torque_estimator.estimation.extended_model import ExtendedModelEstimator
+from torque_estimator.experiment.estimate import main as estimate_main
+from torque_estimator.experiment.evaluation import measure_held_out, score
 from torque_estimator.experiment.identified import effects_all, run_roads
+from torque_estimator.experiment.scenario import DEMO_SCENARIO
+from torque_estimator.identification.excitation import Ramp
+from torque_estimator.identification.simulated import record_on_simulator
 
 RIG = load_rig()
 
 
-def test_identify_in_85_s_gets_within_3_x_of_the_grid(tmp_path) -> None:
+@pytest.fixture(scope="module")
+def roads(tmp_path_factory):
     grid = CalibrationGrid.paper(RIG)
     effects = effects_all()
     db = calibrate_simulated(RIG, grid, seed=0, effects=effects, batch_size=len(grid.speeds) * len(grid.torques))
-    result = run_roads(RIG, db, grid, effects=effects, out=tmp_path)
+    return run_roads(RIG, db, grid, effects=effects, out=tmp_path_factory.mktemp("identified")), grid, db
+
+
+def test_identify_in_85_s_meets_the_target(roads) -> None:
+    result, _grid, _db = roads
     ev = result.evaluations
     assert result.identification_rig_time <= 90.0
     assert ev["declared"].mae_pct > 20.0  # identification is what makes the model usable
@@ -35,3 +55,35 @@ def test_identify_in_85_s_gets_within_3_x_of_the_grid(tmp_path) -> None:
     mu = result.corrections["friction.scale"]
     # declared 1.3; 1.01 with this seed, 0.80 where the Stribeck law's low-speed rise took part of the scale
     assert 0.75 < mu[1] < 1.1
+
+
+def test_the_true_model_bounds_what_identification_can_reach(roads, tmp_path) -> None:
+    """The bundled parameters and every simulator effect at its true value (the residual vocabulary's
+    reading of effects_all.yaml): 0.45 / 0.79 % on the same points (README). What is left is the load
+    sensors' 2 % gain in the reference, the 26 mA current step and the window's noise."""
+    result, grid, db = roads
+    document = json.loads(json.dumps(yaml.safe_load(default_rig_path().read_text(encoding="utf-8"))))
+    config = effects_all()
+    document["effects"] = {name: dict(values) for name, values in config.effects.items() if name in VOCABULARY}
+    path = tmp_path / "true_model.yaml"
+    path.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
+    ev = score(ExtendedModelEstimator(model_file=str(path)), measure_held_out(RIG, grid, 17, 1, effects=config),
+               db.torque_range)
+    assert ev.mae_pct < 0.6 and ev.max_pct < 1.1, (ev.mae_pct, ev.max_pct)
+
+
+def test_estimate_on_a_log_of_the_effects_rig(roads, tmp_path, capsys) -> None:
+    """`estimate` with the identified file over the demo's six segments recorded on the effects rig: 0.85 / 2.24 %
+    (README), the file as declared ~32 / ~119 %."""
+    result, _grid, _db = roads
+    timeline = [Ramp(s.duration, s.speed, s.speed, s.load, s.load, s.label) for s in DEMO_SCENARIO]
+    log = tmp_path / "demo.csv"
+    write_rig_csv(log, record_on_simulator(RIG, timeline, effects=effects_all(), seed=2))
+    lines = {}
+    for label, model in (("identified", result.model_file), ("declared", result.model_file.parent / "declared_rig.yaml")):
+        assert estimate_main([str(log), "--method", "extended_model", "--model-file", str(model),
+                              "--out", str(tmp_path / f"{label}.csv"), "--quiet"]) == 0
+        lines[label] = capsys.readouterr().out.strip().splitlines()[-1]
+    figures = {k: dict(f.split("=") for f in v.split()[1:]) for k, v in lines.items()}
+    assert float(figures["identified"]["mae_pct"]) < 1.2 and float(figures["identified"]["max_pct"]) < 3.0, lines
+    assert float(figures["declared"]["mae_pct"]) > 20.0, lines
