@@ -761,6 +761,7 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
         accepted = fallback = None
         at_floor = current.rms_held_out <= settings.at_floor * noise_floor(problem, current).rms
         sane = physical(problem, current)
+        tried: list[tuple[Candidate, Fit]] = []  # significant, accepted by the test (unphysical start)
         for cand in ranking:
             if not cand.significant or cand.improvement < settings.min_improvement:
                 continue
@@ -776,11 +777,14 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
                     accepted = (cand, trial)
                     break
                 continue
+            tried.append((cand, trial))
             # from an unphysical start (an effect the corrections twisted themselves around) every significant
             # candidate is tried: the best held-out one that makes the fit physical, failing one the best
             key = (not physical(problem, trial), trial.rms(effect.fitted_signal) / current.rms(effect.fitted_signal))
             if fallback is None or key < fallback[0]:
                 fallback = (key, (cand, trial))
+        if accepted is None and fallback is not None:
+            fallback = _look_ahead(problem, current, tried, fallback)
         accepted = accepted or (fallback[1] if fallback else None)
         if accepted is not None:
             cand, trial = accepted
@@ -830,6 +834,45 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
     return Analysis(declared=declared, final=current, rounds=rounds, split=problem.split, pruned=pruned,
                     aliases=aliases, contributions=contributions(problem, current, aliases), noise=noise,
                     unexplained=unexplained, nominal=nominal)
+
+
+#: from an unphysical start, the physical first steps judged by what they let in next (see _look_ahead)
+LOOK_AHEAD = 3
+
+
+def _look_ahead(problem: Problem, current: Fit, tried: Sequence[tuple[Candidate, Fit]], fallback):
+    """From an unphysical start, pick the first step by the best physical fit two steps make.
+
+    The corrections can twist around an effect (a x3 Stribeck rise at low speed lets the Coulomb and
+    viscous drags grow ten-fold); then several effects each make the fit physical again, and the best
+    of them alone (a viscous drag) need not be the one that lets the others in (the Stribeck law, after
+    which the cogging the twisted start refused is accepted).  So each of the LOOK_AHEAD physical first
+    steps with the lowest held-out RMS is paired with each significant candidate it has not taken, and
+    the best physical pair that the acceptance test passes is taken, both effects at once (taking only
+    its first step let the viscous drag in and kept a x3 Stribeck rise out); the backward pass then
+    drops whichever of the two the rest makes needless.  Without such a pair the single best
+    (``fallback``) stands.  Only runs from an unphysical start.
+    """
+    settings = problem.settings
+    firsts = sorted(((c, t) for c, t in tried if physical(problem, t)),
+                    key=lambda ct: ct[1].rms(EFFECTS[ct[0].name].fitted_signal))[:LOOK_AHEAD]
+    if len(firsts) < 2:
+        return fallback
+    best = None
+    for cand, trial in firsts:
+        for other, _t in tried:
+            if other.name == cand.name:
+                continue
+            effect = EFFECTS[other.name]
+            specs = [(e.effect, e.grid) for e in trial.effects] + [(effect, other.grid)]
+            pair = fit(problem, specs, trial, {other.name: other.guess})
+            if not (physical(problem, pair) and accepts(trial, pair, settings, effect.fitted_signal, problem)):
+                continue
+            if best is None or pair.rms_held_out < best[0]:
+                best = (pair.rms_held_out, (cand, pair))
+    if best is None:
+        return fallback
+    return ((False, 0.0), best[1])
 
 
 def physical(problem: Problem, fitted: Fit) -> bool:
