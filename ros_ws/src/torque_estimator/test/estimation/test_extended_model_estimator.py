@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import yaml
 
 from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.base import EstimateFlags, TorqueEstimator
@@ -18,8 +17,8 @@ from torque_estimator.estimation.extended_model import ExtendedModelEstimator
 from torque_estimator.calibration.batch import DEFAULT_GAINS
 from torque_estimator.calibration.operating_points import measure_operating_points
 from worm_rig_driver.drive.speed_loop import SpeedController
-from worm_model.physics.parameters import default_rig_path, load_rig
-from worm_model.residuals.extended import ExtendedModel
+from worm_model.physics.parameters import load_rig
+from worm_model.residuals.extended import ExtendedModel, write_with_effects
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 #: effects in the simulator's names and units; worm-side drags [N m] on the worm shaft
@@ -43,11 +42,7 @@ def database() -> CalibrationDatabase:
 
 @pytest.fixture(scope="module")
 def model_file(tmp_path_factory) -> str:
-    document = yaml.safe_load(default_rig_path().read_text(encoding="utf-8"))
-    document["effects"] = EFFECTS
-    path = tmp_path_factory.mktemp("extended") / "extended_rig.yaml"
-    path.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
-    return str(path)
+    return str(write_with_effects(tmp_path_factory.mktemp("extended") / "extended_rig.yaml", EFFECTS))
 
 
 @pytest.fixture(scope="module")

@@ -12,14 +12,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import yaml
 
 from torque_estimator.calibration.batch import DEFAULT_GAINS
 from torque_estimator.calibration.operating_points import measure_operating_points
 from torque_estimator.estimation.extended_model import ExtendedModelEstimator
 from torque_estimator.estimation.live import LiveEstimator
-from worm_model.physics.parameters import default_rig_path, load_rig
-from worm_model.residuals.extended import ExtendedModel
+from worm_model.physics.parameters import load_rig
+from worm_model.residuals.extended import ExtendedModel, write_with_effects
 from worm_rig_driver.drive.speed_loop import SpeedController
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
@@ -30,10 +29,7 @@ RANGES = (340.0, -0.3, 0.3)
 
 @pytest.fixture(scope="module")
 def estimator(tmp_path_factory) -> ExtendedModelEstimator:
-    document = yaml.safe_load(default_rig_path().read_text(encoding="utf-8"))
-    document["effects"] = GEAR_RUNOUT
-    path = tmp_path_factory.mktemp("gear_ripple") / "rig.yaml"
-    path.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
+    path = write_with_effects(tmp_path_factory.mktemp("gear_ripple") / "rig.yaml", GEAR_RUNOUT)
     return ExtendedModelEstimator(model=ExtendedModel.load(path), ranges=RANGES)
 
 

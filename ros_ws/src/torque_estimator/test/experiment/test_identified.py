@@ -11,13 +11,10 @@ from __future__ import annotations
 
 from worm_model.physics.parameters import load_rig
 
-import json
-
 import pytest
-import yaml
 
-from worm_model.physics.parameters import default_rig_path
 from worm_model.residuals.effects import EFFECTS as VOCABULARY
+from worm_model.residuals.extended import write_with_effects
 from worm_model.rig_data.schema import write_rig_csv
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
@@ -62,11 +59,9 @@ def test_the_true_model_bounds_what_identification_can_reach(roads, tmp_path) ->
     reading of effects_all.yaml): 0.45 / 0.79 % on the same points (README). What is left is the load
     sensors' 2 % gain in the reference, the 26 mA current step and the window's noise."""
     result, grid, db = roads
-    document = json.loads(json.dumps(yaml.safe_load(default_rig_path().read_text(encoding="utf-8"))))
     config = effects_all()
-    document["effects"] = {name: dict(values) for name, values in config.effects.items() if name in VOCABULARY}
-    path = tmp_path / "true_model.yaml"
-    path.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
+    path = write_with_effects(tmp_path / "true_model.yaml",
+                              {name: values for name, values in config.effects.items() if name in VOCABULARY})
     ev = score(ExtendedModelEstimator(model_file=str(path)), measure_held_out(RIG, grid, 17, 1, effects=config),
                db.torque_range)
     assert ev.mae_pct < 0.6 and ev.max_pct < 1.1, (ev.mae_pct, ev.max_pct)

@@ -195,3 +195,23 @@ def write_parameter_file(path: str | Path, base_file: str | Path, model: Extende
               "# effect plug-ins' parameter names and units (worm_rig_driver effects.py).\n")
     notes = "".join(f"# {name}: {note}\n" for name, note in (effect_notes or {}).items())
     Path(path).write_text(header + notes + yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
+
+
+def write_with_effects(path: str | Path, effects: Mapping[str, Any], base_file: str | Path | None = None) -> Path:
+    """Write ``base_file`` (None: the bundled rig file) with ``effects`` (the simulator's names and units, as a
+    ``worm_rig_effects`` file's ``effects:`` mapping) as its ``effects:`` section; loadable by ExtendedModel.load.
+
+    Raises:
+        ParameterError: the base file cannot be read.
+    """
+    from worm_model.physics.parameters import default_rig_path  # noqa: PLC0415
+
+    base = Path(base_file) if base_file else default_rig_path()
+    try:
+        document = yaml.safe_load(base.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as err:
+        raise ParameterError(str(base), "", f"cannot read parameter file: {err}") from err
+    document = json.loads(json.dumps(document))  # plain data: no YAML aliases shared between sections
+    document["effects"] = json.loads(json.dumps(dict(effects)))
+    Path(path).write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
+    return Path(path)
