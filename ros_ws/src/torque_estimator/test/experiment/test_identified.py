@@ -69,7 +69,8 @@ def test_the_true_model_bounds_what_identification_can_reach(roads, tmp_path) ->
 
 def test_estimate_on_a_log_of_the_effects_rig(roads, tmp_path, capsys) -> None:
     """`estimate` with the identified file over the demo's six segments recorded on the effects rig: 0.85 / 2.24 %
-    (README), the file as declared ~32 / ~119 %."""
+    (README), the file as declared ~32 / ~119 %; the streaming observer with the identified file 15.75 / 27.46 %
+    (open: its filter with backlash, PWM and ripples on)."""
     result, _grid, _db = roads
     timeline = [Ramp(s.duration, s.speed, s.speed, s.load, s.load, s.label) for s in DEMO_SCENARIO]
     log = tmp_path / "demo.csv"
@@ -82,3 +83,7 @@ def test_estimate_on_a_log_of_the_effects_rig(roads, tmp_path, capsys) -> None:
     figures = {k: dict(f.split("=") for f in v.split()[1:]) for k, v in lines.items()}
     assert float(figures["identified"]["mae_pct"]) < 1.2 and float(figures["identified"]["max_pct"]) < 3.0, lines
     assert float(figures["declared"]["mae_pct"]) > 20.0, lines
+    assert estimate_main([str(log), "--method", "observer", "--model-file", str(result.model_file),
+                          "--out", str(tmp_path / "observer.csv"), "--quiet"]) == 0
+    observer = dict(f.split("=") for f in capsys.readouterr().out.strip().splitlines()[-1].split()[1:])
+    assert 12.0 < float(observer["mae_pct"]) < 20.0 and float(observer["max_pct"]) < 35.0, observer
