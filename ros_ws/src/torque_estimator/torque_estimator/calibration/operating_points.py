@@ -94,9 +94,8 @@ class SteadyStateDetector:
         self.std = {name: np.full(n, np.nan) for name in self.CHANNELS}
         self.settled = np.zeros(n, dtype=bool)
         self.finished = False
-        self._theta_buffer = np.full((self.window, n), np.nan)
-        self._theta_kept = np.full((self.window, n), np.nan)
-        self._has_theta = False
+        #: (window being filled, kept windows) of the angles [rad], (window, n) each; None until angles are given
+        self._theta: tuple[np.ndarray, np.ndarray] | None = None
 
     def add(self, omega_worm, current_drive, tau_load, tau_true=np.nan, theta_worm=None) -> bool:
         """Feed one sample of every point: speed [rad/s], current [A], load torque [N m]
@@ -109,8 +108,10 @@ class SteadyStateDetector:
         for name, value in zip(self.CHANNELS, (omega_worm, current_drive, tau_load, tau_true)):
             self._buffers[name][row] = value
         if theta_worm is not None:
-            self._theta_buffer[row] = theta_worm
-            self._has_theta = True
+            if self._theta is None:
+                shape = (self.window, len(self.speed_setpoints))
+                self._theta = (np.full(shape, np.nan), np.full(shape, np.nan))
+            self._theta[0][row] = theta_worm
         if self.count < self.first_check or self.count % self.window:
             return False
         buffers = self._buffers
@@ -127,7 +128,8 @@ class SteadyStateDetector:
         for name, buf in buffers.items():
             self.mean[name] = np.where(take, means[name], self.mean[name])
             self.std[name] = np.where(take, buf.std(axis=0), self.std[name])
-        self._theta_kept[:, take] = self._theta_buffer[:, take]
+        if self._theta is not None:
+            self._theta[1][:, take] = self._theta[0][:, take]
         self.settled |= steady
         self.finished = last or bool(self.settled.all())
         return True
@@ -140,7 +142,7 @@ class SteadyStateDetector:
             current_drive=self.mean["current_drive"], current_std=self.std["current_drive"],
             tau_load=self.mean["tau_load"], tau_std=self.std["tau_load"],
             tau_true=self.mean["tau_true"], samples=np.full(len(self.speed_setpoints), self.window),
-            settled=self.settled.copy(), theta_worm=self._theta_kept.T.copy() if self._has_theta else None)
+            settled=self.settled.copy(), theta_worm=None if self._theta is None else self._theta[1].T.copy())
 
 
 def measure_operating_points(

@@ -21,7 +21,7 @@ turn, A ≥ ``angles`` (7) the smallest count that no harmonic of the model alia
 mean or the first gear harmonic (:func:`angle_count`: a harmonic of order q per gear turn
 sampled at A even phases shows as order q mod A; the NMRV030's are 1 (gear runout), 30
 (worm runout, tooth-pass) and 14 · 30 = 420 (the motor's cogging), and 420 = 7 · 60 would
-have put the cogging ripple's value at θ = 0 into every entry with A = 7: A = 11); without
+have put the cogging ripple's value at θ = 0 into every entry with A = 7: A = 8); without
 periodic effects θ = 0 is used. The thermal effect is evaluated at its reference oil temperature
 (every table entry is its own run, so the first-order warming is 0).
 
@@ -81,6 +81,10 @@ from torque_estimator.estimation.base import EstimateFlags, TorqueEstimates
 
 #: Fewest worm angles averaged per table entry when the model has periodic effects (angle_count).
 ANGLES = 7
+#: Samples per batch of the vectorised inversion (bounds memory: batch × torque_points floats).
+_BATCH = 4096
+#: |ω| [rad/s] used for the ω = 0 row of the negative-direction table (the model reads ω < 0).
+_NEGATIVE_ZERO = 1e-9
 
 
 def gear_orders(model: ExtendedModel) -> list[float]:
@@ -102,10 +106,6 @@ def angle_count(orders: list[float], minimum: int = ANGLES, limit: int = 64) -> 
         if all(q % a not in (0, 1, a - 1) for q in whole):
             return a
     return limit
-#: Samples per batch of the vectorised inversion (bounds memory: batch × torque_points floats).
-_BATCH = 4096
-#: |ω| [rad/s] used for the ω = 0 row of the negative-direction table (the model reads ω < 0).
-_NEGATIVE_ZERO = 1e-9
 
 
 def load_model(model_file: str | Path | None, rig_file: str | Path | None = None) -> ExtendedModel:
@@ -296,24 +296,30 @@ class ExtendedModelEstimator:
             part = slice(start, start + _BATCH)
             torque[part], spread[part], flags[part] = self._invert(w[part], i[part])
             if harmonics is not None:  # take the gear ripple at the first estimate out, invert again
-                ripple = self._gear_ripple(w[part], torque[part], harmonics[0][part], harmonics[1][part])
+                ripple = self._gear_ripple(w[part], i[part], torque[part], harmonics[0][part], harmonics[1][part])
                 torque[part], spread[part], flags[part] = self._invert(w[part], i[part] - ripple)
         shape = omega.shape
         torque = self.correction.load(torque)
         return TorqueEstimates(torque.reshape(shape), spread.reshape(shape), flags.reshape(shape))
 
-    def _gear_ripple(self, w: NDArray[np.float64], tau: NDArray[np.float64], mean_cos: NDArray[np.float64],
-                     mean_sin: NDArray[np.float64]) -> NDArray[np.float64]:
-        """c₁ cos φ + s₁ sin φ [A] at (ω, τ) (bilinear in the tables of its direction; 0 where τ is NaN)."""
-        ok = np.isfinite(w) & np.isfinite(tau) & np.isfinite(mean_cos) & np.isfinite(mean_sin)
-        w, tau = np.where(ok, w, 0.0), np.where(ok, tau, 0.0)
+    def _speed_cells(self, w: NDArray[np.float64], i: NDArray[np.float64]
+                     ) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.float64]]:
+        """(direction: True = the − table, speed row, fraction towards the next row) of finite samples (step 1-2)."""
+        negative = np.where(w != 0, w, i) < 0
         position = np.minimum(np.abs(w), self.omega_max) / self.speed_step
         row = np.minimum(position.astype(np.int64), len(self.speeds) - 2)
-        fr = position - row
+        return negative, row, position - row
+
+    def _gear_ripple(self, w: NDArray[np.float64], i: NDArray[np.float64], tau: NDArray[np.float64],
+                     mean_cos: NDArray[np.float64], mean_sin: NDArray[np.float64]) -> NDArray[np.float64]:
+        """c₁ cos φ + s₁ sin φ [A] at (ω, τ), in the tables of the direction the inversion of (ω, i) used
+        (bilinear; 0 where τ is NaN)."""
+        ok = np.isfinite(w) & np.isfinite(i) & np.isfinite(tau) & np.isfinite(mean_cos) & np.isfinite(mean_sin)
+        w, i, tau = np.where(ok, w, 0.0), np.where(ok, i, 0.0), np.where(ok, tau, 0.0)
+        negative, row, fr = self._speed_cells(w, i)
         where_tau = np.clip((tau - self.torques[0]) / self.torque_step, 0.0, len(self.torques) - 1.0)
         col = np.minimum(where_tau.astype(np.int64), len(self.torques) - 2)
         fc = where_tau - col
-        negative = w < 0
         out = np.zeros(len(w))
         for side in (False, True):
             rows = negative == side
@@ -333,12 +339,9 @@ class ExtendedModelEstimator:
         valid = np.isfinite(w) & np.isfinite(i)
         flags = np.where(valid, 0, int(EstimateFlags.INVALID_INPUT)).astype(np.int64)
         w, i = np.where(valid, w, 0.0), np.where(valid, i, 0.0)
-        negative = np.where(w != 0, w, i) < 0
-        speed = np.abs(w)
-        flags |= np.where(speed > self.omega_max, int(EstimateFlags.OUT_OF_CALIBRATION), 0)
-        position = np.minimum(speed, self.omega_max) / self.speed_step
-        row = np.minimum(position.astype(np.int64), len(self.speeds) - 2)
-        frac = (position - row)[:, None]
+        flags |= np.where(np.abs(w) > self.omega_max, int(EstimateFlags.OUT_OF_CALIBRATION), 0)
+        negative, row, frac = self._speed_cells(w, i)
+        frac = frac[:, None]
         column = np.empty((m, len(self.torques)))
         for side in (False, True):
             rows = negative == side

@@ -185,5 +185,5 @@ def write_identified(path: str | Path, rig_file: str | Path | None, ident: Ident
                           encoding="utf-8")
 
 
-__all__ = ["IDENTIFY_SETTINGS", "QUASI_STATIC_ACCELERATION", "Identification", "IdentificationError", "assumed", "default_refit", "identify",
-           "write_identified"]
+__all__ = ["IDENTIFY_SETTINGS", "QUASI_STATIC_ACCELERATION", "Identification", "IdentificationError", "assumed",
+           "default_refit", "identify", "write_identified"]

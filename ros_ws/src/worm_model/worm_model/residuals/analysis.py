@@ -733,6 +733,7 @@ def accepts(before: Fit, after: Fit, settings: Settings, signal: str = "current_
         low, _high = paired_interval(r0, r1, mask, problem.split.block, settings.bootstrap, settings.confidence)
         if not low > 0.0:
             return False
+    other = settings.min_improvement if settings.other_signal_tolerance is None else settings.other_signal_tolerance
     for name in SIGNAL_UNITS:
         old, new = before.rms(name), after.rms(name)
         if not (math.isfinite(old) and math.isfinite(new)):
@@ -741,8 +742,6 @@ def accepts(before: Fit, after: Fit, settings: Settings, signal: str = "current_
             continue
         if name == signal and old - new < settings.min_improvement * old:
             return False
-        other = settings.min_improvement if settings.other_signal_tolerance is None \
-            else settings.other_signal_tolerance
         if name != signal and new - old > other * old:
             return False
     return delta_bic(before, after) < 0.0
@@ -784,7 +783,7 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
             if fallback is None or key < fallback[0]:
                 fallback = (key, (cand, trial))
         if accepted is None and fallback is not None:
-            fallback = _look_ahead(problem, current, tried, fallback)
+            fallback = _look_ahead(problem, tried, fallback)
         accepted = accepted or (fallback[1] if fallback else None)
         if accepted is not None:
             cand, trial = accepted
@@ -840,7 +839,7 @@ def analyse(problem: Problem, progress: Callable[[str, int, int], None] | None =
 LOOK_AHEAD = 3
 
 
-def _look_ahead(problem: Problem, current: Fit, tried: Sequence[tuple[Candidate, Fit]], fallback):
+def _look_ahead(problem: Problem, tried: Sequence[tuple[Candidate, Fit]], fallback):
     """From an unphysical start, pick the first step by the best physical fit two steps make.
 
     The corrections can twist around an effect (a x3 Stribeck rise at low speed lets the Coulomb and

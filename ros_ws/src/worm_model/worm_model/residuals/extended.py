@@ -33,7 +33,7 @@ import numpy as np
 import yaml
 from numpy.typing import ArrayLike
 
-from worm_model.physics.parameters import ParameterError, Rig, load_rig
+from worm_model.physics.parameters import ParameterError, Rig, default_rig_path, load_rig
 from worm_model.physics.units import UNITS, FloatArray, normalize_unit
 
 from worm_model.residuals.effects import EFFECTS, Effect, channels_of
@@ -204,8 +204,6 @@ def write_with_effects(path: str | Path, effects: Mapping[str, Any], base_file: 
     Raises:
         ParameterError: the base file cannot be read.
     """
-    from worm_model.physics.parameters import default_rig_path  # noqa: PLC0415
-
     base = Path(base_file) if base_file else default_rig_path()
     try:
         document = yaml.safe_load(base.read_text(encoding="utf-8"))
