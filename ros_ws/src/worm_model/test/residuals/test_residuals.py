@@ -133,6 +133,21 @@ def test_ripple_response_is_one_at_dc_and_vanishes_far_above_the_corner() -> Non
         np.conj(ripple_response(RIG, np.array([2 * np.pi * 30]), 1e-3)[0]))
 
 
+def test_effect_shapes_are_the_declared_rigs_whatever_rig_asks_first() -> None:
+    """A screening round at a twisted intermediate fit (rotor inertia 0) once filled the shape cache with a
+    cogging response that fitted half the ripple; the shapes are now the declared rig's, in any order."""
+    data = synthetic(seconds=8.0)
+    twisted = dataclasses.replace(RIG, drive_motor=dataclasses.replace(RIG.drive_motor, rotor_inertia=1e-9))
+    grid = {"order": 6.0}
+    cogging = EFFECTS["motor_cogging"]
+    first_twisted, first_declared = problem_of(data), problem_of(data)
+    a = first_twisted.shapes(cogging, twisted, grid)["worm_torque"]
+    b = first_declared.shapes(cogging, RIG, grid)["worm_torque"]
+    np.testing.assert_array_equal(a, b)
+    # the twisted rig's own shapes do differ: the test would see a cache filled from it
+    assert np.max(np.abs(cogging.shapes(twisted, first_declared.signals, grid)["worm_torque"] - b)) > 0.05
+
+
 # --------------------------------------------------------------------------- split and held-out discipline
 def test_split_is_disjoint_guarded_and_spread() -> None:
     p = problem_of(synthetic(seconds=24.0), holdout_fraction=1 / 3, block_seconds=1.0, guard_seconds=0.05)

@@ -246,12 +246,19 @@ class Problem:
         return self.te is not None and self.te_train.sum() >= 10 and self.te_held_out.sum() >= 10
 
     def shapes(self, effect: Effect, rig: Rig, grid: Mapping[str, float]) -> Shapes:
-        """(n, p) shapes on every sample; cached unless they depend on the fitted rig (thermal proxy)."""
+        """(n, p) shapes on every sample, at the declared rig and cached; only the thermal proxy follows ``rig``.
+
+        Always the declared rig, whatever ``rig`` a caller is at: shapes such as a ripple's seen
+        response (the rotor inertia, K_t) depend on it, and a cache filled by whichever call
+        came first made the fit depend on the order of the search (a screening round at a
+        twisted intermediate fit, rotor inertia 0, froze a cogging shape that fitted half the
+        ripple).
+        """
         key = (effect.name, tuple(sorted(grid.items())))
         if effect.family == "thermal" and self.signals.temperature is None:
             return effect.shapes(rig, self.signals, grid)  # the heating proxy follows the fit
         if key not in self._shapes:
-            self._shapes[key] = effect.shapes(rig, self.signals, grid)
+            self._shapes[key] = effect.shapes(self.rig0, self.signals, grid)
         return self._shapes[key]
 
     # ------------------------------------------------------------------ model as a function of theta
@@ -951,7 +958,14 @@ def resolve_aliases(problem: Problem, final: Fit) -> list[AliasFinding]:
         sub = Problem(clamped_rig, rest, problem.signals, problem.current, problem.split,
                       _replace_settings(problem.settings, refit=()))
         clamped = fit(sub, specs, final)
-        if not accepts(clamped, final, problem.settings, EFFECTS[effect].fitted_signal, problem):
+        # significance, not size: the evidence is a fitted parameter already beyond its band, and the
+        # clamped fit asks only whether that departure is real or a trade-off with the rest (held-out
+        # blocks, BIC). The 2 % rule is for effects that buy their keep from a misfit; with the mu scale
+        # free, a 30 % current-sensor gain on top of a K_t declared 5 % low left 1.3 % to the clamp.
+        settings = problem.settings
+        other = settings.min_improvement if settings.other_signal_tolerance is None else settings.other_signal_tolerance
+        significance = _replace_settings(settings, min_improvement=0.0, other_signal_tolerance=other)
+        if not accepts(clamped, final, significance, EFFECTS[effect].fitted_signal, problem):
             continue
         values, grid = _alias_values(effect, problem.rig0, final.rig, list(edges))
         # intervals: the parameters' own, carried through the (linear or 1/x) translation
