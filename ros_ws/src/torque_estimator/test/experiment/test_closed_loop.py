@@ -126,6 +126,17 @@ def test_feedforward_timing_matters_but_not_the_pi_which_runs_at_the_rig() -> No
     assert abs(np.mean(late.omega_true[late.t > 1.2]) - 150.0) < 0.5
 
 
+def test_each_period_of_latency_moves_the_feedforward_one_sample_later() -> None:
+    """ff_latency 0 drives the very period after the estimate's sample, 1 the one after that (0 once acted
+    as 1: the pending command was taken before the new one was queued)."""
+    short = STEP[:2]
+    first = {}
+    for latency in (0, 1, 2):
+        run = run_scenario(RIG, short, ("truth",), seed=1, ff_latency=latency)["truth"]
+        first[latency] = int(np.argmax(np.abs(run.feedforward) > 0.5 * np.max(np.abs(run.feedforward))))
+    assert first[1] - first[0] == 1 and first[2] - first[1] == 1, first
+
+
 def test_live_estimator_flags_and_skips_bad_samples(estimator) -> None:
     a = LiveEstimator(RIG, estimator, 1e-3)
     b = LiveEstimator(RIG, estimator, 1e-3)

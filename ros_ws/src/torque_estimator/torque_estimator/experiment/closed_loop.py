@@ -115,10 +115,6 @@ def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...]
         setpoint = scenario[segment].speed
         m = sim.sample()  # sample k + 1 of the rig's clock; period k + 1 just ended
         stamp = sim.time
-        while pending and pending[0][0] <= k + 2:  # commands in force for the coming period
-            tau_ff = pending.popleft()[1]
-        out = controller.update(dt, setpoint, m.omega_worm, tau_ff)  # the rig's PI
-        sim.command(voltage_drive=out.voltage)
         for i, estimate in live.items():
             est = estimate.update(float(m.omega_worm[i]), float(m.current_drive[i]),
                                   float(m.voltage_drive[i]), float(m.theta_worm[i]))
@@ -135,6 +131,12 @@ def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...]
                 tau_d = gates[i].load(stamp)
                 ff[i] = 0.0 if tau_d is None else float(balancing_torque(rig, tau_d, setpoint))
             pending.append((k + 2 + ff_latency, ff))
+        # the rig's PI sets period k + 2 after this sample's command is queued, so that latency 0 reaches
+        # that very period (popping first made latency 0 act as latency 1)
+        while pending and pending[0][0] <= k + 2:  # commands in force for the coming period
+            tau_ff = pending.popleft()[1]
+        out = controller.update(dt, setpoint, m.omega_worm, tau_ff)  # the rig's PI
+        sim.command(voltage_drive=out.voltage)
         rec["t"][k] = t
         rec["omega_true"][k] = sim.plant.state.omega_worm
         rec["omega_measured"][k] = m.omega_worm

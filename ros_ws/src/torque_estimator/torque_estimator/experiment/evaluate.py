@@ -40,7 +40,7 @@ from typing import Any
 
 from worm_model.cli.validate import Parser, atomic_dir, check_output, existing_file, integer, run_tool
 from worm_model.physics.parameters import ParameterError, load_rig
-from torque_estimator.experiment.residual_cases import evaluate_lines, small_matrix
+from torque_estimator.experiment.residual_cases import evaluate_lines, full_matrix, small_matrix
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import CalibrationError, load_database
@@ -120,6 +120,10 @@ def build_parser() -> argparse.ArgumentParser:
                        help="sensor noise factors (x the rig's current and speed noise), comma-separated "
                             "(default 0,0.5,1,2,4)")
     p.add_argument("--no-residuals", action="store_true", help="skip the residuals tool's case matrix")
+    p.add_argument("--residual-cases", choices=("full", "small"), default="full",
+                   help="the residuals tool's case matrix: full (every effect alone and in pairs, each with the "
+                        "declared values nominal, high and low; clean data; out-of-vocabulary effects: 75 cases, "
+                        "~5 min) or small (a 14-case subset, ~1 min); default full")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     return p
 
@@ -186,8 +190,9 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
         # issue 18: identify from one short run vs the k-NN grid, on the simulated rig with every effect on
         print("\n".join(identified_lines(rig, args.points, args.seed + 1, args.k, args.weighting)))
     if not args.no_residuals:  # the residuals tool's case matrix (issue 15); ends with its `residuals:` line
-        with ProgressBar(len(small_matrix()), "residuals cases", enabled=not args.quiet) as bar:
-            print("\n".join(evaluate_lines(progress=bar.update_to)))
+        cases = full_matrix() if args.residual_cases == "full" else small_matrix()
+        with ProgressBar(len(cases), "residuals cases", enabled=not args.quiet) as bar:
+            print("\n".join(evaluate_lines(cases, progress=bar.update_to)))
     return pngs, ev
 
 

@@ -21,8 +21,8 @@ lie beyond the tolerance band *including* a declared value off by the amounts ab
 It lives here, with the experiments, because it needs both the residual analysis
 (worm_model) and the simulator (worm_rig_driver).
 
-:func:`run_matrix` runs a list of cases; :func:`small_matrix` is what ``make evaluate``
-prints (one line: :func:`summary_line`), :func:`full_matrix` the one the slow test runs.
+:func:`run_matrix` runs a list of cases; :func:`full_matrix` is what ``make evaluate``
+prints (last line: :func:`summary_line`; ``--residual-cases small``: :func:`small_matrix`, a subset).
 """
 
 from __future__ import annotations
@@ -340,7 +340,7 @@ def full_matrix() -> list[Case]:
 
 
 def small_matrix() -> list[Case]:
-    """A representative subset for ``make evaluate`` (about a minute): clean data with the declared values
+    """A representative subset (about a minute; ``evaluate --residual-cases small``): clean data with the declared values
     off, every alias kind and a periodic, a mu and a sensor effect with them off, two pairs, both
     out-of-vocabulary effects."""
     return [
