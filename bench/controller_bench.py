@@ -20,6 +20,11 @@ Two timings, one table each:
             newest estimate once per /rig/samples batch (5 samples) and its speed
             command drives the rig --graph-latency sample periods after the next
             one (bench/graph_bench.py measures that latency on the live graph).
+            Live, where a load step falls in its batch is chance: each seed runs
+            once per position (5 runs), and the figures are their means. (The
+            demo's segments last whole batches: with one position only, every
+            step would land on a batch's first sample, the observer's best case
+            and the true load's worst.)
 
 Per pure load step (same speed, new load), from the rig's true worm speed
 (tacho noise is not a dip):
@@ -32,7 +37,7 @@ summary: mean |estimate - applied load| from 0.8 s after each change, % of the
 calibrated torque range).
 
 Prints the tables on stderr and, on stdout, over all load steps and averaged over
---seeds runs: the worst peak dip, the worst settling time and the summed IAE, for
+--seeds runs (graph timing: --seeds x 5 batch positions): the worst peak dip, the worst settling time and the summed IAE, for
 the firmware timing
   loadstep_peak_dip_ff_off: <x> rad/s   loadstep_peak_dip_ff_on: <x> rad/s   loadstep_peak_dip_ideal: <x> rad/s
   loadstep_settling_time_ff_off: <x> s  loadstep_settling_time_ff_on: <x> s  loadstep_settling_time_ideal: <x> s
@@ -186,13 +191,15 @@ def main(argv: list[str] | None = None) -> int:
         start = time.perf_counter()
         summaries = []
         for seed in range(args.seed + 1, args.seed + 1 + args.seeds):
-            runs = run_scenario(rig, DEMO_SCENARIO, tuple(MODES), estimator=estimator, seed=seed,
-                                gains=PiGains(float(ctl_p["kp"]), float(ctl_p["ki"])),
-                                estimate_timeout=float(ctl_p.get("estimate_timeout", 0.05)),
-                                live_options=options, ff_batch=batch, ff_latency=latency)
-            summaries.append(report(f"{timing}, run seed {seed}", runs, db.torque_range))
+            for phase in range(batch):  # every position of the load steps in a batch
+                runs = run_scenario(rig, DEMO_SCENARIO, tuple(MODES), estimator=estimator, seed=seed,
+                                    gains=PiGains(float(ctl_p["kp"]), float(ctl_p["ki"])),
+                                    estimate_timeout=float(ctl_p.get("estimate_timeout", 0.05)),
+                                    live_options=options, ff_batch=batch, ff_latency=latency, ff_phase=phase)
+                where = f", batch position {phase}" if batch > 1 else ""
+                summaries.append(report(f"{timing}, run seed {seed}{where}", runs, db.torque_range))
         duration = sum(s.duration for s in DEMO_SCENARIO)
-        info(f"[controller_bench] {timing} timing: {args.seeds} x {duration:.0f} s scenario x {len(MODES)} rigs "
+        info(f"[controller_bench] {timing} timing: {len(summaries)} x {duration:.0f} s scenario x {len(MODES)} rigs "
              f"simulated in {time.perf_counter() - start:.1f} s")
         for mode in MODES:
             dip, settle, iae = (float(np.mean([s[mode][i] for s in summaries])) for i in range(3))

@@ -8,7 +8,9 @@ per 1 ms sample; --cpu-only prints only this line), then the step response to a 
 step, and with the rig's 2 ms load loop), the steady noise against the filter's prediction and
 the Cramer-Rao-type bound, the step-size bound (jump_bound), errors over a speed ramp and
 through a +150 -> -150 rad/s reversal, the 17 held-out points streamed, the robustness table
-(observer's model perturbed: mu ±30 %, K_t ±5 %, J ±20 %) and the closed loop of
+(observer's model perturbed: mu ±30 %, K_t ±5 %, J ±20 %; its step figures, and the 17 held-out
+points streamed without and with a calibration of the simulated rig, whose measured model error
+the observer then adds: estimation/calibration_bias.py) and the closed loop of
 controller_bench (firmware timing, seed 1) with feedforward off / observer / ideal.
 """
 from __future__ import annotations
@@ -19,7 +21,7 @@ import time
 
 import numpy as np
 
-from torque_estimator.calibration.batch import CalibrationGrid
+from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.experiment.closed_loop import run_scenario
 from torque_estimator.experiment.evaluation import held_out_setpoints
 from torque_estimator.estimation.observer import ObserverEstimator, equivalent_window, jump_bound, predicted_noise, \
@@ -88,13 +90,22 @@ def main() -> int:
     est, truth = held_out_streaming(rig, speeds, torques)
     error = 100 * np.abs(est - truth) / RANGE
     print(f"17 held-out points streamed: mean {error.mean():.3f} % max {error.max():.3f} % of the range")
-    print("robustness (observer's model perturbed; step90_ms, overshoot %, steady bias N m, steady std N m):")
+    database = calibrate_simulated(rig, CalibrationGrid.paper(rig), seed=0)
+    print("robustness (observer's model perturbed; step90_ms, overshoot %, steady bias N m, steady std N m; "
+          "17 held-out points streamed, mean/max % of the range, without -> with the calibration):")
     for case in (dict(), dict(mu=1.3), dict(mu=0.7), dict(kt=1.05), dict(kt=0.95), dict(inertia=1.2),
                  dict(inertia=0.8)):
-        r = step_response(rig, seeds=args.seeds, observer_rig=perturbed_rig(rig, **case))
+        model = perturbed_rig(rig, **case)
+        r = step_response(rig, seeds=args.seeds, observer_rig=model)
+        held = []
+        for db in (None, database):
+            est, truth = held_out_streaming(rig, speeds, torques, estimator=ObserverEstimator(db, rig=model))
+            error = 100 * np.abs(est - truth) / RANGE
+            held.append(f"{error.mean():.2f}/{error.max():.2f}")
         name = ",".join(f"{k} x{v}" for k, v in case.items()) or "nominal"
         print(f"  {name:14s} {r.step90_ms:5g} {r.overshoot_pct:6.1f} {r.steady_bias:+.4f} {r.steady_std:.5f}  "
-              f"per-seed median {np.median(r.per_seed90_ms):g} max {np.max(r.per_seed90_ms):g}")
+              f"per-seed median {np.median(r.per_seed90_ms):g} max {np.max(r.per_seed90_ms):g}  "
+              f"held-out {held[0]} -> {held[1]} %")
     runs = run_scenario(rig, DEMO_SCENARIO, ("off", "estimate", "truth"), estimator=ObserverEstimator(None), seed=1)
     for mode, run in runs.items():
         steps = load_step_responses(DEMO_SCENARIO, run.t, run.omega_true, run.setpoint)

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
-from torque_estimator.estimation.observer import ObserverEstimator, jump_bound, steady_state_bound
+from torque_estimator.estimation.observer import jump_bound, steady_state_bound
 from torque_estimator.estimation.registry import make_estimator
 from torque_estimator.experiment.closed_loop import run_scenario
 from torque_estimator.experiment.run_analysis import load_step_responses
@@ -38,27 +38,29 @@ def worst(runs) -> dict[str, tuple[float, float]]:
 
 
 SEEDS = (1, 2, 3, 4)  # controller_bench's default runs (--seed 0 --seeds 4)
-TIMINGS = {"firmware": {}, "graph": {"ff_batch": 5, "ff_latency": 1}}
+TIMINGS = {"firmware": {}, "graph": {"ff_batch": 5, "ff_latency": 1}}  # graph: each seed at the 5 batch positions
 
 
 @pytest.fixture(scope="module")
 def feedforward(database) -> dict:
     """(estimator, timing) -> mode -> per seed (worst dip, summed IAE), as controller_bench runs them."""
     out = {}
-    for name, estimator in (("observer", ObserverEstimator(None)), ("knn", make_estimator("knn", database))):
+    for name, estimator in (("observer", make_estimator("observer", database)), ("knn", make_estimator("knn", database))):
         for timing, options in TIMINGS.items():
+            phases = range(options.get("ff_batch", 1))
             per_seed = [worst(run_scenario(RIG, DEMO_SCENARIO, ("off", "estimate", "truth"), estimator=estimator,
-                                           seed=seed, **options)) for seed in SEEDS]
+                                           seed=seed, ff_phase=phase, **options)) for seed in SEEDS for phase in phases]
             out[name, timing] = {mode: np.array([s[mode] for s in per_seed]) for mode in per_seed[0]}
     return out
 
 
 @pytest.mark.parametrize("timing, expected", [
-    ("firmware", {"off": (4.93, 2.31), "estimate": (3.43, 0.76), "truth": (1.61, 0.68)}),
-    ("graph", {"off": (4.93, 2.31), "estimate": (3.52, 0.79), "truth": (3.52, 0.73)}),
+    ("firmware", {"off": (4.93, 2.31), "estimate": (3.32, 0.76), "truth": (1.61, 0.68)}),
+    ("graph", {"off": (4.93, 2.31), "estimate": (3.91, 0.805), "truth": (2.64, 0.715)}),
 ])
 def test_feedforward_table(feedforward, timing: str, expected: dict) -> None:
-    """README, Feedforward: off -> observer -> ideal, means of controller_bench's 4 runs."""
+    """README, Feedforward: off -> observer -> ideal, means of controller_bench's 4 runs (graph: 4 x 5 batch
+    positions); the graph's within 1.5 x the ideal (issue 14)."""
     got = feedforward["observer", timing]
     for mode, (dip, iae) in expected.items():
         assert got[mode][:, 0].mean() == pytest.approx(dip, abs=0.005), (timing, mode, got[mode])
@@ -67,6 +69,11 @@ def test_feedforward_table(feedforward, timing: str, expected: dict) -> None:
         assert got["estimate"][:, 0].min() == pytest.approx(3.06, abs=0.005)
         assert got["estimate"][:, 0].max() == pytest.approx(3.63, abs=0.005)
         assert got["estimate"][:, 1].mean() <= 1.3 * got["truth"][:, 1].mean()  # issue 14's 1.3 x: met
+    else:  # README: runs 3.11-4.59; issue 14's 1.5 x at the graph's timing, dip (1.48 x) and IAE
+        assert got["estimate"][:, 0].min() == pytest.approx(3.11, abs=0.005)
+        assert got["estimate"][:, 0].max() == pytest.approx(4.59, abs=0.005)
+        assert got["estimate"][:, 0].mean() <= 1.5 * got["truth"][:, 0].mean()
+        assert got["estimate"][:, 1].mean() <= 1.5 * got["truth"][:, 1].mean()
 
 
 @pytest.mark.xfail(strict=True, reason="the dip needs the load known within ~1 ms of the step; the step-size "
@@ -77,7 +84,7 @@ def test_the_dip_within_1_3_times_the_ideal(feedforward) -> None:
     assert got["estimate"][:, 0].mean() <= 1.3 * got["truth"][:, 0].mean()
 
 
-@pytest.mark.parametrize("timing, dip, iae", [("firmware", 4.02, 0.92), ("graph", 4.73, 0.95)])
+@pytest.mark.parametrize("timing, dip, iae", [("firmware", 4.02, 0.92), ("graph", 4.46, 0.96)])
 def test_the_knn_feedforward(feedforward, timing: str, dip: float, iae: float) -> None:
     """README, Feedforward: the k-NN's figures in both timings (controller_bench --method knn)."""
     got = feedforward["knn", timing]["estimate"]
@@ -100,7 +107,7 @@ def test_the_step_size_bound() -> None:
 def test_transient_table_and_noise(database) -> None:
     """README, the transient table (make evaluate's `transient:` lines) and the observer's noise ratio."""
     expected = {"knn": (16, 12.9, 1.08, 3.91), "extended_model": (16, 7.0, 1.43, 7.67),
-                "observer": (3, 19.0, 0.19, 8.40)}
+                "observer": (3, 19.1, 0.18, 8.38)}
     for method, (step90, overshoot, ramp, reversal) in expected.items():
         estimator = make_estimator(method, database, **({"k": 4} if method == "knn" else {}))
         f = transient_figures(RIG, method, estimator, database.torque_range, seeds=12, seed=0)
@@ -109,5 +116,5 @@ def test_transient_table_and_noise(database) -> None:
         assert f.ramp_err_pct == pytest.approx(ramp, abs=0.005), (method, f)
         assert f.reversal_err_pct == pytest.approx(reversal, abs=0.005), (method, f)
         if method == "observer":
-            assert f.steady_std == pytest.approx(5.3e-4, abs=0.05e-4)
-            assert f.steady_std / steady_state_bound(RIG, STEP_SPEED, 0.0) == pytest.approx(1.06, abs=0.005)
+            assert f.steady_std == pytest.approx(5.2e-4, abs=0.05e-4)
+            assert f.steady_std / steady_state_bound(RIG, STEP_SPEED, 0.0) == pytest.approx(1.03, abs=0.005)

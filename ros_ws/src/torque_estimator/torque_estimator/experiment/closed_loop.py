@@ -63,7 +63,7 @@ class LoopRun:
 def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...] = ("off",), *,
                  estimator: TorqueEstimator | None = None, seed: int = 0, gains: PiGains = DEFAULT_GAINS,
                  estimate_timeout: float = 0.05, live_options: Mapping[str, Any] | None = None,
-                 ff_batch: int = 1, ff_latency: int = 1) -> dict[str, LoopRun]:
+                 ff_batch: int = 1, ff_latency: int = 1, ff_phase: int = 0) -> dict[str, LoopRun]:
     """Play a scenario (speed set-points and load torques over time) on the closed loop.
 
     One rig per feedforward mode, all side by side in one vectorised
@@ -78,6 +78,10 @@ def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...]
         ff_batch: samples per estimate the controller gets (>= 1; the rig's batch_size).
         ff_latency: sample periods between the period right after an estimate's sample
             and the first period its feedforward drives (>= 0).
+        ff_phase: where the batches fall on the scenario's clock (0 <= ff_phase < ff_batch): a batch
+            ends with sample k + 1 when (k + 1 + ff_phase) is a multiple of ff_batch. The demo's
+            segments last whole batches, so at 0 every load step lands on a batch's first sample;
+            live, where a step falls in its batch is chance.
 
     Returns:
         mode -> its run.
@@ -89,8 +93,9 @@ def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...]
         raise ValueError(f"need distinct feedforward modes, got {modes!r}")
     if "estimate" in modes and estimator is None:
         raise ValueError("feedforward mode 'estimate' needs an estimator")
-    if ff_batch < 1 or ff_latency < 0:
-        raise ValueError(f"need ff_batch >= 1 and ff_latency >= 0, got {ff_batch}, {ff_latency}")
+    if ff_batch < 1 or ff_latency < 0 or not 0 <= ff_phase < ff_batch:
+        raise ValueError(f"need ff_batch >= 1, ff_latency >= 0 and 0 <= ff_phase < ff_batch, got {ff_batch}, "
+                         f"{ff_latency}, {ff_phase}")
     n = len(modes)
     sim = SimulatedRig(rig, n=n, seed=seed)
     dt = sim.sample_period
@@ -121,7 +126,7 @@ def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...]
             rec["tau_estimated"][k, i] = est.torque
             estimates[i], flags[i] = est.torque, est.flags
         truth = sim.applied_load_torque
-        if (k + 1) % ff_batch == 0:  # a batch's newest sample: the controller sends a speed command
+        if (k + 1 + ff_phase) % ff_batch == 0:  # a batch's newest sample: the controller sends a speed command
             ff = np.zeros(n)
             for i, mode in enumerate(modes):
                 if mode == "truth":

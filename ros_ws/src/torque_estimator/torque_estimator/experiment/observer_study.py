@@ -19,7 +19,7 @@ import numpy as np
 from worm_model.physics.parameters import Rig
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
-from torque_estimator.estimation.observer import LoadObserver, LoadProcess
+from torque_estimator.estimation.observer import LoadObserver, LoadProcess, ObserverEstimator
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, SpeedController
 
 #: Load-loop time constant [s] that makes the simulator's load a true step (its default is the
@@ -45,11 +45,14 @@ def perturbed_rig(rig: Rig, mu: float = 1.0, kt: float = 1.0, inertia: float = 1
 def run_observers(rig: Rig, speed: Callable[[float], np.ndarray], load: Callable[[float], np.ndarray], n: int,
                   duration: float, *, seed: int = 0, observer_rig: Rig | None = None,
                   load_process: LoadProcess | None = None, load_time_constant: float | None = None,
-                  observer_options: dict | None = None, substeps: int = 2) -> dict[str, np.ndarray]:
+                  observer_options: dict | None = None, substeps: int = 2,
+                  estimator: ObserverEstimator | None = None) -> dict[str, np.ndarray]:
     """Run n rigs for ``duration`` under speed(t) and load(t) set-points (each -> shape (n,)).
 
     substeps: the simulator's integration steps per sample (its default 2 is coarse in a
     reversal, where the worm accelerates at ~30000 rad/s²).
+    estimator: streams from ``estimator.stream`` (its model, sensor correction and calibration
+    bias) instead of plain LoadObservers of ``observer_rig``.
     Returns arrays (samples, n): t [s] (the sample's tick), tau_true (applied load over the
     period starting at that tick), tau_est, uncertainty, flags, omega_true, jump (bool).
     """
@@ -58,7 +61,8 @@ def run_observers(rig: Rig, speed: Callable[[float], np.ndarray], load: Callable
         sim.plant.load_current_time_constant = load_time_constant
     dt = sim.sample_period
     controller = SpeedController(rig, DEFAULT_GAINS, n=n)
-    observers = [LoadObserver(observer_rig or rig, dt, load=load_process, **(observer_options or {}))
+    observers = [estimator.stream(dt) if estimator is not None else
+                 LoadObserver(observer_rig or rig, dt, load=load_process, **(observer_options or {}))
                  for _ in range(n)]
     steps = int(round(duration / dt))
     out = {name: np.zeros((steps, n)) for name in ("t", "tau_true", "tau_est", "uncertainty", "omega_true")}
@@ -134,13 +138,14 @@ def step_response(rig: Rig, *, seeds: int = 12, seed: int = 0, speed: float = 15
 
 
 def held_out_streaming(rig: Rig, speeds: np.ndarray, torques: np.ndarray, *, seed: int = 1001,
-                       duration: float = 1.5, window: float = 0.5, observer_rig: Rig | None = None
-                       ) -> tuple[np.ndarray, np.ndarray]:
+                       duration: float = 1.5, window: float = 0.5, observer_rig: Rig | None = None,
+                       estimator: ObserverEstimator | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Stream the observer at each (speed, torque) point held by the PI (one rig per point, the
-    rig's own 2 ms load loop); returns (mean estimate, mean applied load) over the last ``window``."""
+    rig's own 2 ms load loop); returns (mean estimate, mean applied load) over the last ``window``.
+    ``estimator``: its streams (e.g. with a calibration's bias) instead of ``observer_rig``'s."""
     speeds, torques = np.asarray(speeds, float), np.asarray(torques, float)
     run = run_observers(rig, lambda t: speeds, lambda t: torques, len(speeds), duration, seed=seed,
-                        observer_rig=observer_rig)
+                        observer_rig=observer_rig, estimator=estimator)
     last = int(round(window * rig.sensors.sample_rate_hz))
     return run["tau_est"][-last:].mean(axis=0), run["tau_true"][-last:].mean(axis=0)
 

@@ -56,7 +56,8 @@ class EstimatorNode(Node):
             "Remove the current that accelerates the rig's inertia (Eq. 28) before the quasi-static lookup.")
         self.calibration_file = declare(self, "calibration_file", "",
                                         "Calibration database (JSON written by `calibrate`); the observer can do "
-                                        "without one (its ranges then come from the rig file).")
+                                        "without one (its ranges then come from the rig file); with one it also "
+                                        "adds the model's error measured at its points.")
         self.method = declare(self, "method", "knn", "Estimator.", choices=tuple(ESTIMATORS))
         k = declare(self, "k", 4, "Neighbours averaged by the k-NN estimator.", low=1, high=64)
         weighting = declare(self, "weighting", "inverse_distance", "k-NN weighting of the neighbours.",
