@@ -37,8 +37,8 @@ summary: mean |estimate - applied load| from 0.8 s after each change, % of the
 calibrated torque range).
 
 Prints the tables on stderr and, on stdout, over all load steps and averaged over
---seeds runs (graph timing: --seeds x 5 batch positions): the worst peak dip, the worst settling time and the summed IAE, for
-the firmware timing
+--seeds runs (graph timing: --seeds x 5 batch positions): the worst peak dip, the worst
+settling time and the summed IAE, for the firmware timing
   loadstep_peak_dip_ff_off: <x> rad/s   loadstep_peak_dip_ff_on: <x> rad/s   loadstep_peak_dip_ideal: <x> rad/s
   loadstep_settling_time_ff_off: <x> s  loadstep_settling_time_ff_on: <x> s  loadstep_settling_time_ideal: <x> s
   loadstep_iae_ff_off: <x> rad          loadstep_iae_ff_on: <x> rad          loadstep_iae_ideal: <x> rad

@@ -90,6 +90,11 @@ class Settings:
     at_floor: float = 1.1
     bootstrap: int = 400  # block-bootstrap resamples for the intervals of unique contributions
 
+    @property
+    def other_tolerance(self) -> float:
+        """The other signal's allowed relative rise: other_signal_tolerance, or min_improvement when None."""
+        return self.min_improvement if self.other_signal_tolerance is None else self.other_signal_tolerance
+
 
 # --------------------------------------------------------------------------- split
 @dataclass
@@ -740,7 +745,7 @@ def accepts(before: Fit, after: Fit, settings: Settings, signal: str = "current_
         low, _high = paired_interval(r0, r1, mask, problem.split.block, settings.bootstrap, settings.confidence)
         if not low > 0.0:
             return False
-    other = settings.min_improvement if settings.other_signal_tolerance is None else settings.other_signal_tolerance
+    other = settings.other_tolerance
     for name in SIGNAL_UNITS:
         old, new = before.rms(name), after.rms(name)
         if not (math.isfinite(old) and math.isfinite(new)):
@@ -952,19 +957,18 @@ def resolve_aliases(problem: Problem, final: Fit) -> list[AliasFinding]:
             groups.setdefault(TOLERANCES[name].effect, {})[name] = edge
     out = []
     specs = [(e.effect, e.grid) for e in final.effects]
+    # significance, not size: the evidence is a fitted parameter already beyond its band, and the clamped
+    # fit asks only whether that departure is real or a trade-off with the rest (held-out blocks, BIC). The
+    # 2 % rule is for effects that buy their keep from a misfit; with the mu scale free, a 30 % current-sensor
+    # gain on top of a K_t declared 5 % low left 1.3 % to the clamp. (The other signal keeps its tolerance.)
+    significance = _replace_settings(problem.settings, min_improvement=0.0,
+                                     other_signal_tolerance=problem.settings.other_tolerance)
     for effect, edges in groups.items():
         clamped_rig = set_values(problem.rig0, list(edges), list(edges.values()))
         rest = [p for p in problem.free if p not in edges]
         sub = Problem(clamped_rig, rest, problem.signals, problem.current, problem.split,
                       _replace_settings(problem.settings, refit=()))
         clamped = fit(sub, specs, final)
-        # significance, not size: the evidence is a fitted parameter already beyond its band, and the
-        # clamped fit asks only whether that departure is real or a trade-off with the rest (held-out
-        # blocks, BIC). The 2 % rule is for effects that buy their keep from a misfit; with the mu scale
-        # free, a 30 % current-sensor gain on top of a K_t declared 5 % low left 1.3 % to the clamp.
-        settings = problem.settings
-        other = settings.min_improvement if settings.other_signal_tolerance is None else settings.other_signal_tolerance
-        significance = _replace_settings(settings, min_improvement=0.0, other_signal_tolerance=other)
         if not accepts(clamped, final, significance, EFFECTS[effect].fitted_signal, problem):
             continue
         values, grid = _alias_values(effect, problem.rig0, final.rig, list(edges))
