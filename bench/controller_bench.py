@@ -13,7 +13,12 @@ grid. Three rigs side by side: feedforward off, on (the estimator the graph
 file selects, or --method), and ideal (the applied load itself, through the
 same timing: the bound any estimator could reach).
 
-Two timings, one table each:
+Three timings, one table each:
+  rig       as the shipped graph runs it (sim_graph.yaml: sim_node's
+            feedforward_estimator, controller_node's feedforward_at_rig): the
+            estimator beside the rig's PI, on every sample; the estimate of one
+            sample feeds the very next period (the observer with the step
+            detector of a rig feedforward, control.rig_feedforward);
   firmware  the rig's PI on every sample; the estimate of one sample feeds the
             period after next (the estimator beside the rig, one sample late);
   graph     as the node graph runs it: the controller gets the estimator's
@@ -42,7 +47,8 @@ settling time and the summed IAE, for the firmware timing
   loadstep_peak_dip_ff_off: <x> rad/s   loadstep_peak_dip_ff_on: <x> rad/s   loadstep_peak_dip_ideal: <x> rad/s
   loadstep_settling_time_ff_off: <x> s  loadstep_settling_time_ff_on: <x> s  loadstep_settling_time_ideal: <x> s
   loadstep_iae_ff_off: <x> rad          loadstep_iae_ff_on: <x> rad          loadstep_iae_ideal: <x> rad
-and the same with a _graph suffix (loadstep_iae_ff_on_graph, ...) for the graph timing.
+and the same with a _rig suffix (loadstep_peak_dip_ff_on_rig, ...) for the rig timing and a _graph
+suffix (loadstep_iae_ff_on_graph, ...) for the graph timing.
 Never asserts.
 """
 from __future__ import annotations
@@ -56,6 +62,7 @@ import numpy as np
 import yaml
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
+from torque_estimator.control.rig_feedforward import feedforward_estimator
 from torque_estimator.experiment.closed_loop import run_scenario
 from torque_estimator.graph.runner import default_graph_file
 from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
@@ -186,8 +193,9 @@ def main(argv: list[str] | None = None) -> int:
     info(f"[controller_bench] LiveEstimator options: {options}")
 
     metrics = []
-    timings = {"firmware": (1, 1, ""), "graph": (GRAPH_BATCH, args.graph_latency, "_graph")}
-    for timing, (batch, latency, suffix) in timings.items():
+    timings = {"rig": (1, 0, "_rig", feedforward_estimator(method, db, rig)), "firmware": (1, 1, "", estimator),
+               "graph": (GRAPH_BATCH, args.graph_latency, "_graph", estimator)}
+    for timing, (batch, latency, suffix, estimator) in timings.items():
         start = time.perf_counter()
         summaries = []
         for seed in range(args.seed + 1, args.seed + 1 + args.seeds):

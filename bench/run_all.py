@@ -21,7 +21,7 @@ GRAPH_METRICS = tuple(f"graph_{name}{suffix}: nan {unit}".rstrip() for suffix in
 SERIAL_METRICS = ("decoder_throughput: nan frames/s", "driver_cpu_at_1khz: nan %", "driver_reconnect_time: nan s")
 RECORDER_METRICS = ("recorder_published: nan count", "recorder_recorded: nan count",
                     "recorder_lost_messages: nan count")
-CONTROLLER_METRICS = tuple(f"loadstep_{name}_{ff}{timing}: nan {unit}" for timing in ("", "_graph")
+CONTROLLER_METRICS = tuple(f"loadstep_{name}_{ff}{timing}: nan {unit}" for timing in ("_rig", "", "_graph")
                            for ff in ("ff_off", "ff_on", "ideal")
                            for name, unit in (("peak_dip", "rad/s"), ("settling_time", "s"), ("iae", "rad")))
 
@@ -56,7 +56,7 @@ def main() -> int:
     ok &= run("serial_bench.py", dict(os.environ), SERIAL_METRICS, timeout=300)
     # The 5 minutes at 1 kHz is `python bench/recorder_bench.py`; make bench records 60 s.
     ok &= run("recorder_bench.py", env, RECORDER_METRICS, timeout=240, args=("--duration", "60"))
-    ok &= run("controller_bench.py", dict(os.environ), CONTROLLER_METRICS, timeout=900)  # 24 runs of 12 s
+    ok &= run("controller_bench.py", dict(os.environ), CONTROLLER_METRICS, timeout=900)  # 28 runs of 12 s
     ok &= run("observer_bench.py", dict(os.environ), ("observer_update_cpu: nan us",), timeout=120,
               args=("--cpu-only",))
     # model_node's callback in-process (rclpy node, so the graph benchmark's own ROS_DOMAIN_ID)

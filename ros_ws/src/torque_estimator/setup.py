@@ -32,5 +32,9 @@ setup(
             "identify = torque_estimator.identification.identify:main",
             "estimate = torque_estimator.experiment.estimate:main",
         ],
+        # the estimator sim_node / driver_node run beside their speed loop (worm_rig_driver.drive.feedforward_plugin)
+        "worm_rig_driver.feedforward": [
+            "torque_estimator = torque_estimator.control.rig_feedforward:build",
+        ],
     },
 )

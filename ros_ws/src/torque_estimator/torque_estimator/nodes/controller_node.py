@@ -24,7 +24,10 @@ set-point speed (Eq. 28, worm_model.physics.steady_state.balancing_torque), from
 usable estimates only (younger than estimate_timeout when the command goes out: an estimate that
 arrives late counts as that much older, FeedforwardGate; not flagged invalid or out
 of calibration: control.feedforward.FeedforwardGate); otherwise it is 0 and the
-PI alone holds the speed. `feedforward`, `speed_setpoint`, `kp`, `ki` and
+PI alone holds the speed. With ``feedforward_at_rig`` the command asks the rig
+to feed forward its own estimator's load instead (computed beside its PI on every
+sample: the next period, not a batch and a transit later; a rig without one uses
+this node's). `feedforward`, `feedforward_at_rig`, `speed_setpoint`, `kp`, `ki` and
 `voltage_limit` may be changed at run time (ros2 param set).
 """
 from __future__ import annotations
@@ -81,6 +84,12 @@ class ControllerNode(Node):
         self.command_period = declare(self, "command_period", 0.02,
                                       "Longest time [s] between speed commands when no estimate arrives "
                                       "(keep it well below the rig's command_timeout).", low=0.001, high=1.0)
+        self.feedforward_at_rig = declare(
+            self, "feedforward_at_rig", False,
+            "Ask the rig to feed forward its own estimator's load (SpeedCommand.feedforward_at_rig; sim_node / "
+            "driver_node parameter feedforward_estimator), computed beside its speed loop on every sample, "
+            "instead of this node's; the command still carries this node's feedforward_torque, which a rig "
+            "without an estimator uses. Only while feedforward is on.")
         self.gate = FeedforwardGate(estimate_timeout, enabled=feedforward, max_load=max_load)
         self.balancing_torque = make_balancing_torque_float(self.rig)
         self.add_on_set_parameters_callback(self.on_parameters)
@@ -111,6 +120,8 @@ class ControllerNode(Node):
         for p in params:
             if p.name == "feedforward":
                 self.gate.enabled = bool(p.value)
+            elif p.name == "feedforward_at_rig":
+                self.feedforward_at_rig = bool(p.value)
             elif p.name in ("speed_setpoint", "kp", "ki", "voltage_limit"):
                 setattr(self, p.name, float(p.value))
         return SetParametersResult(successful=True)
@@ -170,7 +181,8 @@ class ControllerNode(Node):
         tau_d = self.gate.load(clock_now.nanoseconds * 1e-9)
         tau_ff = 0.0 if tau_d is None else self.balancing_torque(tau_d, self.speed_setpoint)
         cmd = SpeedCommand(speed_setpoint=self.speed_setpoint, feedforward_torque=tau_ff, kp=self.kp, ki=self.ki,
-                           voltage_limit=self.voltage_limit)
+                           voltage_limit=self.voltage_limit,
+                           feedforward_at_rig=self.gate.enabled and self.feedforward_at_rig)
         if self.estimate is not None:
             cmd.sample_seq = self.estimate.seq
             cmd.sample_stamp = self.estimate.header.stamp
@@ -188,7 +200,8 @@ class ControllerNode(Node):
         return level, ("feedforward wanted but no usable estimate" if level == WARN else "controlling"), {
             "commands": self.commands, "feedforward_used": self.feedforward_used,
             "estimate_clock_lag_ms": round(self.gate.clock_lag * 1e3, 3), "late_estimates": self.late_estimates,
-            "speed_setpoint": self.speed_setpoint, "feedforward": self.gate.enabled}
+            "speed_setpoint": self.speed_setpoint, "feedforward": self.gate.enabled,
+            "feedforward_at_rig": self.feedforward_at_rig}
 
 
 def seconds(stamp) -> float:

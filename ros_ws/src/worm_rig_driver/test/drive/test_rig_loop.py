@@ -92,3 +92,43 @@ def test_argument_checks() -> None:
         RigLoop(RIG, 0.0, TIMEOUT, DEFAULT_GAINS)
     with pytest.raises(ValueError):
         RigLoop(RIG, T, 0.0, DEFAULT_GAINS)
+
+
+class _Recording:
+    """A rig feedforward that gives back a torque made of the last sample it saw and the set-point."""
+
+    def __init__(self) -> None:
+        self.seen: list[tuple] = []
+
+    def observe(self, omega, current, voltage, theta, seq) -> None:
+        self.seen.append((omega, current, voltage, theta, seq))
+
+    def torque(self, setpoint: float) -> float:
+        return 1e-4 * self.seen[-1][4] + 1e-6 * setpoint
+
+
+def test_a_command_at_rig_is_fed_the_rigs_own_feedforward_of_the_sample_just_taken() -> None:
+    """observe() hands every sample over; step() then drives the next period with that sample's torque (at the
+    command's set-point) in place of the command's feedforward, and counts those periods."""
+    source = _Recording()
+    loop = RigLoop(RIG, T, TIMEOUT, DEFAULT_GAINS, feedforward=source)
+    reference = PiLoop(RIG, DEFAULT_GAINS, RIG.supply_voltage)
+    loop.command_speed(SpeedCommand(150.0, 0.5, DEFAULT_GAINS.kp, DEFAULT_GAINS.ki, 24.0, 3, at_rig=True), 0.0)
+    for seq in range(4, 9):
+        loop.observe(140.0 + seq, 0.3, 12.0, 0.01 * seq, seq)
+        out = loop.step(seq * T, 140.0 + seq, seq)
+        expected = 1e-4 * seq + 1e-6 * 150.0
+        assert out.feedforward == expected and out.voltage == reference.update(T, 150.0, 140.0 + seq, expected)
+    assert source.seen[-1] == (148.0, 0.3, 12.0, 0.08, 8) and len(source.seen) == 5
+    assert loop.feedforward_at_rig == 5
+    # the same rig, a command without at_rig: the command's own feedforward
+    loop.command_speed(command(setpoint=150.0, feedforward=0.02, source=9), 0.009)
+    loop.observe(150.0, 0.3, 12.0, 0.1, 10)
+    assert loop.step(0.010, 150.0, 10).feedforward == 0.02 and loop.feedforward_at_rig == 5
+
+
+def test_a_command_at_rig_on_a_rig_without_an_estimator_uses_its_own_feedforward() -> None:
+    loop = RigLoop(RIG, T, TIMEOUT, DEFAULT_GAINS)
+    loop.observe(1.0, 0.1, 1.0, 0.0, 1)  # nothing to hand it to: no effect
+    loop.command_speed(SpeedCommand(150.0, 0.02, DEFAULT_GAINS.kp, DEFAULT_GAINS.ki, 24.0, 1, at_rig=True), 0.0)
+    assert loop.step(0.001, 150.0, 2).feedforward == 0.02 and loop.feedforward_at_rig == 0

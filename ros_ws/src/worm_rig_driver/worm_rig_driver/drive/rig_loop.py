@@ -10,6 +10,14 @@ microseconds. Modes:
   SPEED    a speed command (worm_msgs/SpeedCommand): the PI of speed_loop runs on
            every sample with the command's set-point, feedforward torque and gains.
 
+Feedforward at the rig: given a ``feedforward`` source (:class:`RigFeedforward`,
+an estimator beside the PI: drive.feedforward_plugin finds one), the caller hands
+every sample to :meth:`RigLoop.observe` before :meth:`RigLoop.step`, and a speed
+command with ``at_rig`` set is fed the source's torque for the coming period in
+place of its own ``feedforward``: the estimate of the sample just taken drives the
+very next period, where a controller's command would reach the rig a batch and a
+transit later. Without a source, ``at_rig`` commands use their ``feedforward``.
+
 Timing (the firmware's): :meth:`RigLoop.step` is called when sample ``seq`` has
 just been taken, at the start of the next sample period, and returns the voltage
 for that period. A command takes effect at the first step after it arrived.
@@ -30,6 +38,7 @@ import math
 from collections import Counter
 from dataclasses import dataclass
 from enum import IntEnum
+from typing import Protocol
 
 from worm_model.physics.parameters import Rig
 
@@ -52,6 +61,8 @@ class SpeedCommand:
         kp, ki: PI gains [N m s/rad], [N m/rad].
         voltage_limit: largest |V| [V] (the loop also clamps to the rig's supply).
         source_seq: seq of the newest rig sample the command was computed from (0: unknown).
+        at_rig: feed the PI the rig's own feedforward (RigLoop's ``feedforward`` source) instead of
+            ``feedforward``, when the rig has one.
     """
 
     setpoint: float
@@ -60,6 +71,7 @@ class SpeedCommand:
     ki: float
     voltage_limit: float
     source_seq: int = 0
+    at_rig: bool = False
 
     def problem(self) -> str:
         """Why the rig refuses this command ('' if it is usable)."""
@@ -73,15 +85,32 @@ class SpeedCommand:
         return ""
 
 
+class RigFeedforward(Protocol):
+    """A feedforward the rig computes itself, one sample at a time (module docstring).
+
+    ``observe`` takes sample ``seq``: worm speed [rad/s], drive current [A], the drive voltage of
+    the sample [V] and the worm encoder angle [rad]; ``torque`` gives the torque at the worm [N m]
+    (positive turns the worm positively) to add to the PI output for the period that follows, at
+    worm speed set-point ``setpoint`` [rad/s]: 0 when the estimate is unusable. Both run in the
+    rig's sample thread, so they must take microseconds, not milliseconds.
+    """
+
+    def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> None: ...
+
+    def torque(self, setpoint: float) -> float: ...
+
+
 @dataclass(frozen=True)
 class LoopOutput:
     """One step's result: the voltage [V] for the coming period, the mode, and the speed command's
-    source seq in force (0 outside SPEED); ``saturated``: the PI hit its voltage limit."""
+    source seq in force (0 outside SPEED); ``saturated``: the PI hit its voltage limit;
+    ``feedforward``: the torque at the worm [N m] added to the PI output."""
 
     voltage: float
     mode: DriveMode
     command_seq: int
     saturated: bool
+    feedforward: float = 0.0
 
 
 class RigLoop:
@@ -94,10 +123,11 @@ class RigLoop:
         gains: PI gains until a speed command brings its own.
         seq_period: [s] per unit of the samples' seq (default: sample_period; a rig streaming
             every n-th tick of its clock has sample_period = n * seq_period).
+        feedforward: the rig's own feedforward source (None: commands bring theirs).
     """
 
     def __init__(self, rig: Rig, sample_period: float, command_timeout: float, gains: PiGains,
-                 seq_period: float | None = None) -> None:
+                 seq_period: float | None = None, feedforward: RigFeedforward | None = None) -> None:
         if not (sample_period > 0 and command_timeout > 0):
             raise ValueError(f"need sample_period > 0 and command_timeout > 0, got {sample_period}, {command_timeout}")
         self.rig = rig
@@ -111,6 +141,8 @@ class RigLoop:
         self.mode = DriveMode.STOPPED
         self.commanded = False  # a command arrived at some point (STOPPED after that: the watchdog)
         self.latencies: Counter[int] = Counter()  # seq units from source sample to effect -> commands
+        self.feedforward = feedforward
+        self.feedforward_at_rig = 0  # periods driven with the rig's own feedforward
 
     # --- commands (any thread) -------------------------------------------------------------
     def command_voltage(self, voltage: float, now: float) -> str:
@@ -132,6 +164,12 @@ class RigLoop:
         self._pending = None
 
     # --- every sample (the rig's thread) ---------------------------------------------------
+    def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> None:
+        """Hand sample ``seq`` to the rig's feedforward source, if any (call for every sample, before
+        :meth:`step`): worm speed [rad/s], drive current [A], drive voltage [V], worm angle [rad]."""
+        if self.feedforward is not None:
+            self.feedforward.observe(omega, current, voltage, theta, seq)
+
     def step(self, now: float, omega_measured: float, seq: int) -> LoopOutput:
         """The voltage for the period starting at ``now`` [s], sample ``seq`` having just been taken
         (``omega_measured`` [rad/s] its worm speed)."""
@@ -156,8 +194,12 @@ class RigLoop:
             if command.source_seq:
                 self.latencies[max(seq - command.source_seq, 0)] += 1
         self.mode = DriveMode.SPEED
-        voltage = self.pi.update(self.sample_period, command.setpoint, omega_measured, command.feedforward)
-        return LoopOutput(voltage, mode, command.source_seq, self.pi.saturated)
+        feedforward = command.feedforward
+        if command.at_rig and self.feedforward is not None:
+            feedforward = self.feedforward.torque(command.setpoint)
+            self.feedforward_at_rig += 1
+        voltage = self.pi.update(self.sample_period, command.setpoint, omega_measured, feedforward)
+        return LoopOutput(voltage, mode, command.source_seq, self.pi.saturated, feedforward)
 
     @property
     def watchdog_stopped(self) -> bool:
@@ -177,4 +219,4 @@ class RigLoop:
         return max(self.latencies) * self.seq_period
 
 
-__all__ = ["DriveMode", "LoopOutput", "RigLoop", "SpeedCommand"]
+__all__ = ["DriveMode", "LoopOutput", "RigFeedforward", "RigLoop", "SpeedCommand"]

@@ -14,7 +14,9 @@ firmware would: the drive voltage for the next tick is computed the moment a
 frame arrives and sent back at once. Anything non-finite or beyond
 max_drive_voltage / max_load_torque is refused with a logged reason; no drive or
 speed command for ``command_timeout`` sets the drive to zero (and the firmware's
-own watchdog stops the motors when the host goes quiet).
+own watchdog stops the motors when the host goes quiet). With ``feedforward_estimator``
+set, an estimator runs in that thread too, on every sample, and speed commands with
+feedforward_at_rig get its feedforward on the next tick (rig_topics.declare_rig_feedforward).
 
 The port is owned by a reader thread (serial_link.SerialLink: why a thread is
 said there); the protocol, the limits and the statistics are link.LinkCore.
@@ -40,7 +42,8 @@ from worm_rig_driver.link.serial_link import SUPPORTED_BAUDS, SerialLink
 from worm_rig_driver.drive.realtime import make_realtime
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
-from worm_rig_driver.nodes.rig_topics import FIELDS, RigTopics, log_refusal, speed_command_from_msg, subscribe_commands
+from worm_rig_driver.nodes.rig_topics import (FIELDS, RigTopics, declare_rig_feedforward, log_refusal,
+                                             speed_command_from_msg, subscribe_commands)
 
 
 class DriverNode(Node):
@@ -88,8 +91,10 @@ class DriverNode(Node):
                         LinkConfig(stream_rate_hz=rate, rx_timeout=rx_timeout, command_timeout=command_timeout,
                                    clock_max_drift=drift))
         tick = 1.0 / table.SAMPLE_RATE_HZ
-        self.loop = RigLoop(self.rig, tick * table.SAMPLE_RATE_HZ / max(rate, 1), command_timeout, DEFAULT_GAINS,
-                            seq_period=tick)
+        sample_period = tick * table.SAMPLE_RATE_HZ / max(rate, 1)
+        self._seq_step = max(1, round(sample_period / tick))  # clock ticks per streamed sample
+        self.loop = RigLoop(self.rig, sample_period, command_timeout, DEFAULT_GAINS, seq_period=tick,
+                            feedforward=declare_rig_feedforward(self, self.rig, sample_period))
         self.topics = RigTopics(self, self.frame_id, tick, batch_size, decimation, self.scaling.counts_per_rev)
         self._command_seq = 0  # the speed command in force for the next frame (its source seq)
         self._sent_voltage = 0.0  # [V] the last drive voltage sent to the rig
@@ -145,6 +150,8 @@ class DriverNode(Node):
             values = {name: getattr(s, name) for name in FIELDS}
             values["status"] |= stopped
             self.topics.add(s.seq, s.stamp_ns, values, self._command_seq)
+            # every sample to the rig's own estimator, numbered in samples (its gaps are lost samples)
+            self.loop.observe(s.omega_worm, s.current_drive, s.voltage_drive, s.theta_worm, s.seq // self._seq_step)
         newest = samples[-1]
         out = self.loop.step(time.monotonic(), newest.omega_worm, newest.seq)
         self._command_seq = out.command_seq
@@ -171,7 +178,7 @@ class DriverNode(Node):
             log.info(message)
 
     def report(self) -> tuple[bytes, str, dict]:
-        values = self.link.report()
+        values = {**self.link.report(), "feedforward_at_rig_samples": self.loop.feedforward_at_rig}
         state = LinkState(values["state"])
         level, message = OK, "streaming"
         if state is LinkState.INCOMPATIBLE:

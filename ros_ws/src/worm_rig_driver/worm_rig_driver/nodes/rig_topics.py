@@ -35,9 +35,13 @@ from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from worm_msgs.msg import DriveCommand, EncoderCounts, LoadCommand, MotorCurrents, RigSample, RigSamples, SpeedCommand
 
+from worm_model.physics.parameters import Rig
 from worm_model.ros.commands import subscribe_command
+from worm_model.ros.parameters import declare
 from worm_model.ros.qos import STREAM
 
+from worm_rig_driver.drive.feedforward_plugin import FeedforwardUnavailable, load_rig_feedforward
+from worm_rig_driver.drive.rig_loop import RigFeedforward
 from worm_rig_driver.drive.rig_loop import SpeedCommand as LoopCommand
 
 #: RigSamples' per-sample fields, in message order (RigSample's fields of the same names)
@@ -140,7 +144,34 @@ class RigTopics:
 def speed_command_from_msg(msg: SpeedCommand) -> LoopCommand:
     """The rig loop's view of a worm_msgs/SpeedCommand (RigLoop.command_speed checks it)."""
     return LoopCommand(setpoint=msg.speed_setpoint, feedforward=msg.feedforward_torque, kp=msg.kp, ki=msg.ki,
-                       voltage_limit=msg.voltage_limit, source_seq=msg.sample_seq)
+                       voltage_limit=msg.voltage_limit, source_seq=msg.sample_seq, at_rig=msg.feedforward_at_rig)
+
+
+def declare_rig_feedforward(node: Node, rig: Rig, sample_period: float) -> RigFeedforward | None:
+    """The estimator the rig runs beside its speed loop, from the node's parameters feedforward_estimator and
+    feedforward_calibration (None when feedforward_estimator is empty).
+
+    Raises:
+        ValueError: it cannot be built (one line naming the parameter; run_node exits 2 with it).
+    """
+    method = declare(node, "feedforward_estimator", "",
+                     "Load-torque estimator run beside the speed loop on every sample, whose feedforward drives "
+                     "the very next period for speed commands with feedforward_at_rig (the controller_node "
+                     "parameter of that name): a method of torque_estimator (observer, knn, extended_model). "
+                     "Empty: none; commands bring their own feedforward_torque.")
+    calibration = declare(node, "feedforward_calibration", "",
+                          "Calibration database of that estimator (the file `calibrate` writes); empty: none "
+                          "(observer and extended_model work from the rig file alone).")
+    if not method:
+        return None
+    try:
+        source = load_rig_feedforward(method, calibration, rig, sample_period)
+    except FeedforwardUnavailable as err:
+        raise ValueError(f"parameter feedforward_estimator={method!r} (feedforward_calibration="
+                         f"{calibration!r}): {err}") from None
+    node.get_logger().info(f"feedforward at the rig: {method} estimator"
+                           + (f" on the calibration {calibration}" if calibration else " without a calibration"))
+    return source
 
 
 def subscribe_commands(node: Node, on_speed: Callable[[SpeedCommand], None],
@@ -168,4 +199,5 @@ def log_refusal(node: Node, what: str, reason: str) -> None:
         log.warning(text, throttle_duration_sec=1.0)
 
 
-__all__ = ["FIELDS", "RigTopics", "log_refusal", "speed_command_from_msg", "subscribe_commands"]
+__all__ = ["FIELDS", "RigTopics", "declare_rig_feedforward", "log_refusal", "speed_command_from_msg",
+           "subscribe_commands"]

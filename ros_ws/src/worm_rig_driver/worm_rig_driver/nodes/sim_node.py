@@ -17,7 +17,11 @@ decimated likewise, when ``publish_truth``), /diagnostics. Commands:
 /rig/speed_command (SpeedCommand: the speed loop), /rig/drive_command
 (DriveCommand: hold a voltage), /rig/load_command (LoadCommand). A drive or
 speed command older than ``command_timeout`` stops the drive motor (watchdog;
-the samples say so in STATUS_WATCHDOG_STOP). The parameter effects_file switches
+the samples say so in STATUS_WATCHDOG_STOP). With ``feedforward_estimator`` set, an
+estimator runs beside the speed loop on every sample, and speed commands with
+feedforward_at_rig get its feedforward on the very next period (rig_topics.
+declare_rig_feedforward; the rig's figures in bench/controller_bench.py's rig
+timing). The parameter effects_file switches
 on effects the model lacks (a worm_rig_effects file, see sim/effects.py); the
 model is not told.
 """
@@ -39,7 +43,8 @@ from worm_model.ros.parameters import declare
 from worm_rig_driver.drive.realtime import make_realtime
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
-from worm_rig_driver.nodes.rig_topics import RigTopics, log_refusal, speed_command_from_msg, subscribe_commands
+from worm_rig_driver.nodes.rig_topics import (RigTopics, declare_rig_feedforward, log_refusal, speed_command_from_msg,
+                                             subscribe_commands)
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 _WATCHDOG = RigSample.STATUS_WATCHDOG_STOP
@@ -77,7 +82,8 @@ class SimNode(Node):
         self.rig = load_rig(rig_file or None)
         self.sim = SimulatedRig(self.rig, n=1, seed=seed, substeps=substeps, effects=effects_file or None)
         self.period = self.sim.sample_period
-        self.loop = RigLoop(self.rig, self.period, command_timeout, DEFAULT_GAINS)
+        feedforward = declare_rig_feedforward(self, self.rig, self.period)
+        self.loop = RigLoop(self.rig, self.period, command_timeout, DEFAULT_GAINS, feedforward=feedforward)
         self.topics = RigTopics(self, frame_id, self.period, batch_size, decimation, self.sim.sensors.counts_per_rev)
         self.decimation = decimation
         self.pub_truth = self.create_publisher(SimTruth, "/sim/truth", self.topics.pub_sample.qos_profile) \
@@ -155,6 +161,8 @@ class SimNode(Node):
         m = self.sim.sample()
         seq = self.sim.seq
         command_seq, status_bits = self._in_force
+        self.loop.observe(float(m.omega_worm[0]), float(m.current_drive[0]), float(m.voltage_drive[0]),
+                          float(m.theta_worm[0]), seq)
         out = self.loop.step(seq * self.period, float(m.omega_worm[0]), seq)
         self.sim.command(voltage_drive=out.voltage)
         self._in_force = (out.command_seq, (_WATCHDOG if self.loop.watchdog_stopped or out.mode == DriveMode.STOPPED
@@ -191,6 +199,7 @@ class SimNode(Node):
         return level, message, {
             "samples": self.sim.seq, "skipped_samples": self.skipped_samples, "late_samples": self.late_samples,
             "rejected_commands": self.rejected_commands, "mode": self.loop.mode.name,
+            "feedforward_at_rig_samples": self.loop.feedforward_at_rig,
             "command_latency_p50_ms": self.loop.latency_percentile(50) * 1e3,
             "command_latency_p99_ms": self.loop.latency_percentile(99) * 1e3}
 
