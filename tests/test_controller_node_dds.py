@@ -146,3 +146,76 @@ controller_node:
     assert sum(fed) / len(fed) == pytest.approx(expected, rel=0.1), (
         sum(fed) / len(fed), expected, (graph.log_dir / "controller_node.log").read_text()[-3000:])
     assert not graph.failed(), graph.failed()
+    assert set(graph.stop().values()) == {0}  # the next test's rig and controller must be the only ones
+
+
+def test_feedforward_at_the_rig_meets_a_load_step_within_a_few_samples(start_graph: Callable[[str, str], Graph]
+                                                                       ) -> None:
+    """sim_node runs the observer beside its PI (feedforward_estimator) and controller_node asks for it
+    (feedforward_at_rig); no estimator_node runs, so any feedforward is the rig's own. After a resistive load
+    step the drive voltage has made most of its way to the new steady value within a few samples: the
+    feedforward moved it, where the PI alone (feedforward_at_rig set false at run time, as `ros2 param set` does)
+    has barely started. Judged on the rig's own samples (the applied load's step, their seqs)."""
+    import numpy as np
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+    from worm_msgs.msg import LoadCommand
+
+    graph = start_graph("""\
+sim_node:
+  ros__parameters:
+    command_timeout: 0.1
+    feedforward_estimator: observer
+controller_node:
+  ros__parameters:
+    speed_setpoint: 150.0
+    feedforward_at_rig: true
+""", "controller_at_rig")
+    with probe_node("controller_at_rig_probe") as (node, executor):
+        samples: list = []
+        node.create_subscription(RigSamples, "/rig/samples", lambda m: samples.extend(unbatch(m)), STREAM)
+        load = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
+
+        def rig_time(seconds: float) -> None:
+            """Spin until the rig's clock has advanced by `seconds` (its samples' seqs)."""
+            deadline = time.monotonic() + 60.0
+            while not samples and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.01)
+            assert samples, f"no samples; logs in {graph.log_dir}"
+            start = samples[-1].seq
+            while samples[-1].seq - start < seconds * 1000 and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.01)
+            assert samples[-1].seq - start >= seconds * 1000, "the rig stopped sampling"
+
+        def step_response(torque: float) -> float:
+            """Apply a load step once the speed has settled; the voltage's mean change 5-15 samples after it,
+            as a fraction of its change to the new steady state."""
+            rig_time(1.5)
+            first = len(samples)
+            load.publish(LoadCommand(torque=torque))
+            rig_time(1.5)
+            tau = np.array([s.tau_load for s in samples])
+            volts = np.array([s.voltage_drive for s in samples])
+            # the first sample under the new load
+            k = first + int(np.argmax(np.abs(tau[first:] - torque) < 0.5 * abs(torque)))
+            assert k >= 200 and len(samples) - k >= 1000, (first, k, len(samples))
+            before, after = volts[k - 200:k].mean(), volts[-300:].mean()
+            return float((volts[k + 5:k + 16].mean() - before) / (after - before))
+
+        deadline = time.monotonic() + 60.0  # the controller running and the worm up to speed
+        while (load.get_subscription_count() == 0 or not samples or samples[-1].omega_worm < 140.0) \
+                and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert samples and samples[-1].omega_worm >= 140.0, f"the worm never reached speed; logs in {graph.log_dir}"
+        at_rig = step_response(0.2)
+        load.publish(LoadCommand(torque=0.0))
+        client = AsyncParameterClient(node, "controller_node")  # what `ros2 param set` calls
+        assert client.wait_for_services(timeout_sec=30.0), "controller_node's parameter services"
+        future = client.set_parameters([Parameter("feedforward_at_rig", value=False)])
+        executor.spin_until_future_complete(future, timeout_sec=30.0)
+        assert future.done() and all(r.successful for r in future.result().results), future.result()
+        pi_alone = step_response(0.2)
+    # measured in 8 runs (4 with a CPU hog): 0.97-1.07 with the rig's feedforward, 0.32-0.36 without
+    assert at_rig > 0.8 and pi_alone < 0.45, (at_rig, pi_alone, f"logs in {graph.log_dir}")
+    assert not graph.failed(), graph.failed()
+    assert set(graph.stop().values()) == {0}
