@@ -14,10 +14,13 @@ Per sample, what sim_node, estimator_node and controller_node do over DDS:
      ``ff_latency`` sample periods after the next one on (the latency the graph
      benchmark reads off the rig's stream: 0 = the very next period).
 
-Timings: the firmware's (``ff_batch`` 1, ``ff_latency`` 1: the estimate of one
-sample feeds the period after next, as a loop on the rig's own clock fed by a
-separate estimator would) and the node graph's (``ff_batch`` 5, ``ff_latency``
-as measured by bench/graph_bench.py).
+Timings: the rig's (``ff_batch`` 1, ``ff_latency`` 0: the estimator beside the
+rig's PI, the estimate of a sample feeding the very next period, as the shipped
+graph runs it: sim_node's feedforward_estimator, control.rig_feedforward; a test
+holds RigLoop with it equal to this loop), the firmware's (``ff_batch`` 1,
+``ff_latency`` 1: the estimate of one sample feeds the period after next, as a
+loop on the rig's own clock fed by a separate estimator would) and the node
+graph's (``ff_batch`` 5, ``ff_latency`` as measured by bench/graph_bench.py).
 
 Feedforward modes: "off" (PI only), "estimate" (the estimator's τ_d),
 "truth" (the load the rig actually applied, through the same batch and
