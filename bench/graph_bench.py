@@ -4,9 +4,10 @@
                                  (run_all.py runs it with its own ROS_DOMAIN_ID)
 
 The graph of sim_graph.yaml (its estimator method, the observer; calibration written
-first) runs as a rig computer runs it: sim_node, model_node, estimator_node and
-controller_node in one process at SCHED_FIFO 40 (`run_graph sim_graph.yaml --together
-<all> --priority 40`; graph.runner.rig_computer), the recorder (`ros2 run worm_rig_driver
+first) runs as a rig computer runs it: sim_node in a process of its own, model_node,
+estimator_node and controller_node together in another, both at SCHED_FIFO 40
+(`run_graph sim_graph.yaml --together model_node,estimator_node,controller_node
+--priority 40`; graph.runner.rig_computer), the recorder (`ros2 run worm_rig_driver
 recorder`, the graph's streams /rig/samples, /torque_estimate, /gearbox/forces,
 /rig/speed_command) beside it at normal priority. Twice (the second time while a CPU
 hog started here holds one core busy at normal priority): commands 150 rad/s and a

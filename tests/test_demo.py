@@ -24,6 +24,7 @@ def test_demo_runs_end_to_end(tmp_path: Path) -> None:
                           env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, f"demo failed:\n{done.stdout[-4000:]}\n{done.stderr[-4000:]}"
     summary = done.stdout[done.stdout.index("Summary"):]
+    print(summary)  # shown with -s or -rP: the live figures of this run
 
     held_out = re.search(r"held-out estimation error \(17 points\): mean ([\d.]+) %, max ([\d.]+) %", summary)
     assert held_out, summary
@@ -40,12 +41,15 @@ def test_demo_runs_end_to_end(tmp_path: Path) -> None:
         r"feedforward (off|on)\s+4\s+([\d.]+) rad/s\s+([\d.]+) rad", summary)}
     assert set(steps) == {"off", "on"}, summary
     (dip_off, iae_off), (dip_on, iae_on) = steps["off"], steps["on"]
-    # what the README says of the load steps: feedforward cuts the IAE by about two thirds (0.34-0.37 of it
-    # in every run seen) and the worst dip as the table reads it (true speed at 100 Hz) to 0.50-0.77 of it
-    # (seven runs with a CPU hog on one core; 0.87 once with four other jobs on the machine)
-    assert 4.0 < dip_off < 5.2 and 2.0 < iae_off < 2.8, steps
-    assert iae_on < 0.45 * iae_off, steps
-    assert dip_on < 0.95 * dip_off, steps
+    # what the README says of the load steps, with the feedforward at the rig and the rig in its own process
+    # (graph.runner.rig_computer): it cuts the IAE to 0.32-0.35 of it and the worst dip to 0.52-0.57 of it
+    # (issue 14: by >= 40 %), read on the true speed at every sample (/sim/truth_samples); seven runs, three
+    # with a CPU hog on one core; the off dip 4.82-5.10 rad/s, its IAE 2.31-2.36 rad. (Through the graph's
+    # batches, before the rig fed forward itself: 0.53-0.68; with the four nodes in one process the graph fell
+    # behind the rig in every run, the dip to 0.78 of it once.)
+    assert 4.0 < dip_off < 5.5 and 2.0 < iae_off < 2.8, steps
+    assert iae_on < 0.4 * iae_off, steps
+    assert dip_on < 0.6 * dip_off, steps
 
     for name in ("calibration.json", "held_out_deviation.png", "estimate_vs_truth.png", "tracking.png"):
         assert (out / name).stat().st_size > 0, name

@@ -45,7 +45,7 @@ GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_grap
 RECORDINGS = {"mcap": ("mcap", "none"), "mcap_zstd": ("mcap", "zstd"), "sqlite3": ("sqlite3", "none")}
 #: the types the graph publishes (with a recorder subscribed to everything) and this test's probe adds
 GRAPH_TYPES = {
-    "worm_msgs/msg/RigSamples", "worm_msgs/msg/SimTruth", "worm_msgs/msg/MotorCurrents",
+    "worm_msgs/msg/RigSamples", "worm_msgs/msg/SimTruth", "worm_msgs/msg/SimTruths", "worm_msgs/msg/MotorCurrents",
     "worm_msgs/msg/EncoderCounts", "worm_msgs/msg/GearboxForces", "worm_msgs/msg/TorqueEstimate",
     "worm_msgs/msg/SpeedCommand", "worm_msgs/msg/LoadCommand", "sensor_msgs/msg/JointState",
     "geometry_msgs/msg/WrenchStamped", "diagnostic_msgs/msg/DiagnosticArray", "std_msgs/msg/Float64",

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -33,11 +34,11 @@ from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from worm_msgs.msg import (DriveCommand, EncoderCounts, GearboxForces, LoadCommand, MotorCurrents, RigSample,
-                           RigSamples, SimTruth, SpeedCommand, TorqueEstimate)
+                           RigSamples, SimTruth, SimTruths, SpeedCommand, TorqueEstimate)
 
 from torque_estimator.estimation.database import load_database
 from torque_estimator.graph.runner import Graph, parse_overrides
-from worm_model.rig_data.samples import command_latencies, stamp_ns, unbatch
+from worm_model.rig_data.samples import TRUTH_FIELDS, command_latencies, stamp_ns, unbatch
 from worm_model.ros.qos import COMMAND
 from worm_model.ros.testing import probe_node
 
@@ -55,6 +56,8 @@ PER_BATCH_TOPICS = {"/torque_estimate": TorqueEstimate}
 FORCES_EVERY = 20  # model_node's publish_period (20 ms) in samples: it answers the newest of each chunk
 SLOW_TOPICS = {"/rig/currents": MotorCurrents, "/rig/joint_states": JointState,
                "/rig/encoders": EncoderCounts, "/sim/truth": SimTruth}
+#: batched like /rig/samples (every sample, BATCH per message, same first_seq and stamp)
+SAMPLE_BATCH_TOPICS = {"/sim/truth_samples": SimTruths}
 #: Best effort on a loaded 2-core machine: at least this share of what was sent must arrive.
 DELIVERED = 0.9
 RATE_WINDOW = 3.0  # [s]
@@ -232,7 +235,7 @@ def test_every_topic_flows_at_its_configured_rate(graph: RunningGraph, probe: Pr
     estimate and one forces message per batch (for its newest sample); the decimated channels every
     10th sample; a speed command per estimate. Counted on the stream's own seqs and stamps."""
     topics = {"/rig/samples": RigSamples, "/rig/speed_command": SpeedCommand, "/gearbox/forces": GearboxForces,
-              **PER_BATCH_TOPICS, **SLOW_TOPICS}
+              **PER_BATCH_TOPICS, **SLOW_TOPICS, **SAMPLE_BATCH_TOPICS}
     rec, subs = probe.record(topics)
     try:
         assert probe.wait_all_flowing(rec), (
@@ -281,12 +284,109 @@ def test_every_topic_flows_at_its_configured_rate(graph: RunningGraph, probe: Pr
     assert len(commands) >= 0.75 * len(estimates), f"{len(commands)} speed commands for {len(estimates)} estimates"
     truth = [m.seq for m in rec.messages["/sim/truth"]]
     assert all(s % DECIMATION == 0 for s in truth)
+    firsts = {b.first_seq for b in batches}
+    for topic in SAMPLE_BATCH_TOPICS:
+        in_span = [b for b in rec.messages[topic] if seqs[0] <= b.first_seq <= seqs[-1]]
+        report.append(f"{topic} {len(in_span)} batches")
+        assert all(len(b.tau_load) == BATCH and b.sample_period == SAMPLE_PERIOD for b in in_span), topic
+        assert len(in_span) * BATCH >= DELIVERED * span, f"{topic}: {len(in_span) * BATCH} samples of {span}"
+        assert {b.first_seq % BATCH for b in in_span} == {f % BATCH for f in firsts}, \
+            f"{topic}: batches not aligned with /rig/samples'"
     for topic in SLOW_TOPICS:
         in_span = [m for m in rec.messages[topic] if t0 <= stamp_s(m.header) <= stamp_s(samples[-1].header)]
         report.append(f"{topic} {len(in_span)}")
         assert len(in_span) >= DELIVERED * span / DECIMATION, f"{topic}: {len(in_span)} in {span} samples"
     print(", ".join(report))
     graph.assert_alive()
+
+
+#: /sim/truth_samples' test: how long a stretch of the rig's stream it judges, how often the load steps in it
+TRUTH_SPAN = 3000  # [samples]
+LOAD_EVERY = 250  # [samples]
+LOAD_STEP = 0.2  # [N m] load applied every other LOAD_EVERY samples
+#: [N m] how far a sample's measured tau_load may lie outside the true load over its period: K_t,load (0.055 N m/A)
+#: x the two load currents, each with 0.02 A of noise (sigma 0.0016 N m) and rounded to 0.026 A (at most 0.0015 N m
+#: together). Over 8 sigma; a truth off by one sample misses by 0.03 N m or more on a LOAD_STEP step.
+TAU_LOAD_TOLERANCE = 0.015
+
+
+def test_sim_truth_samples_carry_every_sample_once_in_the_rig_batches(graph: RunningGraph) -> None:
+    """/sim/truth_samples (SimTruths): every sample's truth exactly once, in batches aligned with /rig/samples'
+    (same first_seq, stamp, sample period and length), the truth of the very sample of that seq: each sample's
+    measured tau_load lies between the true load at its period's start and end (within the sensor noise), through
+    load steps. Judged on the streams' own numbers, the samples' seqs and the DDS publication sequence numbers
+    (which tell a message this best-effort probe missed from one the rig never sent), never on the wall clock.
+    The probe is its own node on a SingleThreadedExecutor: the module's EventsExecutor cannot deliver message info."""
+    truths: list[tuple[int, SimTruths]] = []
+    batches: dict[int, RigSamples] = {}
+
+    def on_truth(msg: SimTruths, info) -> None:
+        truths.append((info["publication_sequence_number"], msg))
+
+    with probe_node("truth_samples_probe", SingleThreadedExecutor) as (node, executor):
+        node.create_subscription(SimTruths, "/sim/truth_samples", on_truth, PROBE_QOS)
+        node.create_subscription(RigSamples, "/rig/samples", lambda m: batches.setdefault(m.first_seq, m), PROBE_QOS)
+        load = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
+
+        def spin_until(done: Callable[[], bool], timeout: float) -> bool:
+            deadline = time.monotonic() + timeout
+            while not done() and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.05)
+            return done()
+
+        assert spin_until(lambda: bool(truths and batches) and load.get_subscription_count() >= 1, START_TIMEOUT), \
+            f"/sim/truth_samples: {len(truths)} messages, /rig/samples: {len(batches)}\n{graph.logs()}"
+        first, phase = truths[0][1].first_seq, None
+
+        def stepping() -> bool:  # the load steps every LOAD_EVERY samples of the rig's clock
+            nonlocal phase
+            newest = truths[-1][1].first_seq
+            if (now := (newest - first) // LOAD_EVERY % 2) != phase:
+                phase = now
+                load.publish(LoadCommand(torque=LOAD_STEP * now))
+            return newest - first >= TRUTH_SPAN
+
+        try:
+            assert spin_until(stepping, 60.0), (f"/sim/truth_samples: {truths[-1][1].first_seq - first} samples "
+                                                f"of {TRUTH_SPAN} in 60 s\n{graph.logs()}")
+        finally:
+            load.publish(LoadCommand(torque=0.0))  # no load for the tests after this one: wait till the rig has it
+            end = truths[-1][1].first_seq
+            spin_until(lambda: truths[-1][1].first_seq > end and abs(truths[-1][1].tau_load[-1]) < 0.01, 10.0)
+    graph.assert_alive()
+
+    # every batch whole; consecutive DDS numbers hold consecutive samples (a missed message: BATCH samples per number)
+    assert all(len(getattr(m, name)) == BATCH for _, m in truths for name in TRUTH_FIELDS), "a batch not of BATCH"
+    assert all(m.sample_period == SAMPLE_PERIOD for _, m in truths)
+    published = truths[-1][0] - truths[0][0] + 1
+    assert len(truths) >= DELIVERED * published, f"the probe got {len(truths)} of {published} messages"
+    for (n1, a), (n2, b) in zip(truths, truths[1:]):
+        assert b.first_seq == a.first_seq + BATCH * (n2 - n1), (
+            f"DDS numbers {n1} -> {n2}: seqs {a.first_seq} -> {b.first_seq}: samples skipped or repeated")
+    # the same batches as /rig/samples'
+    paired = [(m, batches[m.first_seq]) for _, m in truths if m.first_seq in batches]
+    assert len(paired) >= DELIVERED * len(truths), f"{len(paired)} of {len(truths)} truth batches with their samples"
+    for m, b in paired:
+        assert (m.header.stamp, m.header.frame_id, len(m.tau_load)) == (b.header.stamp, b.header.frame_id,
+                                                                       len(b.tau_load)), m.first_seq
+    assert {m.first_seq % BATCH for _, m in truths} == {f % BATCH for f in batches}
+    # each sample's truth is that of the sample of its seq
+    true_load = {m.first_seq + k: tau for _, m in truths for k, tau in enumerate(m.tau_load)}
+    measured = {b.first_seq + k: tau for b in batches.values() for k, tau in enumerate(b.tau_load)}
+    judged, outside = 0, []
+    for seq in sorted(true_load.keys() & measured.keys()):
+        if seq - 1 not in true_load:
+            continue
+        low, high = sorted((true_load[seq - 1], true_load[seq]))
+        judged += 1
+        if not low - TAU_LOAD_TOLERANCE <= measured[seq] <= high + TAU_LOAD_TOLERANCE:
+            outside.append((seq, true_load[seq - 1], measured[seq], true_load[seq]))
+    steps = sum(1 for seq in true_load if seq - 1 in true_load and abs(true_load[seq] - true_load[seq - 1]) > 0.05)
+    print(f"/sim/truth_samples: {len(truths)} of {published} messages, {len(paired)} with their /rig/samples batch; "
+          f"tau_load judged on {judged} samples, {steps} in a load step's first rise or fall")
+    assert judged >= DELIVERED * TRUTH_SPAN and steps >= 4, (judged, steps)
+    assert not outside, f"measured tau_load outside the true load of its period (seq, true before, measured, " \
+                        f"true after): {outside[:10]}"
 
 
 def test_speed_commands_act_at_the_rig_after_the_sample_they_answer(graph: RunningGraph, probe: Probe) -> None:

@@ -96,7 +96,7 @@ def recorded_load_steps(t_load, load, t_speed, omega, setpoint, *, settle: float
     On the live graph the rig's clock and the scenario's wall clock drift apart
     (a starved sim_node dilates the rig's time), so a scheduled segment can hold
     the transient of the set-point change after it. Here a load step is where
-    the applied load (e.g. /sim/truth tau_load) changes by more than
+    the applied load (e.g. /sim/truth_samples tau_load) changes by more than
     ``tolerance`` [N m] while the set-point holds; its window runs to the next
     change of either (changes closer than 50 ms are one).
 

@@ -23,7 +23,8 @@ from torque_estimator.graph.runner import Graph, rig_computer
 from torque_estimator.experiment.scenario import DEMO_SCENARIO, segment_at
 
 
-ANALYSED_TOPICS = ("/rig/samples", "/sim/truth", "/torque_estimate", "/rig/speed_command")
+#: what demo.load_run reads (the truth: every sample's, /sim/truth_samples)
+ANALYSED_TOPICS = ("/rig/samples", "/sim/truth_samples", "/torque_estimate", "/rig/speed_command")
 
 
 def live_run(graph_file: Path, calibration: Path, feedforward: bool, bag: Path, log_dir: Path) -> float:
@@ -44,7 +45,7 @@ def live_run(graph_file: Path, calibration: Path, feedforward: bool, bag: Path, 
             load_pub = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
             deadline = time.monotonic() + 60.0
             # Start the scenario only once every stream the analysis reads is being recorded: topics
-            # are subscribed as discovery finds them, and a late /rig/samples or /sim/truth would
+            # are subscribed as discovery finds them, and a late /rig/samples or /sim/truth_samples would
             # leave the first seconds of the run out of the bag.
             while min(recorder.counts.get(t, 0) for t in ANALYSED_TOPICS) < 100:
                 if graph.failed() or time.monotonic() > deadline:

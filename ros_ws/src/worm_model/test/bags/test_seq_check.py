@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from rclpy.serialization import serialize_message
-from worm_msgs.msg import GearboxForces, RigSample, TorqueEstimate
+from worm_msgs.msg import GearboxForces, RigSample, RigSamples, SimTruths, TorqueEstimate
 from worm_model.bags.typestore import MessageTypes
 from worm_model.bags.seq_check import DeliveryCheck, SequenceTracker, StreamCheck, header_seq
 
@@ -39,6 +39,22 @@ def test_stream_check_tracks_only_types_with_seq() -> None:
     assert check.lost == 1
     assert check.report() == ['/rig/sample: seq 0..3: 3 received, lost 1, gaps 2',
                               '/rig/sample: 1 messages too short to hold a seq']
+
+
+def test_stream_check_counts_the_samples_of_both_batched_types() -> None:
+    """RigSamples and SimTruths (the simulator's truth of every sample) carry first_seq and one array element
+    per sample: a batch is that many consecutive seqs, counted from the length of its first array."""
+    types = MessageTypes()
+    check = StreamCheck()
+    for topic, msg_type, first_field in (('/rig/samples', RigSamples, 'current_drive'),
+                                         ('/sim/truth_samples', SimTruths, 'tau_load')):
+        assert check.watch(topic, types.typestore, types.ensure(f'worm_msgs/msg/{msg_type.__name__}'))
+        for first_seq in (1, 6, 16):  # 11..15 never came
+            msg = msg_type(first_seq=first_seq, sample_period=1e-3, **{first_field: [0.1] * 5})
+            msg.header.frame_id = 'worm_rig'
+            check.add(topic, bytes(serialize_message(msg)))
+    assert check.report() == ['/rig/samples: seq 1..20: 15 received, lost 5, gaps 11-15',
+                              '/sim/truth_samples: seq 1..20: 15 received, lost 5, gaps 11-15']
 
 
 def test_delivery_check_per_publisher() -> None:

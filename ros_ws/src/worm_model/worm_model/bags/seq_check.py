@@ -2,8 +2,11 @@
 
 Our streams (``RigSample``, ``GearboxForces``, ``TorqueEstimate``,
 ``SimTruth``) start with ``std_msgs/Header header`` followed by ``uint64
-seq``, the rig's sample counter. A recorder (or a bag check) reads ``seq``
-straight out of the CDR bytes, without decoding the message, and counts:
+seq``, the rig's sample counter; the batches (``RigSamples``, ``SimTruths``)
+with ``Header header; uint64 first_seq; float64 sample_period`` and one array
+per field (seqs ``first_seq`` on, one per element). A recorder (or a bag
+check) reads ``seq`` straight out of the CDR bytes, without decoding the
+message, and counts:
 
 * lost: the seqs missing between the first and the last one seen (a gap);
 * repeated: a seq not above the previous one (duplicate or reordered).
@@ -64,7 +67,7 @@ def header_seq(data: bytes | memoryview) -> int:
 
 def header_seq_run(data: bytes | memoryview) -> tuple[int, int]:
     """(first seq, sample count) of a CDR batch laid out ``Header header; uint64 first_seq;
-    float64 sample_period; <T>[] first_field; ...`` (worm_msgs/RigSamples).
+    float64 sample_period; <T>[] first_field; ...`` (worm_msgs/RigSamples, SimTruths).
 
     The count is the length of the first sequence field, a uint32 right after
     ``sample_period`` (aligned to 4, which it already is).

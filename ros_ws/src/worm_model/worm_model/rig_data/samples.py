@@ -7,6 +7,11 @@ on /rig/sample (one by one, while someone subscribes). Readers of recordings
 (``bag export``, ``replay``, ``residuals``) take either through :func:`samples_of`,
 which turns a message of either type into RigSample-like records in sample order.
 No rclpy: works on the dataclasses the bag reader decodes and on rclpy messages alike.
+
+The simulator's ground truth comes batched the same way: ``worm_msgs/msg/SimTruths`` on
+/sim/truth_samples (every sample, aligned with /rig/samples' batches; :func:`batch_stamps_ns`
+gives its samples' stamps) beside ``worm_msgs/msg/SimTruth`` on /sim/truth (every
+``channel_decimation``-th sample).
 """
 from __future__ import annotations
 
@@ -20,6 +25,14 @@ RIG_SAMPLES_TYPE: Final[str] = "worm_msgs/msg/RigSamples"
 SAMPLE_TYPES: Final[tuple[str, ...]] = (RIG_SAMPLES_TYPE, RIG_SAMPLE_TYPE)
 #: where the rigs publish them, preferred first
 SAMPLE_TOPICS: Final[tuple[str, ...]] = ("/rig/samples", "/rig/sample")
+SIM_TRUTHS_TYPE: Final[str] = "worm_msgs/msg/SimTruths"
+#: where sim_node publishes every sample's ground truth (SimTruths batches)
+SIM_TRUTHS_TOPIC: Final[str] = "/sim/truth_samples"
+#: the streams that carry every sample's seq (a gap is a loss): the rig's samples and the simulator's truth
+EVERY_SAMPLE_TYPES: Final[tuple[str, ...]] = (*SAMPLE_TYPES, SIM_TRUTHS_TYPE)
+#: SimTruths' per-sample fields, in message order (SimTruth's fields of the same names)
+TRUTH_FIELDS: Final[tuple[str, ...]] = (
+    "tau_load", "tau_in", "omega_worm", "current_drive", "normal_force", "friction_force", "mu", "mode", "flank")
 #: the per-sample fields of both types (RigSample's, header and seq aside)
 FIELDS: Final[tuple[str, ...]] = (
     "current_drive", "current_load_1", "current_load_2", "omega_worm", "omega_gear", "theta_worm", "theta_gear",
@@ -85,16 +98,23 @@ def batch_problem(batch: Any, fields: tuple[str, ...] = FIELDS) -> str:
     return ""
 
 
+def batch_stamps_ns(batch: Any, n: int) -> list[int]:
+    """Stamps [ns] of the ``n`` samples of a batch (RigSamples, SimTruths): sample k is stamped
+    header.stamp + k * sample_period."""
+    first = stamp_ns(batch.header.stamp)
+    period_ns = batch.sample_period * NS_PER_S
+    return [first + int(round(k * period_ns)) for k in range(n)]
+
+
 def unbatch(batch: Any) -> list[Sample]:
     """The samples of one RigSamples message, in order; sample k is stamped first + k * sample_period."""
     columns = [list(getattr(batch, name)) for name in FIELDS]
     commands = list(getattr(batch, "command_seq", ())) or [0] * len(columns[0])
-    first = stamp_ns(batch.header.stamp)
-    period_ns = batch.sample_period * NS_PER_S
+    stamps = batch_stamps_ns(batch, len(columns[0]))
     frame_id = batch.header.frame_id
     out = []
     for k, values in enumerate(zip(*columns, commands)):
-        ns = first + int(round(k * period_ns))
+        ns = stamps[k]
         out.append(Sample(Header(Stamp(ns // NS_PER_S, ns % NS_PER_S), frame_id), int(batch.first_seq) + k,
                           *values))
     return out
@@ -142,6 +162,7 @@ def missing_seqs(seqs: Iterator[int]) -> int:
     return lost
 
 
-__all__ = ["FIELDS", "RIG_SAMPLES_TYPE", "RIG_SAMPLE_TYPE", "SAMPLE_TOPICS", "SAMPLE_TYPES", "Header", "Sample",
-           "batch_problem", "command_latencies", "missing_seqs",
+__all__ = ["EVERY_SAMPLE_TYPES", "FIELDS", "RIG_SAMPLES_TYPE", "RIG_SAMPLE_TYPE", "SAMPLE_TOPICS",
+           "SAMPLE_TYPES", "SIM_TRUTHS_TOPIC", "SIM_TRUTHS_TYPE", "TRUTH_FIELDS", "Header", "Sample",
+           "batch_problem", "batch_stamps_ns", "command_latencies", "missing_seqs",
            "Stamp", "iter_samples", "samples_of", "stamp_ns", "unbatch"]

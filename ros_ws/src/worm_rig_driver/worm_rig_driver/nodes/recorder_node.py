@@ -30,11 +30,13 @@ Parameters:
 
 Loss: the recorder follows, per topic and publisher, the DDS publication
 sequence numbers of what it receives (a gap = a message published and never
-received) and, for the rig's sample streams (RigSamples, RigSample), the
-``seq`` field (a gap there may also be a sample the rig itself lost; the nodes'
-answers, one per batch or chunk, skip seqs by design and are not checked so). When it stops it logs both per topic, then one verdict
-from the DDS numbers: ``recorder: lost nothing ...`` or ``recorder: LOST <n>
-messages ...`` (see :mod:`worm_model.bags.seq_check`).
+received) and, for the streams that carry every sample (the rig's RigSamples and
+RigSample, the simulator's SimTruths), the ``seq`` field (a gap there may also be
+a sample the rig itself lost; the nodes' answers, one per batch or chunk, and the
+decimated SimTruth skip seqs by design and are not checked so). When it stops it
+logs both per topic, then one verdict from the DDS numbers: ``recorder: lost
+nothing ...`` or ``recorder: LOST <n> messages ...`` (see
+:mod:`worm_model.bags.seq_check`).
 
 QoS: a subscription matches its publishers, as rosbag2 does: RELIABLE unless a
 publisher is BEST_EFFORT, TRANSIENT_LOCAL if all publishers are (to receive
@@ -92,7 +94,7 @@ from worm_model.bags.writer import (
     normalize_type_name,
 )
 from worm_model.bags.seq_check import DeliveryCheck, StreamCheck
-from worm_model.rig_data.samples import SAMPLE_TYPES
+from worm_model.rig_data.samples import EVERY_SAMPLE_TYPES
 
 DEFAULT_QUEUE_DEPTH: Final[int] = 10000
 SPIN_TIMEOUT_S: Final[float] = 0.1
@@ -310,7 +312,7 @@ class TopicRecorder:
             topic, type_name, offered_qos=[bag_qos(p.qos_profile) for p in publishers]
         )
         self._check_type_hash(handle, publishers)
-        if type_name in SAMPLE_TYPES:  # the rig's streams: every seq is sent; the nodes' answers skip by design
+        if type_name in EVERY_SAMPLE_TYPES:  # every seq is sent; the nodes' answers skip by design
             self.sequences.watch(topic, self.writer.types.typestore, type_name)
         self._subscriptions[topic] = self.node.create_subscription(
             message_type,

@@ -9,6 +9,10 @@ Out (sensor-data QoS):
                                            gear joint's effort is the torque the load applies to the gear
                                            shaft in its positive direction, -tau_load (RigSample's
                                            tau_load is positive OPPOSING positive rotation)
+  sim_node adds the simulator's ground truth (when ``publish_truth``, only while someone subscribes):
+  /sim/truth_samples  worm_msgs/SimTruths  every sample, in batches aligned with /rig/samples' (same
+                                           first_seq, stamp and length: see opens_batch / pending)
+  /sim/truth          worm_msgs/SimTruth   every ``channel_decimation``-th sample
 In:
   /rig/speed_command  worm_msgs/SpeedCommand  the rig's own speed loop (drive.rig_loop), sensor-data QoS
   /rig/drive_command  worm_msgs/DriveCommand  a voltage to hold, sensor-data QoS
@@ -107,6 +111,17 @@ class RigTopics:
             self._publish_single(seq, stamp_ns, values, single, channels)
         if len(batch) >= self.batch_size:
             self.flush()
+
+    def opens_batch(self, seq: int) -> bool:
+        """Whether ``add(seq)`` starts a new /rig/samples batch (none is open, or seq does not follow it):
+        a stream batched alongside (sim_node's truth) starts its own batch there too."""
+        batch = self._batch
+        return not len(batch) or seq != batch.first_seq + len(batch)
+
+    @property
+    def pending(self) -> int:
+        """Samples of the open batch, not yet published (0 right after add() published a full batch)."""
+        return len(self._batch)
 
     def flush(self) -> None:
         """Publish what the batch holds (nothing if empty)."""

@@ -12,8 +12,11 @@ stale voltage for long.
 Topics (rig_topics.py): /rig/samples (worm_msgs/RigSamples, every sample,
 ``batch_size`` per message), /rig/sample (RigSample, one by one, only while
 subscribed), /rig/currents, /rig/joint_states, /rig/encoders (every
-``channel_decimation``-th sample, while subscribed), /sim/truth (SimTruth,
-decimated likewise, when ``publish_truth``), /diagnostics. Commands:
+``channel_decimation``-th sample, while subscribed), the simulator's ground
+truth when ``publish_truth``, each only while subscribed: /sim/truth_samples
+(SimTruths, every sample, in batches aligned with /rig/samples': same
+first_seq, stamp and length) and /sim/truth (SimTruth, decimated like the
+channels), /diagnostics. Commands:
 /rig/speed_command (SpeedCommand: the speed loop), /rig/drive_command
 (DriveCommand: hold a voltage), /rig/load_command (LoadCommand). A drive or
 speed command older than ``command_timeout`` stops the drive motor (watchdog;
@@ -33,12 +36,14 @@ import time
 
 from rclpy.node import Node
 from rclpy.time import Time
-from worm_msgs.msg import DriveCommand, LoadCommand, RigSample, SimTruth, SpeedCommand
+from worm_msgs.msg import DriveCommand, LoadCommand, RigSample, SimTruth, SimTruths, SpeedCommand
 
 from worm_model.physics.parameters import load_rig
+from worm_model.rig_data.samples import SIM_TRUTHS_TOPIC, TRUTH_FIELDS
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
+from worm_model.ros.qos import STREAM
 
 from worm_rig_driver.drive.realtime import make_realtime
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
@@ -66,7 +71,10 @@ class SimNode(Node):
                              "1 kHz; the newest sample leaves the moment it is taken).", low=1, high=1000)
         decimation = declare(self, "channel_decimation", 10,
                              "Publish currents/joint_states/encoders/truth every N-th sample.", low=1, high=1000)
-        self.publish_truth = declare(self, "publish_truth", True, "Publish the simulator's ground truth on /sim/truth.")
+        self.publish_truth = declare(self, "publish_truth", True,
+                                     "Publish the simulator's ground truth, each topic only while someone "
+                                     "subscribes: /sim/truth_samples (every sample, batched like /rig/samples) "
+                                     "and /sim/truth (every channel_decimation-th sample).")
         command_timeout = declare(self, "command_timeout", 0.1,
                                   "Age [s] of the last drive or speed command after which the drive motor is "
                                   "stopped (watchdog).", low=0.005, high=10.0)
@@ -86,8 +94,10 @@ class SimNode(Node):
         self.loop = RigLoop(self.rig, self.period, command_timeout, DEFAULT_GAINS, feedforward=feedforward)
         self.topics = RigTopics(self, frame_id, self.period, batch_size, decimation, self.sim.sensors.counts_per_rev)
         self.decimation = decimation
-        self.pub_truth = self.create_publisher(SimTruth, "/sim/truth", self.topics.pub_sample.qos_profile) \
-            if self.publish_truth else None
+        self.pub_truth = self.create_publisher(SimTruth, "/sim/truth", STREAM) if self.publish_truth else None
+        self.pub_truths = self.create_publisher(SimTruths, SIM_TRUTHS_TOPIC, STREAM) if self.publish_truth else None
+        self._truths: dict[str, list] | None = None  # the open /sim/truth_samples batch (None: not collecting)
+        self._truths_first = (0, 0)  # its (first_seq, first stamp [ns])
         subscribe_commands(self, self.on_speed_command, self.on_drive_command, self.on_load_command)
 
         self.rejected_commands = 0
@@ -177,16 +187,43 @@ class SimNode(Node):
             "status": int(m.status[0]) | status_bits,
         }
         stamp_ns = self._start_ns + int(round(seq * self.period * 1e9))
-        self.topics.add(seq, stamp_ns, values, command_seq)
-        if self.pub_truth is not None and seq % self.decimation == 0 and self.pub_truth.get_subscription_count():
+        opens = self.pub_truths is not None and self.topics.opens_batch(seq)
+        self.topics.add(seq, stamp_ns, values, command_seq)  # the graph's stream first
+        if opens:
+            # a /rig/samples batch started here: so does a truth batch, if anyone listens (asked once a batch)
+            self._flush_truths()
+            self._truths = {name: [] for name in TRUTH_FIELDS} if self.pub_truths.get_subscription_count() else None
+            self._truths_first = (seq, stamp_ns)
+        decimated = (self.pub_truth is not None and seq % self.decimation == 0
+                     and self.pub_truth.get_subscription_count() > 0)
+        if self._truths is not None or decimated:
             t = self.sim.truth()
-            truth = SimTruth(seq=seq, tau_load=float(t.tau_load[0]), tau_in=float(t.tau_in[0]),
-                             omega_worm=float(t.omega_worm[0]), current_drive=float(t.current_drive[0]),
-                             normal_force=float(t.normal_force[0]), friction_force=float(t.friction_force[0]),
-                             mu=float(t.mu[0]), mode=int(t.mode[0]), flank=int(t.flank[0]))
-            truth.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
-            truth.header.frame_id = self.topics.frame_id
-            self.pub_truth.publish(truth)
+            truth = {"tau_load": float(t.tau_load[0]), "tau_in": float(t.tau_in[0]),
+                     "omega_worm": float(t.omega_worm[0]), "current_drive": float(t.current_drive[0]),
+                     "normal_force": float(t.normal_force[0]), "friction_force": float(t.friction_force[0]),
+                     "mu": float(t.mu[0]), "mode": int(t.mode[0]), "flank": int(t.flank[0])}
+            if self._truths is not None:
+                for name, column in self._truths.items():
+                    column.append(truth[name])
+            if decimated:
+                single = SimTruth(seq=seq, **truth)
+                single.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
+                single.header.frame_id = self.topics.frame_id
+                self.pub_truth.publish(single)
+        if self._truths is not None and not self.topics.pending:
+            self._flush_truths()  # its /rig/samples batch just went out
+
+    def _flush_truths(self) -> None:
+        """Publish the open /sim/truth_samples batch (nothing if none or empty); the next one opens with
+        the next /rig/samples batch."""
+        columns, self._truths = self._truths, None
+        if not columns or not columns["tau_load"]:
+            return
+        first_seq, first_stamp_ns = self._truths_first
+        msg = SimTruths(first_seq=first_seq, sample_period=self.period, **columns)
+        msg.header.stamp = Time(nanoseconds=first_stamp_ns).to_msg()
+        msg.header.frame_id = self.topics.frame_id
+        self.pub_truths.publish(msg)
 
     def report(self) -> tuple[bytes, str, dict]:
         level, message = OK, "running"
