@@ -193,14 +193,15 @@ def main(argv: list[str] | None = None) -> int:
     info(f"[controller_bench] LiveEstimator options: {options}")
 
     metrics = []
+    # (batch, latency, metric suffix, the estimator fed forward): at the rig, the estimator as a rig runs it
     timings = {"rig": (1, 0, "_rig", feedforward_estimator(method, db, rig)), "firmware": (1, 1, "", estimator),
                "graph": (GRAPH_BATCH, args.graph_latency, "_graph", estimator)}
-    for timing, (batch, latency, suffix, estimator) in timings.items():
+    for timing, (batch, latency, suffix, fed) in timings.items():
         start = time.perf_counter()
         summaries = []
         for seed in range(args.seed + 1, args.seed + 1 + args.seeds):
             for phase in range(batch):  # every position of the load steps in a batch
-                runs = run_scenario(rig, DEMO_SCENARIO, tuple(MODES), estimator=estimator, seed=seed,
+                runs = run_scenario(rig, DEMO_SCENARIO, tuple(MODES), estimator=fed, seed=seed,
                                     gains=PiGains(float(ctl_p["kp"]), float(ctl_p["ki"])),
                                     estimate_timeout=float(ctl_p.get("estimate_timeout", 0.05)),
                                     live_options=options, ff_batch=batch, ff_latency=latency, ff_phase=phase)

@@ -56,7 +56,6 @@ class EstimatorFeedforward:
         self.sample_period = sample_period
         self._balancing = make_balancing_torque_float(rig)
         self._stamp = 0.0
-        self.unusable = 0  # samples whose estimate the gate refused
 
     def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> None:
         """Sample ``seq``: worm speed [rad/s], drive current [A], drive voltage [V], worm angle [rad]."""
@@ -67,10 +66,7 @@ class EstimatorFeedforward:
     def torque(self, setpoint: float) -> float:
         """Torque at the worm [N m] for the next period at set-point ``setpoint`` [rad/s]; 0 when unusable."""
         tau_d = self.gate.load(self._stamp)
-        if tau_d is None:
-            self.unusable += 1
-            return 0.0
-        return self._balancing(tau_d, setpoint)
+        return 0.0 if tau_d is None else self._balancing(tau_d, setpoint)
 
 
 def build(method: str, calibration_file: str, rig: Rig, sample_period: float) -> EstimatorFeedforward:

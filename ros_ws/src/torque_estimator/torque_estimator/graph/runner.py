@@ -71,7 +71,8 @@ def rig_computer(params_file: Path) -> dict:
     estimator on every sample (~0.3 core of Python), and the estimator, model and controller nodes take
     ~0.5 core more; in one process all of that waits on one interpreter lock, which then sat near
     saturation: in 4 demo runs on an idle machine the executor fell behind the rig by up to 1 s in every
-    one (2 failed the live error bound), against none with the rig in its own process. (Measured
+    one (2 failed the live error bound); with the rig in its own process, 7 runs (3 under a CPU hog) saw
+    at most one late estimate, at start-up. (Measured
     earlier: the model node in a process of its own costs ~0.14 core more and shortens no latency.)"""
     nodes = graph_nodes(params_file)
     return {"together": [[n for n in nodes if n not in RIG_NODES]], "priority": RIG_COMPUTER_PRIORITY}
