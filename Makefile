@@ -11,9 +11,11 @@ setup:
 	@bash tools/setup.sh
 
 demo: setup
+	@mkdir -p out
 	@$(RUN) python -m torque_estimator.experiment.demo --out out/demo --force
 
 evaluate: setup
+	@mkdir -p out
 	@$(RUN) python -m torque_estimator.experiment.evaluate --out out/evaluate --force
 
 test: setup

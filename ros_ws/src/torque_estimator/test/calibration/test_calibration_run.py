@@ -146,10 +146,37 @@ def test_a_journal_is_neither_overwritten_nor_resumed_under_other_settings(tmp_p
         CalibrationJournal.load(journal, 12)
 
 
-def _calibrate_cli(out: Path, *extra: str) -> list[str]:
-    return [sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(out), "--quiet", "--speeds", "2",
-            "--torques", "3", "--speed-min", "60", "--speed-max", "240", "--window", "0.2", "--settle-time",
-            "0.3", "--timeout", "2", "--seed", "5", "--batch-size", "1", *extra]
+_CALIBRATE_ARGS = ["--quiet", "--speeds", "2", "--torques", "3", "--speed-min", "60", "--speed-max", "240",
+                   "--window", "0.2", "--settle-time", "0.3", "--timeout", "2", "--seed", "5", "--batch-size", "1"]
+
+# The calibrate CLI, whose journal stops growing at HOLD_AT points until a signal ends the process: the run
+# waits for the test's interruption, so an idle machine cannot finish the 12 points before it arrives.
+_HELD_CALIBRATE = """
+import sys, time
+from pathlib import Path
+import torque_estimator.calibration.calibrate as cli
+from torque_estimator.calibration.journal import CalibrationJournal
+hold_at, journal, argv = int(sys.argv[1]), Path(sys.argv[2]), sys.argv[3:]
+simulate = cli.calibrate_simulated
+def held(*args, progress=None, **kwargs):
+    def report(fraction):
+        if progress is not None:
+            progress(fraction)
+        if journal.exists() and len(CalibrationJournal.load(journal, 12).points) >= hold_at:
+            while True:
+                time.sleep(0.05)
+    return simulate(*args, progress=report, **kwargs)
+cli.calibrate_simulated = held
+sys.exit(cli.main(argv))
+"""
+
+
+def _calibrate_cli(out: Path, *extra: str, hold_at: int | None = None) -> list[str]:
+    """The command line of calibrate; with ``hold_at`` it waits for a signal once its journal holds that many."""
+    args = ["--out", str(out), *_CALIBRATE_ARGS, *extra]
+    if hold_at is None:
+        return [sys.executable, "-m", "torque_estimator.calibration.calibrate", *args]
+    return [sys.executable, "-c", _HELD_CALIBRATE, str(hold_at), str(default_journal_path(out)), *args]
 
 
 def _wait_for_points(journal: Path, more_than: int, proc: subprocess.Popen, timeout: float = 60.0) -> int:
@@ -172,7 +199,7 @@ def test_cli_interrupted_by_ctrl_c_and_killed_resumes_to_the_uninterrupted_datab
     env = dict(os.environ)
 
     # Ctrl-C: exit 130, the journal kept, the way forward printed
-    proc = subprocess.Popen(_calibrate_cli(out), env=env, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(_calibrate_cli(out, hold_at=3), env=env, stderr=subprocess.PIPE, text=True)
     _wait_for_points(journal, 0, proc)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=30)
@@ -182,7 +209,8 @@ def test_cli_interrupted_by_ctrl_c_and_killed_resumes_to_the_uninterrupted_datab
     assert 0 < len(after_ctrl_c) < 12
 
     # resumed, then SIGKILLed (no clean-up at all): the journal still holds whole points
-    proc = subprocess.Popen(_calibrate_cli(out, "--resume"), env=env, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(_calibrate_cli(out, "--resume", hold_at=len(after_ctrl_c) + 3), env=env,
+                            stderr=subprocess.PIPE, text=True)
     _wait_for_points(journal, len(after_ctrl_c), proc)
     proc.kill()
     proc.communicate(timeout=30)
