@@ -12,11 +12,11 @@ setup:
 
 demo: setup
 	@mkdir -p out
-	@$(RUN) python -m torque_estimator.experiment.demo --out out/demo --force
+	@$(RUN) python -m torque_estimator.demo.demo --out out/demo --force
 
 evaluate: setup
 	@mkdir -p out
-	@$(RUN) python -m torque_estimator.experiment.evaluate --out out/evaluate --force
+	@$(RUN) python -m torque_estimator.evaluation.evaluate --out out/evaluate --force
 
 test: setup
 	@$(RUN) python -m pytest $(TESTS)

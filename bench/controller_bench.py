@@ -3,9 +3,9 @@
     python bench/controller_bench.py [--seed N] [--method NAME] [--graph-latency N] [--graph FILE]
                                      [--set NODE.PARAM=VALUE ...]
 
-Runs the demo's scenario (torque_estimator.experiment.scenario.DEMO_SCENARIO:
+Runs the demo's scenario (torque_estimator.evaluation.scenario.DEMO_SCENARIO:
 load steps into all three modes at +-150 rad/s) on the live graph's control
-loop in one process (torque_estimator.experiment.closed_loop: SimulatedRig with
+loop in one process (torque_estimator.evaluation.closed_loop: SimulatedRig with
 the rig's own speed PI, LiveEstimator, FeedforwardGate, the cores sim_node,
 estimator_node and controller_node run), with the PI gains, estimator options
 and timeouts of the installed sim_graph.yaml, on a calibration of the paper's
@@ -63,11 +63,11 @@ import yaml
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.control.rig_feedforward import feedforward_estimator
-from torque_estimator.experiment.closed_loop import run_scenario
+from torque_estimator.evaluation.closed_loop import run_scenario
 from torque_estimator.graph.runner import default_graph_file
 from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
-from torque_estimator.experiment.run_analysis import load_step_responses
-from torque_estimator.experiment.scenario import DEMO_SCENARIO, segment_starts
+from torque_estimator.demo.run_analysis import load_step_responses
+from torque_estimator.evaluation.scenario import DEMO_SCENARIO, segment_starts
 from worm_rig_driver.drive.speed_loop import PiGains
 from worm_model.physics.parameters import load_rig
 

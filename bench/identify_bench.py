@@ -15,7 +15,7 @@ import time
 from worm_model.physics.parameters import load_rig
 
 from torque_estimator.calibration.batch import CalibrationGrid
-from torque_estimator.experiment.identified import effects_all, live_grid_rig_time
+from torque_estimator.evaluation.identified import effects_all, live_grid_rig_time
 from torque_estimator.identification.excitation import default_excitation, total_duration
 from torque_estimator.identification.fit import identify
 from torque_estimator.identification.simulated import record_on_simulator

@@ -22,13 +22,13 @@ import time
 import numpy as np
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
-from torque_estimator.experiment.closed_loop import run_scenario
-from torque_estimator.experiment.evaluation import held_out_setpoints
+from torque_estimator.evaluation.closed_loop import run_scenario
+from torque_estimator.evaluation.held_out import held_out_setpoints
 from torque_estimator.estimation.observer import ObserverEstimator, equivalent_window, jump_bound, predicted_noise, \
     steady_state_bound
-from torque_estimator.experiment.observer_study import held_out_streaming, perturbed_rig, profile_error, step_response
-from torque_estimator.experiment.run_analysis import load_step_responses
-from torque_estimator.experiment.scenario import DEMO_SCENARIO
+from torque_estimator.evaluation.observer_study import held_out_streaming, perturbed_rig, profile_error, step_response
+from torque_estimator.demo.run_analysis import load_step_responses
+from torque_estimator.evaluation.scenario import DEMO_SCENARIO
 from worm_model.physics.parameters import Rig, load_rig
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 

@@ -30,7 +30,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from worm_model.cli.validate import check_number
+from worm_model.cli.options import check_number
 from worm_model.ros.ament import find_executable
 
 EXAMPLES = settings(max_examples=25, deadline=None, suppress_health_check=list(HealthCheck))
@@ -229,7 +229,7 @@ def test_calibrate_never_replaces_a_file_and_refuses_a_bad_journal(inputs, work)
 @EXAMPLES
 @given(data=st.data())
 def test_evaluate_damaged_calibration(data: st.DataObject, inputs, work) -> None:
-    from torque_estimator.experiment.evaluate import main
+    from torque_estimator.evaluation.evaluate import main
     good = json.loads(inputs["cal.json"])
     huge = data.draw(st.sampled_from(["omega_worm", "current_drive", "tau_load"]))
     good["points"][huge][data.draw(st.integers(0, len(good["points"][huge]) - 1))] = data.draw(
@@ -310,7 +310,7 @@ def test_run_graph_damaged_files(data: st.DataObject, inputs, work) -> None:
 @settings(max_examples=8, deadline=None, suppress_health_check=list(HealthCheck))
 @given(data=st.data())
 def test_replay_bad_input(data: st.DataObject, inputs, work) -> None:
-    from torque_estimator.graph.replay import main
+    from torque_estimator.offline.replay import main
     kind = data.draw(st.sampled_from(["set", "warmup", "bag"]))
     files = {"cal.json": inputs["cal.json"], "run.mcap": inputs["run.mcap"]}
     argv = ["run.mcap", "--set", "estimator_node.calibration_file=cal.json", "--quiet", "--estimators", "knn"]
@@ -329,7 +329,7 @@ def test_replay_bad_input(data: st.DataObject, inputs, work) -> None:
 @EXAMPLES
 @given(seed=outside(0, 2**32 - 2))
 def test_demo_bad_options(seed: str, work) -> None:
-    from torque_estimator.experiment.demo import main
+    from torque_estimator.demo.demo import main
     refuse("demo", main, [f"--seed={seed}", "--out", "demo"], work({}), names="--seed")
 
 
@@ -393,7 +393,8 @@ def test_node_bad_parameter_is_one_line(node: str, data: st.DataObject, ros_env,
 
 def test_check_number_agrees_with_the_option_types() -> None:
     """Files and options share one check: the same values pass and fail with the same words."""
-    from worm_model.cli.validate import InputError, number
+    from worm_model.cli.errors import InputError
+    from worm_model.cli.options import number
     import argparse
     for text in ("nan", "inf", "-1", "2", "abc"):
         try:

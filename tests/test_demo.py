@@ -20,7 +20,7 @@ from worm_model.bags.writer import read_bag_counts
 def test_demo_runs_end_to_end(tmp_path: Path) -> None:
     env = dict(os.environ, ROS_DOMAIN_ID=str(random.randint(100, 230)), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
     out = tmp_path / "demo"
-    done = subprocess.run([sys.executable, "-m", "torque_estimator.experiment.demo", "--out", str(out)],
+    done = subprocess.run([sys.executable, "-m", "torque_estimator.demo.demo", "--out", str(out)],
                           env=env, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, f"demo failed:\n{done.stdout[-4000:]}\n{done.stderr[-4000:]}"
     summary = done.stdout[done.stdout.index("Summary"):]

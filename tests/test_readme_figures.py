@@ -14,10 +14,10 @@ from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simula
 from torque_estimator.control.rig_feedforward import feedforward_estimator
 from torque_estimator.estimation.observer import jump_bound, steady_state_bound
 from torque_estimator.estimation.registry import make_estimator
-from torque_estimator.experiment.closed_loop import run_scenario
-from torque_estimator.experiment.run_analysis import load_step_responses
-from torque_estimator.experiment.scenario import DEMO_SCENARIO
-from torque_estimator.experiment.transient import STEP_SPEED, transient_figures
+from torque_estimator.evaluation.closed_loop import run_scenario
+from torque_estimator.demo.run_analysis import load_step_responses
+from torque_estimator.evaluation.scenario import DEMO_SCENARIO
+from torque_estimator.evaluation.transient import STEP_SPEED, transient_figures
 from worm_model.physics.parameters import load_rig
 
 RIG = load_rig()

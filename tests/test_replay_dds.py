@@ -3,7 +3,7 @@
 The graph of sim_graph.yaml (sim_node, model_node, estimator_node,
 controller_node at 150 rad/s) runs as processes; the `recorder` executable
 records /rig/samples, /torque_estimate and /gearbox/forces; then
-torque_estimator.graph.replay feeds the recorded samples to model_node's and
+torque_estimator.offline.replay feeds the recorded samples to model_node's and
 estimator_node's cores, with no DDS, and the outputs are compared by seq with
 what the live nodes published (one per batch, for its newest sample).
 
@@ -11,7 +11,7 @@ what the live nodes published (one per batch, for its newest sample).
 a node may miss one the recorder got). The first WARMUP seconds are not
 compared: the live nodes started before the recorder and carry filter state
 from samples the bag lacks; that difference decays to round-off (see
-torque_estimator.graph.replay). After it the replay equals live to round-off.
+torque_estimator.offline.replay). After it the replay equals live to round-off.
 
 The estimator runs method=knn here, not sim_graph.yaml's observer: k-NN's
 filters are linear and forget their start exponentially, so "equal to
@@ -32,7 +32,7 @@ import pytest
 
 from torque_estimator.graph.runner import Graph, parse_overrides
 from worm_model.ros.ament import find_executable
-from torque_estimator.graph.replay import (ESTIMATE_FIELDS, ESTIMATE_TOPIC, FORCE_FIELDS, FORCES_TOPIC, compare,
+from torque_estimator.offline.replay import (ESTIMATE_FIELDS, ESTIMATE_TOPIC, FORCE_FIELDS, FORCES_TOPIC, compare,
                                            difference, node_parameters, replay)
 from worm_model.ros.testing import stop_process
 from worm_model.bags.reader import BagReader
@@ -142,7 +142,7 @@ def test_live_drops_are_the_nondeterminism(recorded: tuple[Path, list[str], str]
 
 def test_replay_cli_reports_speed_factor(recorded: tuple[Path, list[str], str]) -> None:
     bag, overrides, _output = recorded
-    args = [sys.executable, "-m", "torque_estimator.graph.replay", str(bag), "--params-file", str(GRAPH_FILE),
+    args = [sys.executable, "-m", "torque_estimator.offline.replay", str(bag), "--params-file", str(GRAPH_FILE),
             "--follow-live", "--warmup", str(WARMUP_S), "--quiet"]
     for override in overrides:
         args += ["--set", override]
@@ -152,7 +152,7 @@ def test_replay_cli_reports_speed_factor(recorded: tuple[Path, list[str], str]) 
     print(done.stdout)
     assert float(lines["replay_speed_factor"].split()[0]) > 0
     assert float(lines["replay_estimates_max_abs_diff"].split()[0]) <= ROUND_OFF
-    bad = subprocess.run([sys.executable, "-m", "torque_estimator.graph.replay", str(bag), "--set",
+    bad = subprocess.run([sys.executable, "-m", "torque_estimator.offline.replay", str(bag), "--set",
                           "estimator_node.calibration_file=/no/such.json", "--quiet"],
                          capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and "/no/such.json" in bad.stderr
@@ -164,7 +164,7 @@ def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str]
     import rclpy
 
     from torque_estimator.nodes.estimator_node import EstimatorNode
-    from torque_estimator.graph.replay import NODE_DEFAULTS
+    from torque_estimator.offline.replay import NODE_DEFAULTS
     from worm_model.nodes.model_node import ModelNode
 
     rclpy.init()  # the nodes take the default context

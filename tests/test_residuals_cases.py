@@ -1,5 +1,5 @@
 """Issue 15: `residuals` names exactly the true effects, reaches the noise floor, and says "unexplained"
-for an effect outside its vocabulary (the case matrix of torque_estimator.experiment.residual_cases).
+for an effect outside its vocabulary (the case matrix of torque_estimator.evaluation.residual_cases).
 
 Data: the project's simulator (SimulatedRig with effect plug-ins the model is not told about), the
 analysis given a rig file whose declared numbers are off by realistic amounts (cases.PERTURBATIONS).
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-import torque_estimator.experiment.residual_cases as cs
+import torque_estimator.evaluation.residual_cases as cs
 from worm_model.rig_data.schema import write_rig_csv
 
 REPO = Path(__file__).resolve().parents[1]

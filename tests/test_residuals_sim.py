@@ -68,13 +68,13 @@ from worm_rig_driver.sim.effects import SenseContext
 from worm_rig_driver.sim.sensors import AdcChain
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
-import torque_estimator.experiment.residual_cases as rc
+import torque_estimator.evaluation.residual_cases as rc
 
 REPO = Path(__file__).resolve().parents[1]
 RIG = load_rig()
 FREE = ["friction.scale"]
 
-#: excitation profiles and the oil sump sensor: torque_estimator.experiment.residual_cases (PROFILES,
+#: excitation profiles and the oil sump sensor: torque_estimator.evaluation.residual_cases (PROFILES,
 #: OIL_SENSOR), whose simulate() makes every data set here
 
 
@@ -110,7 +110,7 @@ OIL = Case({"mu_per_kelvin": -0.012}, "slow_full_load", MU_FREE, runs=12, oil_st
 #: bearing_coulomb, viscous_drag, sensor_gain and inertia_error are the same function of the data as a
 #: parameter the analysis refits always (Coulomb and viscous drags, K_t, rotor inertia: free.TOLERANCES);
 #: they are named only beyond that parameter's tolerance band (x2.5 for drags), so their sizes here are
-#: those of torque_estimator.experiment.residual_cases.ALONE: 34 mN m of worm Coulomb drag against the declared 4, a
+#: those of torque_estimator.evaluation.residual_cases.ALONE: 34 mN m of worm Coulomb drag against the declared 4, a
 #: viscous drag of 59 mN m at 300 rad/s against the declared 9
 CASES = {
     "bearing_coulomb": Case({"worm_torque": 0.03, "gear_torque": 0.03}),

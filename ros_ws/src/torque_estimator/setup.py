@@ -25,12 +25,12 @@ setup(
             "estimator_node = torque_estimator.nodes.estimator_node:main",
             "controller_node = torque_estimator.nodes.controller_node:main",
             "calibrate = torque_estimator.calibration.calibrate:main",
-            "evaluate = torque_estimator.experiment.evaluate:main",
+            "evaluate = torque_estimator.evaluation.evaluate:main",
             "run_graph = torque_estimator.graph.run_graph:main",
-            "demo = torque_estimator.experiment.demo:main",
-            "replay = torque_estimator.graph.replay:main",
+            "demo = torque_estimator.demo.demo:main",
+            "replay = torque_estimator.offline.replay:main",
             "identify = torque_estimator.identification.identify:main",
-            "estimate = torque_estimator.experiment.estimate:main",
+            "estimate = torque_estimator.offline.estimate:main",
         ],
         # the estimator sim_node / driver_node run beside their speed loop (worm_rig_driver.drive.feedforward_plugin)
         "worm_rig_driver.feedforward": [

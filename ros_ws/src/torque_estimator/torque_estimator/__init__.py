@@ -1,36 +1,44 @@
 """torque_estimator: the load torque without a torque sensor, and what it is for (feedforward).
 
-Map (dependencies point up this list; rclpy only in ``nodes`` and the two
-``*_node.py`` helpers beside the CLIs that talk to a live graph):
+Map (dependencies point up this list; rclpy only in ``nodes`` and the ``*_node.py``
+helpers beside the CLIs that talk to a live graph):
 
-==============  ===============================================================
-``estimation``  the estimators behind one interface (``base``: inputs, outputs,
-                flags; ``registry``: name -> factory): ``knn`` (the paper's k-NN),
-                ``extended_model`` (inverts the identified model); the calibration
-                ``database`` they read; ``live`` (LiveEstimator: per-sample front
-                end, matched filters, inertia compensation); ``quasi_static``
-``control``     the speed PI with load-torque feedforward, and the rule for which
-                estimate may be fed forward
-``calibration`` making a calibration: grid and batch run on the simulator
-                (``batch``), point by point on a live graph (``live``,
-                ``calibration_node``), the resumable ``journal``, the steady-state
-                ``operating_points``, the ``calibrate`` CLI
-``identification`` the fast road: one short excitation (``excitation``, ``recording``,
-                live over the graph by ``identify_node``, in-process by ``simulated``), the
-                fit of the rig's uncertain parameters and effects (``fit``), the ``identify`` CLI
-``experiment``  the paper's experiment and the demo: held-out ``evaluation`` and
-                ``evaluate`` CLI, ``scenario`` timelines, ``closed_loop`` (the graph's
-                loop in one process), ``run_analysis``, ``plots``, ``demo``; ``estimate``
-                (any estimator over a log, scored against its tau_load); ``identified``
-                (identify vs the k-NN grid on the simulator, for evaluate and bench)
-``graph``       running the node graph: ``runner`` (start nodes from one parameter
-                file), ``run_graph`` CLI, ``replay`` (the graph's cores over a bag)
-``nodes``       estimator_node, controller_node, and ``composed`` (several nodes in one
-                process on one executor: run_graph --together)
-==============  ===============================================================
+==================  ===========================================================
+``estimation``      the estimators behind one interface (``base``: inputs, outputs,
+                    flags; ``registry``: name -> factory): ``observer`` (the shipped
+                    default: a Kalman filter on the model with a step detector),
+                    ``knn`` (the paper's k-NN map), ``extended_model`` (inverts the
+                    identified model); the calibration ``database`` they read;
+                    ``live`` (LiveEstimator: the per-sample front end every node,
+                    replay and study runs); ``quasi_static``, ``calibration_bias``
+``control``         what feeds the load forward: ``feedforward`` (which estimate may
+                    be fed forward, and when it is too old), ``rig_feedforward`` (the
+                    estimator the rig runs beside its speed PI; the PI itself is
+                    ``worm_rig_driver.drive``)
+``calibration``     making a calibration: grid and batch run on the simulator
+                    (``batch``), point by point on a live graph (``live``,
+                    ``calibration_node``), the resumable ``journal``, the steady-state
+                    ``operating_points``, the ``calibrate`` CLI
+``identification``  the fast road: one short excitation (``excitation``, ``recording``,
+                    live over the graph by ``identify_node``, in-process by
+                    ``simulated``), the fit of the rig's uncertain parameters and
+                    effects (``fit``), the ``identify`` CLI
+``offline``         the estimators over recorded data: ``estimate`` (any log, scored
+                    against its tau_load), ``replay`` (the graph's cores over a bag)
+``evaluation``      ``make evaluate``'s studies: ``held_out`` (Table 3), ``transient``,
+                    ``identified``, ``observer_study``, ``residual_cases``,
+                    ``closed_loop``; the ``evaluate`` CLI
+``demo``            ``make demo``: ``scenario`` timelines played on the live graph
+                    (``scenario_node``), ``run_analysis``, ``plots``, the ``demo`` CLI
+``graph``           running the node graph: ``runner`` (start nodes from one
+                    parameter file), the ``run_graph`` CLI
+``nodes``           estimator_node, controller_node, and ``composed`` (several nodes
+                    in one process on one executor: run_graph --together)
+==================  ===========================================================
 
-Read first: ``estimation/base.py`` (what an estimator is), ``estimation/knn.py``
-(the paper's method), ``estimation/live.py`` (what the node does per sample).
+Read first: ``estimation/base.py`` (what an estimator is), ``estimation/live.py`` (what
+estimator_node does with every sample), then ``estimation/observer.py`` (the shipped
+estimator) or ``estimation/knn.py`` (the paper's method).
 """
 import os as _os
 

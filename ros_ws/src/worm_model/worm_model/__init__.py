@@ -4,8 +4,10 @@ Map (dependencies point up this list, never down; no module imports rclpy
 outside ``ros/`` and ``nodes/``):
 
 ============  =================================================================
-``cli``       what every command-line tool and file loader shares (input validation and atomic
-              outputs: ``cli/validate.py``; progress bars)
+``cli``       what every command-line tool shares: bad input as one line and exit 2
+              (``errors``), checked options (``options``), progress bars
+``files``     a user's files: ``reading`` (text, YAML, JSON, every refusal one line),
+              ``writing`` (never over a user's file without --force, atomic outputs)
 ``physics``   the model itself: rig parameters (one YAML file, a source for every
               number), friction mu, modes and flanks, efficiencies, internal forces
               (Eqs 21-23), coupled dynamics (Eq 28), PMDC motor (Eq 29), steady state

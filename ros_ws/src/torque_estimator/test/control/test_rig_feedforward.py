@@ -12,8 +12,8 @@ from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 from torque_estimator.control.rig_feedforward import (FEEDFORWARD_FALSE_ALARM, EstimatorFeedforward, build,
                                                       feedforward_estimator)
-from torque_estimator.experiment.closed_loop import run_scenario
-from torque_estimator.experiment.scenario import Segment, segment_at
+from torque_estimator.evaluation.closed_loop import run_scenario
+from torque_estimator.evaluation.scenario import Segment, segment_at
 
 RIG = load_rig()
 T = 1e-3

@@ -10,8 +10,8 @@ from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simula
 from torque_estimator.estimation.base import EstimateFlags, TorqueEstimates
 from torque_estimator.estimation.calibration_bias import CalibrationBias
 from torque_estimator.estimation.observer import ObserverEstimator
-from torque_estimator.experiment.evaluation import held_out_setpoints
-from torque_estimator.experiment.observer_study import held_out_streaming, perturbed_rig
+from torque_estimator.evaluation.held_out import held_out_setpoints
+from torque_estimator.evaluation.observer_study import held_out_streaming, perturbed_rig
 from worm_model.physics.parameters import load_rig
 
 RIG = load_rig(None)

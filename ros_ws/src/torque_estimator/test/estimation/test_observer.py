@@ -18,10 +18,10 @@ import pytest
 from torque_estimator.calibration.batch import CalibrationGrid
 from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.estimation.registry import ESTIMATORS, NODE_OPTIONS, make_estimator
-from torque_estimator.experiment.evaluation import held_out_setpoints
+from torque_estimator.evaluation.held_out import held_out_setpoints
 from torque_estimator.estimation.observer import (LoadObserver, ObserverEstimator, StaticLoadMap, jump_bound,
                                        predicted_noise, steady_state_bound)
-from torque_estimator.experiment.observer_study import (held_out_streaming, perturbed_rig, profile_error, run_observers,
+from torque_estimator.evaluation.observer_study import (held_out_streaming, perturbed_rig, profile_error, run_observers,
                                              step_response)
 from worm_model.physics.parameters import load_rig
 

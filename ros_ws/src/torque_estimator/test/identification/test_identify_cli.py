@@ -16,7 +16,7 @@ from worm_model.ros.ament import find_executable
 
 from torque_estimator.estimation.extended_model import ExtendedModelEstimator, identification_ranges
 from torque_estimator.estimation.observer import ObserverEstimator
-from torque_estimator.experiment.identified import write_declared
+from torque_estimator.evaluation.identified import write_declared
 from torque_estimator.identification.excitation import default_excitation
 from torque_estimator.identification.fit import default_refit
 from torque_estimator.identification.identify import main

@@ -36,7 +36,9 @@ from torque_estimator.calibration.journal import CalibrationJournal, default_jou
 from torque_estimator.calibration.live import LiveRigError, PointByPoint, live_settings
 from torque_estimator.calibration.operating_points import SteadyStateCriterion
 from worm_model.cli.progress import ProgressBar
-from worm_model.cli.validate import InputError, Parser, check_output, existing_file, integer, number, run_tool
+from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.options import Parser, existing_file, integer, number
+from worm_model.files.writing import check_output
 
 EXIT_INTERRUPTED = 130
 #: largest grid dimension and longest time per point [s] accepted (the paper's grid is 17 x 16, points take ~1 s)

@@ -42,7 +42,9 @@ from typing import Any, Final
 
 import numpy as np
 
-from worm_model.cli.validate import InputError, load_json, write_text_atomically
+from worm_model.cli.errors import InputError
+from worm_model.files.reading import load_json
+from worm_model.files.writing import write_text_atomically
 
 from torque_estimator.estimation.database import CalibrationDatabase, CalibrationError
 

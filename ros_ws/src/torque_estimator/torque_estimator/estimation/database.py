@@ -46,7 +46,10 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from worm_model.cli.validate import Envelope, InputError, load_json, write_text_atomically
+from worm_model.cli.errors import InputError
+from worm_model.files.reading import load_json
+from worm_model.files.writing import write_text_atomically
+from worm_model.physics.envelope import Envelope
 from worm_model.physics.parameters import Rig
 
 FORMAT: Final = "worm_torque_calibration"
@@ -323,7 +326,7 @@ def load_database(path: str | os.PathLike[str], rig: Rig | None = None) -> Calib
 
 
 def check_plausible(db: CalibrationDatabase, rig: Rig) -> None:
-    """Every point inside what ``rig`` can do (worm_model.cli.validate.Envelope).
+    """Every point inside what ``rig`` can do (worm_model.physics.envelope.Envelope).
 
     Raises:
         CalibrationError: a point far outside the rig's envelope (the field and the point are named).

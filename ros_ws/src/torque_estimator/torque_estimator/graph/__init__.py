@@ -1,2 +1,2 @@
-"""Running the node graph: ``runner`` (every node of one parameter file, one process each),
-``run_graph`` (its CLI), ``replay`` (the graph's cores over a recorded bag, no DDS)."""
+"""Running the node graph: ``runner`` (every node of one parameter file, one process each, or several
+in one), ``run_graph`` (its CLI)."""

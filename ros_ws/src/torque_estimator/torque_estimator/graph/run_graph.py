@@ -17,7 +17,8 @@ import sys
 import time
 from pathlib import Path
 
-from worm_model.cli.validate import Parser, integer, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.cli.options import Parser, integer
 
 from torque_estimator.graph.runner import Graph, GraphError, parse_overrides
 

@@ -22,7 +22,8 @@ from pathlib import Path
 
 import yaml
 
-from worm_model.cli.validate import InputError, load_yaml
+from worm_model.cli.errors import InputError
+from worm_model.files.reading import load_yaml
 from worm_model.ros.ament import ament_prefixes, find_executable
 from worm_rig_driver.drive.realtime import realtime_permitted
 

@@ -33,7 +33,7 @@ Which samples (:data:`QUASI_STATIC_ACCELERATION`)
     true model and every true effect): 2 % of the samples made half the residual's variance and
     hid every effect smaller than it from the held-out blocks.
 Figures (simulated rig with every default effect on, the rig file off by mu x1.3, K_t x1.05, drags
-    x2, 85 s record, 17 held-out points, % of the load range; experiment.identified): 0.5 % / no
+    x2, 85 s record, 17 held-out points, % of the load range; evaluation.identified): 0.5 % / no
     guard took the identified model to 2.97 / 6.96 % (mean / max); these settings to 0.71 / 1.52,
     0.58 / 1.91 and 0.92 / 2.15 % (seeds 1-3).
 Ranges

@@ -15,7 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from worm_model.calc.calculator import CalculatorError, efficiencies, forces, make_gearbox, to_json_ready
-from worm_model.cli.validate import Parser, existing_file, number, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.cli.options import Parser, existing_file, number
 from worm_model.physics.parameters import ParameterError, load_rig
 
 #: what the calculator takes: bounds far beyond any worm gear set (the largest make ~1e5 N m), so that a

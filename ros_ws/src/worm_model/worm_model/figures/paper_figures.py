@@ -36,7 +36,9 @@ from typing import Any
 
 import numpy as np
 
-from worm_model.cli.validate import Envelope, InputError, load_json
+from worm_model.cli.errors import InputError
+from worm_model.files.reading import load_json
+from worm_model.physics.envelope import Envelope
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.physics.internal_forces import internal_forces
 from worm_model.physics.modes import Mode, classify_mode
@@ -137,7 +139,7 @@ def read_calibration(path: str | os.PathLike[str]) -> CalibrationPoints:
 def rig_for(points: CalibrationPoints, rig_file: str | os.PathLike[str] | None) -> Rig:
     """The rig to analyse with: ``rig_file`` if given, else the rig embedded in the calibration file.
 
-    The points are then checked against what that rig can do (worm_model.cli.validate.Envelope).
+    The points are then checked against what that rig can do (worm_model.physics.envelope.Envelope).
 
     Raises:
         ReportError: the rig file or the embedded rig is invalid (message from load_rig); the

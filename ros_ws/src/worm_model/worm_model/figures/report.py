@@ -19,7 +19,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import Normalize  # noqa: E402
 
-from worm_model.cli.validate import Parser, atomic_dir, check_output, existing_file, run_tool  # noqa: E402
+from worm_model.cli.errors import run_tool
+from worm_model.cli.options import Parser, existing_file
+from worm_model.files.writing import atomic_dir, check_output
 from worm_model.figures.paper_figures import DRAG_MODELS, PaperFigures, ReportError, compute, read_calibration, rig_for, trends  # noqa: E402
 
 SPEED_CMAP = "coolwarm"

@@ -16,7 +16,7 @@ positive worm rotation is the reference, τ_load > 0 opposes it):
 
 A NaN/inf input gives NaN forces flagged INVALID_INPUT; a NaN/inf speed is
 skipped by the acceleration filter (its state is kept for the next sample). Used by model_node and by the offline replay
-(torque_estimator.graph.replay), so both run the same code. No ROS.
+(torque_estimator.offline.replay), so both run the same code. No ROS.
 """
 from __future__ import annotations
 

@@ -3,5 +3,6 @@
 ``units`` and ``parameters`` (the rig file) come first; ``friction`` (mu models),
 ``modes`` (frame of motion, mode, flank), ``efficiency``, ``internal_forces``
 (Eqs 21-23), ``dynamics`` (Eqs 26-28), ``motor`` (Eq 29), ``gear_side`` (load
-motors' drag) and ``steady_state`` build on them.
+motors' drag) and ``steady_state`` build on them; ``envelope`` is what a rig can physically do
+(the bounds measured data is checked against).
 """

@@ -32,7 +32,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from worm_model.cli.validate import InputError, load_yaml
+from worm_model.cli.errors import InputError
+from worm_model.files.reading import load_yaml
 from worm_model.physics.friction import FRICTION_MODELS
 from worm_model.physics.units import UNITS, normalize_unit, to_si
 

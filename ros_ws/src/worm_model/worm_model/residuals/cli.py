@@ -23,7 +23,10 @@ from pathlib import Path
 import numpy as np
 
 from worm_model.physics.parameters import ParameterError, default_rig_path, load_rig
-from worm_model.cli.validate import Envelope, Parser, atomic_dir, check_output, existing_file, integer, number, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.cli.options import Parser, existing_file, integer, number
+from worm_model.files.writing import atomic_dir, check_output
+from worm_model.physics.envelope import Envelope
 from worm_model.rig_data.schema import RigDataError, check_envelope
 
 from worm_model.residuals.analysis import Settings, Problem, analyse, extended_effects, make_split

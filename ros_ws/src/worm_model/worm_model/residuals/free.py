@@ -50,7 +50,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 
-from worm_model.cli.validate import InputError, load_yaml
+from worm_model.cli.errors import InputError
+from worm_model.files.reading import load_yaml
 from worm_model.physics.parameters import ParameterError, Rig, default_rig_path
 
 #: dotted path -> (SI unit, what it does in the current model)

@@ -24,7 +24,10 @@ from typing import Final, TextIO
 
 from tqdm import tqdm
 
-from worm_model.cli.validate import Envelope, Parser, check_output, existing_file, integer, number, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.cli.options import Parser, existing_file, integer, number
+from worm_model.files.writing import check_output
+from worm_model.physics.envelope import Envelope
 from worm_model.physics.parameters import ParameterError, load_rig
 from worm_model.rig_data.schema import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, RigDataError
 from worm_model.bags.reader import BagMessage, BagReader

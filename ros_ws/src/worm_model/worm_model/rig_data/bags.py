@@ -37,7 +37,8 @@ from worm_model.rig_data.schema import (
 from worm_model.rig_data.samples import SAMPLE_TOPICS, SAMPLE_TYPES, iter_samples
 from worm_model.bags.reader import BagReader
 from worm_model.bags.typestore import BagRecordingError
-from worm_model.cli.validate import Envelope, atomic_file
+from worm_model.files.writing import atomic_file
+from worm_model.physics.envelope import Envelope
 from worm_model.bags.writer import BagWriter
 from worm_model.bags.typestore import MessageTypes
 

@@ -50,7 +50,7 @@ from typing import Final
 
 import numpy as np
 
-from worm_model.cli.validate import Envelope
+from worm_model.physics.envelope import Envelope
 from worm_model.physics.units import FloatArray
 
 REQUIRED_COLUMNS: Final[dict[str, str]] = {
@@ -151,7 +151,7 @@ class MeasuredData:
 
 
 def check_envelope(data: MeasuredData, envelope: Envelope) -> None:
-    """Every sample inside what the rig can do (worm_model.cli.validate.Envelope, from the rig file).
+    """Every sample inside what the rig can do (worm_model.physics.envelope.Envelope, from the rig file).
 
     Raises:
         RigDataError: the first sample far outside it, naming the file, the line (CSV) or the

@@ -22,7 +22,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from worm_model.cli.validate import one_line
+from worm_model.cli.errors import one_line
 from worm_model.ros.parameters import help_text, wants_help
 from worm_model.ros.teardown import deadline
 

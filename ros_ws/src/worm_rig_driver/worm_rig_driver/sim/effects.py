@@ -63,7 +63,10 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from worm_model.cli.validate import InputError, Parser, atomic_file, check_output, load_yaml, run_tool
+from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.options import Parser
+from worm_model.files.reading import load_yaml
+from worm_model.files.writing import atomic_file, check_output
 from worm_model.physics.parameters import ParameterError, Rig, finite_number
 
 import worm_rig_driver.protocol.table as protocol_table

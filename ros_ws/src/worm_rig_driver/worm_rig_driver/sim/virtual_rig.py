@@ -44,7 +44,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from worm_model.cli.validate import InputError, Parser, existing_file, integer, number, run_tool
+from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.options import Parser, existing_file, integer, number
 from worm_model.physics.parameters import load_rig
 
 import worm_rig_driver.protocol.table as table

@@ -25,13 +25,16 @@ from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simula
 from torque_estimator.estimation.database import save_database
 from torque_estimator.estimation.registry import make_estimator
 from torque_estimator.graph.runner import default_graph_file
-from torque_estimator.experiment.evaluation import evaluate_held_out, format_table
-from torque_estimator.experiment.plots import estimate_vs_truth, held_out_deviation, tracking
+from torque_estimator.evaluation.held_out import evaluate_held_out, format_table
+from torque_estimator.demo.plots import estimate_vs_truth, tracking
+from torque_estimator.evaluation.plots import held_out_deviation
 from worm_model.cli.progress import ProgressBar
-from worm_model.cli.validate import Parser, check_output, existing_file, integer, run_tool
-from torque_estimator.experiment.run_analysis import analyse_run, recorded_load_steps
-from torque_estimator.experiment.scenario import DEMO_SCENARIO
-from torque_estimator.experiment.scenario_node import live_run
+from worm_model.cli.errors import run_tool
+from worm_model.cli.options import Parser, existing_file, integer
+from worm_model.files.writing import check_output
+from torque_estimator.demo.run_analysis import analyse_run, recorded_load_steps
+from torque_estimator.evaluation.scenario import DEMO_SCENARIO
+from torque_estimator.demo.scenario_node import live_run
 
 
 def load_run(bag: Path, start_stamp: float) -> dict:

@@ -9,12 +9,12 @@ import pytest
 
 from worm_model.physics.parameters import load_rig
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
-from torque_estimator.experiment.closed_loop import run_scenario
+from torque_estimator.evaluation.closed_loop import run_scenario
 from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.estimation.knn import KnnEstimator
 from torque_estimator.estimation.live import LiveEstimator
-from torque_estimator.experiment.run_analysis import load_step_responses, load_steps, recorded_load_steps
-from torque_estimator.experiment.scenario import Segment
+from torque_estimator.demo.run_analysis import load_step_responses, load_steps, recorded_load_steps
+from torque_estimator.evaluation.scenario import Segment
 
 RIG = load_rig()
 STEP = (Segment(0.8, 150.0, 0.0, "no load"), Segment(0.7, 150.0, 0.2, "resistive"),

@@ -60,7 +60,10 @@ import yaml
 
 from worm_model.live.live_model import FIELDS as FORCE_FIELDS
 from worm_model.live.live_model import LiveModel
-from worm_model.cli.validate import Envelope, InputError, Parser, existing_file, load_yaml, number, run_tool
+from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.options import Parser, existing_file, number
+from worm_model.files.reading import load_yaml
+from worm_model.physics.envelope import Envelope
 from worm_model.physics.parameters import ParameterError, load_rig
 from worm_model.rig_data.schema import RigDataError
 from worm_model.bags.reader import BagReader

@@ -41,7 +41,7 @@ from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 from torque_estimator.estimation.base import TorqueEstimator
 from torque_estimator.estimation.live import LiveEstimator
-from torque_estimator.experiment.scenario import Segment, segment_at
+from torque_estimator.evaluation.scenario import Segment, segment_at
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, PiGains, SpeedController
 from worm_model.physics.steady_state import balancing_torque
 from torque_estimator.control.feedforward import FeedforwardGate

@@ -12,7 +12,7 @@ from worm_model.physics.parameters import load_rig
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import save_database
 from torque_estimator.estimation.base import EstimateFlags
-from torque_estimator.experiment.evaluation import (Evaluation, format_table, held_out_setpoints, measure_held_out, score,
+from torque_estimator.evaluation.held_out import (Evaluation, format_table, held_out_setpoints, measure_held_out, score,
                                          sweep_k, with_noise)
 from worm_model.ros.ament import find_executable
 from torque_estimator.estimation.knn import KnnEstimator

@@ -13,8 +13,8 @@ from worm_model.rig_data.reader import read_rig_data
 from worm_model.rig_data.schema import MeasuredData, write_rig_csv
 from worm_model.ros.ament import find_executable
 
-from torque_estimator.experiment.estimate import LogEstimate, figures, main
-from torque_estimator.experiment.scenario import DEMO_SCENARIO
+from torque_estimator.offline.estimate import LogEstimate, figures, main
+from torque_estimator.evaluation.scenario import DEMO_SCENARIO
 from torque_estimator.identification.excitation import Ramp
 from torque_estimator.identification.simulated import record_on_simulator
 

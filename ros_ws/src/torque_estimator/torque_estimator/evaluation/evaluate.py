@@ -14,13 +14,13 @@ density and sensor noise, each on --sweep-points held-out points.
 
 Then, unless --no-transient, every estimator of the registry side by side:
 its held-out figures and how it follows a load step, a speed ramp and a
-reversal, streamed as estimator_node runs it (experiment.transient), one line
+reversal, streamed as estimator_node runs it (evaluation.transient), one line
 each
     transient: method=<m> step90_ms=<x> overshoot_pct=<x> ramp_err_pct=<x> reversal_err_pct=<x>
 and the observer's steady noise against the best any estimator can do from these
 sensors at its bandwidth (observer.steady_state_bound, a Cramér-Rao-type bound)
     noise: method=observer std=<x> bound=<x> N m ratio=<x>
-and the fast road (experiment.identified): on the simulated rig with every default effect
+and the fast road (evaluation.identified): on the simulated rig with every default effect
 on and the rig file off (mu x1.3, K_t x1.05, drags x2), one `identify` run against the
 k-NN grid calibrated on that rig, the extended model and the observer with the identified
 parameters, on the same held-out points, ending with
@@ -38,22 +38,24 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from worm_model.cli.validate import Parser, atomic_dir, check_output, existing_file, integer, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.cli.options import Parser, existing_file, integer
+from worm_model.files.writing import atomic_dir, check_output
 from worm_model.physics.parameters import ParameterError, load_rig
-from torque_estimator.experiment.residual_cases import evaluate_lines, full_matrix, small_matrix
+from torque_estimator.evaluation.residual_cases import evaluate_lines, full_matrix, small_matrix
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import CalibrationError, load_database
 from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
-from torque_estimator.experiment.evaluation import format_table, measure_held_out, score, sweep_grid_density, sweep_k, sweep_noise
+from torque_estimator.evaluation.held_out import format_table, measure_held_out, score, sweep_grid_density, sweep_k, sweep_noise
 from torque_estimator.estimation.knn import WEIGHTINGS
 from torque_estimator.estimation.observer import steady_state_bound
-from torque_estimator.experiment.transient import STEP_SPEED, transient_figures
-from torque_estimator.experiment.identified import evaluate_lines as identified_lines
+from torque_estimator.evaluation.transient import STEP_SPEED, transient_figures
+from torque_estimator.evaluation.identified import evaluate_lines as identified_lines
 
 #: seeds of the step experiment (the ramp and the reversal take a third)
 TRANSIENT_SEEDS = 12
-from torque_estimator.experiment.plots import held_out_deviation, sweeps
+from torque_estimator.evaluation.plots import held_out_deviation, sweeps
 from worm_model.cli.progress import ProgressBar
 
 

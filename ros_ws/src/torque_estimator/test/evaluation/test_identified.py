@@ -19,10 +19,10 @@ from worm_model.rig_data.schema import write_rig_csv
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.extended_model import ExtendedModelEstimator
-from torque_estimator.experiment.estimate import main as estimate_main
-from torque_estimator.experiment.evaluation import measure_held_out, score
-from torque_estimator.experiment.identified import effects_all, run_roads
-from torque_estimator.experiment.scenario import DEMO_SCENARIO
+from torque_estimator.offline.estimate import main as estimate_main
+from torque_estimator.evaluation.held_out import measure_held_out, score
+from torque_estimator.evaluation.identified import effects_all, run_roads
+from torque_estimator.evaluation.scenario import DEMO_SCENARIO
 from torque_estimator.identification.excitation import Ramp
 from torque_estimator.identification.simulated import record_on_simulator
 

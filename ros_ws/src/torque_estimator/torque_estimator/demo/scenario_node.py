@@ -20,7 +20,7 @@ from worm_model.bags.writer import BagWriter
 from worm_rig_driver.nodes.recorder_node import TopicRecorder
 
 from torque_estimator.graph.runner import Graph, rig_computer
-from torque_estimator.experiment.scenario import DEMO_SCENARIO, segment_at
+from torque_estimator.evaluation.scenario import DEMO_SCENARIO, segment_at
 
 
 #: what demo.load_run reads (the truth: every sample's, /sim/truth_samples)

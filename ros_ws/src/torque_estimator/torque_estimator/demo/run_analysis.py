@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from torque_estimator.experiment.scenario import segment_starts
+from torque_estimator.evaluation.scenario import segment_starts
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""PNG figures of the demo and the evaluation (matplotlib, no display needed)."""
+"""PNG figures of the evaluation (matplotlib, no display needed)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -24,34 +24,7 @@ def held_out_deviation(path: Path, tau_true, tau_est, torque_range: float) -> Pa
     bottom.set_xticks(idx)
     bottom.axhline(0.0, color="black", lw=0.6)
     fig.suptitle("Held-out operating points (not in the calibration grid)")
-    return _save(fig, path)
-
-
-def estimate_vs_truth(path: Path, runs: dict) -> Path:
-    """Estimated and true load torque over time for each run."""
-    fig, axes = plt.subplots(len(runs), 1, figsize=(10, 3.2 * len(runs)), sharex=True, squeeze=False)
-    for ax, (name, r) in zip(axes[:, 0], runs.items()):
-        ax.plot(r["t_est"], r["estimate"], lw=0.6, label="estimate (live, 1 kHz)")
-        ax.plot(r["t_truth"], r["truth"], lw=1.5, label="true τ_d (simulator)")
-        ax.set_ylabel("τ_d [N·m]")
-        ax.set_title(name)
-        ax.legend(loc="upper right")
-    axes[-1, 0].set_xlabel("time [s]")
-    return _save(fig, path)
-
-
-def tracking(path: Path, runs: dict) -> Path:
-    """Worm speed against its set-point, feedforward off and on."""
-    fig, ax = plt.subplots(figsize=(10, 4))
-    for name, r in runs.items():
-        ax.plot(r["t_speed"], r["omega"], lw=0.7, label=f"ω, {name}")
-    first = next(iter(runs.values()))
-    ax.plot(first["t_speed"], first["setpoint"], "k--", lw=1, label="set-point")
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("worm speed [rad/s]")
-    ax.legend(loc="lower left")
-    ax.set_title("Speed tracking through load steps")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def sweeps(path: Path, results, reference: dict | None = None) -> Path:
@@ -76,10 +49,11 @@ def sweeps(path: Path, results, reference: dict | None = None) -> Path:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
     fig.suptitle("k-NN held-out error against k, grid density and sensor noise")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
-def _save(fig, path: Path) -> Path:
+def save_figure(fig, path: Path) -> Path:
+    """Write ``fig`` as a PNG at ``path`` (its folder made if missing), close it, return ``path``."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

@@ -48,7 +48,7 @@ from torque_estimator.estimation.database import CalibrationError, load_database
 from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.estimation.registry import CALIBRATION_OPTIONAL, ESTIMATORS, live_rig_file, make_estimator, \
     node_options
-from torque_estimator.graph.replay import ReplayError, node_parameters
+from torque_estimator.offline.replay import ReplayError, node_parameters
 from worm_model.cli.progress import ProgressBar
 
 PROG = "estimate"

@@ -5,7 +5,7 @@ and its true, bundled parameters; the rig file the user gives ``identify`` is th
 off by realistic amounts (:data:`DECLARED_OFF`: mu x1.3, K_t x1.05, drags x2; worm_model.residuals
 .cases.declared_rig).  One excitation (identification.excitation, <= 90 s of rig time) is
 recorded, identified, and written as an extended rig file; then, on the same held-out points
-(experiment.evaluation, 17 by default, measured on the same simulated rig):
+(evaluation.held_out, 17 by default, measured on the same simulated rig):
 
 * ``knn``: the paper's map calibrated point by point on that rig (544 points);
 * ``declared``: the extended model of the rig file as given (nothing identified);
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from worm_model.physics.parameters import Rig, default_rig_path, rig_to_dict
-from torque_estimator.experiment.residual_cases import declared_rig
+from torque_estimator.evaluation.residual_cases import declared_rig
 from worm_model.residuals.extended import ExtendedModel
 from worm_rig_driver.sim.effects import EFFECTS, EffectsConfig
 
@@ -36,7 +36,7 @@ from torque_estimator.calibration.operating_points import SteadyStateCriterion, 
 from torque_estimator.estimation.extended_model import ExtendedModelEstimator
 from torque_estimator.estimation.knn import KnnEstimator
 from torque_estimator.estimation.observer import ObserverEstimator
-from torque_estimator.experiment.evaluation import Evaluation, measure_held_out, score
+from torque_estimator.evaluation.held_out import Evaluation, measure_held_out, score
 from torque_estimator.identification.excitation import DEFAULT_DURATION, default_excitation, total_duration
 from torque_estimator.identification.fit import identify, write_identified
 from torque_estimator.identification.simulated import record_on_simulator

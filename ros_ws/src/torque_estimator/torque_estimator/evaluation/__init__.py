@@ -1,0 +1,11 @@
+"""The accuracy studies (``make evaluate``): each estimator and tool measured on the simulated rig.
+
+``evaluate`` (the CLI: every table and one summary line per study), ``held_out`` (the paper's
+Table 3: an estimator on held-out operating points), ``transient`` (a load step, a speed ramp and a
+reversal streamed as estimator_node runs them), ``identified`` (one ``identify`` run against the
+k-NN grid), ``observer_study`` (the observer's steady noise and its model errors),
+``residual_cases`` (the residuals tool's case matrix), ``closed_loop`` (the speed loop with
+feedforward in one process, at the rig's, the firmware's and the graph's timing; the controller
+benchmark's core), ``scenario`` (timelines of speed and load segments, played in-process by
+``closed_loop`` and live by the demo), ``plots`` (PNGs).
+"""

@@ -1,0 +1,4 @@
+"""The estimators over recorded data, no DDS: ``estimate`` (any estimator over a CSV log or a bag,
+scored against its tau_load) and ``replay`` (model_node's and estimator_node's cores over a bag,
+compared with the live outputs recorded in it).
+"""

@@ -1,0 +1,65 @@
+"""Bad input, said once: the error every tool and loader raises for it, and how a tool's main ends.
+
+Every command-line tool of the project refuses bad input the same way: one line on stderr,
+``tool: where: what is wrong``, and exit code 2 (:data:`EXIT_BAD_INPUT`); no traceback reaches the
+user. :class:`InputError` carries ``where`` (an option, a file, ``file: line 7, column 'x'``) and
+``what``; the loaders' own errors (ParameterError, CalibrationError, RigDataError, ...) are ValueErrors
+with the same ``where: what`` message and count as bad input too. :func:`run_tool` wraps a tool's
+main: bad input -> the one line and exit 2, Ctrl-C -> 130, anything else -> one line saying it is a
+bug, the traceback saved to a file.
+"""
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+import traceback
+from collections.abc import Callable, Sequence
+from typing import Final
+
+EXIT_BAD_INPUT: Final = 2
+EXIT_INTERRUPTED: Final = 130
+
+
+class InputError(ValueError):
+    """Bad input: ``where`` it is (option, file, line, column) and ``what`` is wrong with it."""
+
+    def __init__(self, where: str, what: str) -> None:
+        self.where = str(where)
+        self.what = what
+        super().__init__(f"{self.where}: {what}" if self.where else what)
+
+
+def one_line(err: BaseException) -> str:
+    """An exception's message on one line."""
+    return " ".join(str(err).split()) or type(err).__name__
+
+
+def run_tool(tool: str, main: Callable[[], int], bad_input: Sequence[type[BaseException]] = ()) -> int:
+    """Run a tool's ``main`` and turn what escapes it into an exit code and one stderr line.
+
+    InputError and the loaders' errors the tool names in ``bad_input`` -> exit 2;
+    KeyboardInterrupt -> 130; OSError (disk full, ...) -> exit 1; any other exception is a bug: one line saying so, the traceback
+    written to a file named in that line, exit 1.
+    """
+    try:
+        return main()
+    except (InputError, *bad_input) as err:
+        print(f"{tool}: {one_line(err)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"{tool}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # e.g. `... | head`
+        sys.stderr.close()
+        return 0
+    except OSError as err:  # the machine, not the input: a full disk, a folder gone meanwhile
+        print(f"{tool}: {one_line(err)}", file=sys.stderr)
+        return 1
+    except Exception as err:  # noqa: BLE001 - reported as a bug, with its traceback kept
+        fd, name = tempfile.mkstemp(prefix=f"{tool}-traceback-", suffix=".txt")
+        with os.fdopen(fd, "w", encoding="utf-8") as stream:
+            stream.write(f"{tool} {' '.join(sys.argv[1:])}\n\n{traceback.format_exc()}")
+        print(f"{tool}: internal error (a bug, please report it): {type(err).__name__}: {one_line(err)}; "
+              f"traceback in {name}", file=sys.stderr)
+        return 1

@@ -1,0 +1,109 @@
+"""Command-line options and numbers read from files, checked alike: finite, inside a physical range,
+the unit named in the message; :class:`Parser`, an ArgumentParser whose errors are one line and exit 2.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from worm_model.cli.errors import EXIT_BAD_INPUT, InputError
+
+
+def _bound(low: float | None, high: float | None, open_low: bool, open_high: bool, unit: str) -> str:
+    u = f" {unit}" if unit else ""
+    lo, hi = (str(x) if isinstance(x, int) else f"{x:g}" for x in (low, high))
+    if low is not None and high is not None:
+        return f"in {'(' if open_low else '['}{lo}, {hi}{')' if open_high else ']'}{u}"
+    if low is not None:
+        return f"{'>' if open_low else '>='} {lo}{u}"
+    return f"{'<' if open_high else '<='} {hi}{u}"
+
+
+def check_number(value: Any, where: str, unit: str = "", low: float | None = None, high: float | None = None, *,
+                 open_low: bool = False, open_high: bool = False, integer: bool = False) -> float:
+    """``value`` as a finite number inside [low, high] (ends open where asked), else InputError naming ``where``.
+
+    Args:
+        unit: shown with the number and the range ("" for dimensionless).
+        integer: also require an integral value (returned as int).
+    """
+    u = f" {unit}" if unit else ""
+    if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+        raise InputError(where, f"{value!r} is not a number{' [' + unit + ']' if unit else ''}")
+    try:
+        number = int(value) if integer and isinstance(value, str) and value.strip().lstrip("+-").isdigit() \
+            else float(value)
+    except (ValueError, OverflowError):
+        raise InputError(where, f"{value!r} is not a number{' [' + unit + ']' if unit else ''}") from None
+    if isinstance(number, float) and not math.isfinite(number):
+        raise InputError(where, f"{value!r} is not a finite number{' [' + unit + ']' if unit else ''}")
+    if integer:
+        if isinstance(number, float):
+            if not number.is_integer():
+                raise InputError(where, f"{value!r} is not a whole number")
+            number = int(number)
+    too_low = low is not None and (number <= low if open_low else number < low)
+    too_high = high is not None and (number >= high if open_high else number > high)
+    if too_low or too_high:
+        shown = f"{number}" if integer else f"{number:g}"
+        raise InputError(where, f"{shown}{u} is out of range: must be {_bound(low, high, open_low, open_high, unit)}")
+    return number
+
+
+def number(unit: str = "", low: float | None = None, high: float | None = None, *, open_low: bool = False,
+           open_high: bool = False, what: str = "") -> Callable[[str], float]:
+    """An argparse ``type``: a finite float inside the range, the unit (and ``what`` it is) in the message."""
+    def parse(text: str) -> float:
+        try:
+            return float(check_number(text, "", unit, low, high, open_low=open_low, open_high=open_high))
+        except InputError as err:
+            raise argparse.ArgumentTypeError(f"{what} {err.what}" if what else err.what) from None
+    parse.__name__ = "number"
+    return parse
+
+
+def integer(low: int | None = None, high: int | None = None, unit: str = "", what: str = "") -> Callable[[str], int]:
+    """An argparse ``type``: a whole number inside [low, high]."""
+    def parse(text: str) -> int:
+        try:
+            return int(check_number(text, "", unit, low, high, integer=True))
+        except InputError as err:
+            raise argparse.ArgumentTypeError(f"{what} {err.what}" if what else err.what) from None
+    parse.__name__ = "integer"
+    return parse
+
+
+def existing_file(text: str) -> Path:
+    """An argparse ``type``: a path that is an existing file (not a folder)."""
+    path = Path(text)
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"{text}: no such file")
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text}: is a folder, expected a file")
+    return path
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse, with every error as one line ``prog: --option: what`` and exit code 2 (no usage block)."""
+
+    def _get_values(self, action: argparse.Action, arg_strings: list[str]) -> Any:
+        # "--opt=--": argparse drops the "--" and hands the option an empty list instead of a value
+        if action.nargs is None and action.option_strings and not [a for a in arg_strings if a != "--"]:
+            self.error(f"argument {'/'.join(action.option_strings)}: expected a value")
+        return super()._get_values(action, arg_strings)
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        where, what = "", message
+        if message.startswith("argument "):
+            where, _, what = message[len("argument "):].partition(": ")
+            where = where.split("/")[-1]  # "-n/--count" -> "--count"
+        elif message.startswith("the following arguments are required: "):
+            where, what = message.split(": ", 1)[1], "required"
+        elif message.startswith("unrecognized arguments: "):
+            where, what = message.split(": ", 1)[1], f"unknown option (see {self.prog} --help)"
+        print(f"{self.prog}: {where + ': ' if where else ''}{what}", file=sys.stderr)
+        raise SystemExit(EXIT_BAD_INPUT)
