@@ -242,7 +242,7 @@ def test_evaluate_damaged_calibration(data: st.DataObject, inputs, work) -> None
 @EXAMPLES
 @given(data=st.data())
 def test_bag_damaged_files(data: st.DataObject, inputs, work) -> None:
-    from worm_model.rig_data.bag_cli import main
+    from worm_rig_driver.recording.bag_cli import main
     command = data.draw(st.sampled_from(["echo", "export", "import"]))
     if command == "import":
         folder = work({"run.csv": data.draw(damaged_csv(inputs["run.csv"]))})
@@ -260,7 +260,7 @@ def test_bag_damaged_files(data: st.DataObject, inputs, work) -> None:
 @EXAMPLES
 @given(start=outside(0, 2**31 - 1))
 def test_bag_import_bad_start(start: str, inputs, work) -> None:
-    from worm_model.rig_data.bag_cli import main
+    from worm_rig_driver.recording.bag_cli import main
     refuse("bag import", main, ["import", "run.csv", "--out", "newbag", f"--start={start}"],
            work({"run.csv": inputs["run.csv"]}), names="--start")
 

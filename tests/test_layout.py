@@ -166,3 +166,17 @@ def test_every_console_script_names_an_existing_function(package: str) -> None:
     config = configparser.ConfigParser()
     config.read(SRC / package / "setup.cfg")
     assert config["install"]["install_scripts"] == f"$base/lib/{package}"  # where `ros2 run` looks
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_every_module_is_named_in_its_folders_map(package: str) -> None:
+    """A newcomer opening a folder's ``__init__.py`` learns every module in it: each is named as ``name``."""
+    unnamed = []
+    for init in sorted((SRC / package / package).rglob("__init__.py")):
+        if init.parent == SRC / package / package:
+            continue  # the package's top map names its folders (test_every_package_and_concern_opens_with_a_map)
+        doc = ast.get_docstring(ast.parse(init.read_text(encoding="utf-8"))) or ""
+        for module in sorted(init.parent.glob("*.py")):
+            if module.name != "__init__.py" and f"``{module.stem}``" not in doc:
+                unnamed.append(str(module.relative_to(SRC)))
+    assert unnamed == [], "modules their folder's __init__.py does not name as ``module``: " + ", ".join(unnamed)

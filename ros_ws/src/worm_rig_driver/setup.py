@@ -24,7 +24,7 @@ setup(
         "console_scripts": [
             "sim_node = worm_rig_driver.nodes.sim_node:main",
             "recorder = worm_rig_driver.nodes.recorder_node:main",
-            "bag = worm_model.rig_data.bag_cli:main",
+            "bag = worm_rig_driver.recording.bag_cli:main",
             "worm_effects = worm_rig_driver.sim.effects:main",
             "virtual_rig = worm_rig_driver.sim.virtual_rig:main",
             "driver_node = worm_rig_driver.nodes.driver_node:main",

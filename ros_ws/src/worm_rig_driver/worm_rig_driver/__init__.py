@@ -20,12 +20,12 @@ Map (dependencies point up this list; only ``nodes`` and ``fil.commander_node`` 
               scheduling (``realtime``)
 ``fil``       the real firmware in simavr, closed through the simulated plant
               (``harness``, ``run`` = ``make fil``, ``commander_node``)
+``recording`` the ``bag`` command over recorded runs (``bag_cli``)
 ``nodes``     sim_node, driver_node, recorder_node: the executables' ROS shells
 ============  =================================================================
 
 ``firmware/`` beside this package is the ATmega2560 firmware (AVR C).
-Bags and rig-data CSV live in ``worm_model.bags`` and ``worm_model.rig_data``
-(the ``bag`` executable is declared here, its code is there).
+Reading and writing bags and rig-data CSV is ``worm_model.bags`` and ``worm_model.rig_data``.
 Read first: ``sim/simulated_rig.py`` (what a rig sample is), then
 ``protocol/table.py`` and ``link/core.py`` for the real rig.
 """

@@ -1,2 +1,2 @@
-"""The executables' ROS shells: estimator_node, controller_node; ``composed`` runs several nodes of a
-graph in one process (run_graph --together)."""
+"""The executables' ROS shells: ``estimator_node``, ``controller_node``; ``composed`` runs several
+nodes of a graph in one process (run_graph --together)."""

@@ -1,6 +1,6 @@
 """The bag reader against every layout rosbag2 writes (no DDS, no rosbag2 needed).
 
-The bags come from worm_model.bags.rosbag2_layouts, which writes what each
+The bags come from fixtures.rosbag2_layouts (test/fixtures/), which writes what each
 rosbag2 release (Foxy 0.3 ... Jazzy 0.26; metadata versions 4 to 9) writes:
 sqlite3 and MCAP, split into several files, zstd-compressed per file or per
 message. Each test would fail if the reader lost, reordered or misdecoded a
@@ -20,7 +20,7 @@ from sensor_msgs.msg import JointState
 from worm_msgs.msg import RigSample
 from worm_model.bags.reader import BagReader, storage_files
 from worm_model.bags.typestore import BagReadError, MessageTypes
-from worm_model.bags.rosbag2_layouts import (
+from fixtures.rosbag2_layouts import (
     LAYOUTS,
     FixtureTopic,
     QosProfile,

@@ -1,7 +1,7 @@
 """Bags of RigSample to and from the worm_rig_data schema, in process (no DDS).
 
 The schema itself (CSV reader, writer, errors) is worm_model.rig_data.schema, tested in
-worm_model's test_rig_data.py; the `bag` executable in test_bag_cli.py.
+worm_model's test_rig_data.py; the `bag` executable in worm_rig_driver's test_bag_cli.py.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The worm_rig_data CSV schema (worm_model.rig_data.schema): reader, writer, errors naming file, line and column.
 
 The bag side of the schema (bag export/import) is tested in worm_rig_driver's test_rig_csv.py
-and test_bag_cli.py; the residual tool's use of it in test_residuals.py.
+and worm_rig_driver's test_bag_cli.py; the residual tool's use of it in test_residuals.py.
 """
 
 from __future__ import annotations

@@ -3,6 +3,5 @@
 ``reader`` (BagReader: sqlite3 and MCAP, metadata v4-9, split, zstd), ``writer``
 (BagWriter: what the recorder writes), ``typestore`` (message definitions and CDR
 decoding), ``seq_check`` (lost or repeated samples from ``seq``), ``message_yaml``
-(``ros2 topic echo``-style YAML), ``rosbag2_layouts`` (bags laid out as each rosbag2
-release writes them, for tests). Start with ``reader``.
+(``ros2 topic echo``-style YAML). Start with ``reader``.
 """

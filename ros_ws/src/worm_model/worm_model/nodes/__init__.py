@@ -1,1 +1,2 @@
-"""model_node: the gearbox's internal forces for every rig sample (a thin shell over ``worm_model.live``)."""
+"""``model_node``: the gearbox's internal forces for every rig sample (a thin shell over
+``worm_model.live``)."""

@@ -4,11 +4,12 @@
 ``schema``         the CSV schema, :class:`MeasuredData`, CSV reader and writer
 ``reader``         :func:`read_rig_data`: the one entry for CSV files and bags
 ``bags``           RigSample bags <-> MeasuredData (``bag export`` / ``bag import``)
-``bag_cli``        the ``bag`` command (``ros2 run worm_rig_driver bag``)
+``samples``        the rig's sample streams as recorded (RigSample or RigSamples batches)
 =================  ==============================================================
 
 Start with :mod:`~worm_model.rig_data.schema`. Bags themselves (rosbag2 layouts,
-reading, writing) are :mod:`worm_model.bags`.
+reading, writing) are :mod:`worm_model.bags`; the ``bag`` command is
+``worm_rig_driver.recording.bag_cli``.
 """
 from worm_model.rig_data.reader import read_rig_data
 from worm_model.rig_data.schema import MeasuredData, RigDataError, read_rig_csv, write_rig_csv

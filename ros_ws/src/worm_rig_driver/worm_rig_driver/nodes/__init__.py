@@ -1,1 +1,3 @@
-"""The executables' ROS shells: sim_node, driver_node, recorder_node."""
+"""The executables' ROS shells: ``sim_node`` (the simulated rig), ``driver_node`` (the real rig
+over serial), ``recorder_node`` (the bag recorder), and ``rig_topics`` (the topics and commands
+sim_node and driver_node share)."""

@@ -51,7 +51,6 @@ from worm_rig_driver.drive.rig_loop import SpeedCommand as LoopCommand
 #: RigSamples' per-sample fields, in message order (RigSample's fields of the same names)
 FIELDS = ("current_drive", "current_load_1", "current_load_2", "omega_worm", "omega_gear", "theta_worm",
           "theta_gear", "count_drive", "count_load_1", "count_load_2", "voltage_drive", "tau_load", "status")
-_INT_FIELDS = ("count_drive", "count_load_1", "count_load_2", "status")
 
 
 @dataclass

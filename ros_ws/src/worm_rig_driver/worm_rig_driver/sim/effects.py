@@ -920,9 +920,6 @@ class EffectStack:
         return found
 
 
-NO_EFFECTS = EffectsConfig()
-
-
 # --- command line ----------------------------------------------------------------------------------
 
 def describe() -> str:

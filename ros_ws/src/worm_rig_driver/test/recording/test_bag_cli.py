@@ -19,7 +19,7 @@ from rclpy.serialization import serialize_message
 from worm_model.rig_data.schema import read_rig_csv
 from worm_msgs.msg import RigSample
 from worm_model.ros.ament import find_executable
-from worm_model.bags.rosbag2_layouts import FixtureTopic, write_rosbag2_bag
+from fixtures.rosbag2_layouts import FixtureTopic, write_rosbag2_bag
 
 T0 = 1_700_000_000_000_000_000
 N = 50
@@ -129,7 +129,7 @@ def test_info_core_in_process(rig_bag: Path) -> None:
     """The same core without a process (what the console script calls)."""
     from io import StringIO
 
-    from worm_model.rig_data.bag_cli import info
+    from worm_rig_driver.recording.bag_cli import info
 
     out = StringIO()
     assert info(rig_bag, out) == 0

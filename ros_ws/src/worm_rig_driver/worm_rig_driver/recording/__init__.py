@@ -1,0 +1,2 @@
+"""Recorded runs: ``bag_cli``, the ``bag`` command (info, echo, export to the rig-data CSV, import from
+it) over the bags the recorder (``nodes/recorder_node.py``) and the real rosbag2 write."""
