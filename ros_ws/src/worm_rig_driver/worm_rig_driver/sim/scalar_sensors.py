@@ -82,9 +82,6 @@ class ScalarSensors:
         self._load_torque_scale = rig.load_motor.torque_constant  # tau_load = K_t (i_1 + i_2) count / 2
         self._load_count = rig.load_motor_count
         self._supply = rig.supply_voltage
-        # what measure() reads every sample, unpacked there in one go (attribute loads add up)
-        self._constants = (self._instants, self._ripple, self._lsb, -self._half, self._half - 1, self._cpr,
-                           self._rad_per_count, self._load_torque_scale, self._load_count)
         fx: EffectStack | None = model.effects
         self._sense = [e.sense_float for e in fx.effects if "sense" in type(e).hooks()] if fx is not None else []
 
@@ -109,6 +106,9 @@ class ScalarSensors:
                 tick: float) -> Measurement:
         """Sample every channel over one period that started at sim time `tick` [s].
 
+        The analog channels at their own instants, the effects on the sensors, noise and the ADC,
+        then the encoders latched at the tick; packed as one sample.
+
         Args:
             history: the plant's (current_drive, current_load, omega_worm, theta_worm,
                 omega_gear, theta_gear) at the substep boundaries, substeps + 1 entries.
@@ -116,9 +116,23 @@ class ScalarSensors:
             saturated: whether the requested voltage exceeded the supply.
             tick: [s] sim time of the period's start.
         """
-        # Each channel at its own instant: Trajectory.at, a + frac (b - a) between the boundaries
-        # around it. Written out channel by channel: a helper call each costs more than the arithmetic.
-        instants, ripple, lsb, low, high, cpr, rad_per_count, load_scale, load_count = self._constants
+        analog = self._analog(history)
+        if self._sense:
+            analog = self._sensed(analog, voltage_drive, tick)
+        converted = self._convert(analog)
+        theta_worm, theta_gear = history[0][3], history[0][5]
+        try:  # encoders, latched at the tick: floor of the counts
+            count_drive = math.floor(theta_worm * self._cpr / _TWO_PI)
+            count_load = math.floor(theta_gear * self._cpr / _TWO_PI)
+        except (ValueError, OverflowError):
+            count_drive, count_load = self._count(theta_worm), self._count(theta_gear)
+        return self._pack(converted, count_drive, count_load, voltage_drive, saturated)
+
+    def _analog(self, history: list[tuple[float, ...]]) -> tuple[float, ...]:
+        """The six analog channels (three currents [A], three tachos [rad/s]), each at its own instant."""
+        # Trajectory.at, a + frac (b - a) between the boundaries around each instant. Written out channel
+        # by channel: a helper call each costs more than the arithmetic.
+        instants, ripple = self._instants, self._ripple
         (k0, f0), (k1, f1), (k2, f2), (k3, f3), (k4, f4), (k5, f5) = instants
         a, b = history[k0], history[k0 + 1]
         current_drive = a[0] + f0 * (b[0] - a[0]) if f0 else a[0]
@@ -136,52 +150,53 @@ class ScalarSensors:
         a, b = history[k5], history[k5 + 1]
         omega, theta = (a[4] + f5 * (b[4] - a[4]), a[5] + f5 * (b[5] - a[5])) if f5 else (a[4], a[5])
         tacho_load_2 = omega * (1.0 + ripple * math.sin(TACHO_RIPPLE_ORDER * theta))
+        return current_drive, load_1, load_2, tacho_drive, tacho_load_1, tacho_load_2
 
-        if self._sense:
-            signals = {"current_drive": current_drive, "current_load_1": load_1, "current_load_2": load_2,
-                       "tacho_drive": tacho_drive, "tacho_load_1": tacho_load_1, "tacho_load_2": tacho_load_2}
-            context = SenseContext({k: tick + v for k, v in self.model.sample_time.items()}, voltage_drive,
-                                   self._supply)
-            for sense in self._sense:
-                sense(signals, context)
-            current_drive, load_1, load_2 = signals["current_drive"], signals["current_load_1"], \
-                signals["current_load_2"]
-            tacho_drive, tacho_load_1, tacho_load_2 = signals["tacho_drive"], signals["tacho_load_1"], \
-                signals["tacho_load_2"]
+    def _sensed(self, analog: tuple[float, ...], voltage_drive: float, tick: float) -> tuple[float, ...]:
+        """The analog channels after the effects that act on the sensors (gain, offset, PWM ripple, ...)."""
+        names = ("current_drive", "current_load_1", "current_load_2", "tacho_drive", "tacho_load_1",
+                 "tacho_load_2")
+        signals = dict(zip(names, analog))
+        context = SenseContext({k: tick + v for k, v in self.model.sample_time.items()}, voltage_drive,
+                               self._supply)
+        for sense in self._sense:
+            sense(signals, context)
+        return tuple(signals[name] for name in names)
 
-        # Noise, then the ADC: nearest code (round(): ties to even, as np.round) within the range.
+    def _convert(self, analog: tuple[float, ...]) -> tuple[float, ...]:
+        """Noise, then the ADC: each channel to its nearest code (round(): ties to even, as np.round), clipped
+        to the converter's range, back in SI units."""
+        lsb, low, high = self._lsb, -self._half, self._half - 1
         if self._next == len(self._noise):
             self._draw()
         j = self._next
         self._next = j + 6
         noise = self._noise
-        values = (current_drive + noise[j], load_1 + noise[j + 1], load_2 + noise[j + 2],
-                  tacho_drive + noise[j + 3], tacho_load_1 + noise[j + 4], tacho_load_2 + noise[j + 5])
+        values = (analog[0] + noise[j], analog[1] + noise[j + 1], analog[2] + noise[j + 2],
+                  analog[3] + noise[j + 3], analog[4] + noise[j + 4], analog[5] + noise[j + 5])
         try:
             c0, c1, c2, c3, c4, c5 = (round(values[0] / lsb[0]), round(values[1] / lsb[1]),
                                       round(values[2] / lsb[2]), round(values[3] / lsb[3]),
                                       round(values[4] / lsb[4]), round(values[5] / lsb[5]))
         except (ValueError, OverflowError):  # NaN or inf: a diverged plant
             c0, c1, c2, c3, c4, c5 = (self._quantise(v, q) / q for v, q in zip(values, lsb))
-        current_drive = (low if c0 < low else (high if c0 > high else c0)) * lsb[0]
-        load_1 = (low if c1 < low else (high if c1 > high else c1)) * lsb[1]
-        load_2 = (low if c2 < low else (high if c2 > high else c2)) * lsb[2]
-        tacho_drive = (low if c3 < low else (high if c3 > high else c3)) * lsb[3]
-        tacho_load_1 = (low if c4 < low else (high if c4 > high else c4)) * lsb[4]
-        tacho_load_2 = (low if c5 < low else (high if c5 > high else c5)) * lsb[5]
+        # (clamped channel by channel: a generator over the six costs more than the arithmetic)
+        return ((low if c0 < low else (high if c0 > high else c0)) * lsb[0],
+                (low if c1 < low else (high if c1 > high else c1)) * lsb[1],
+                (low if c2 < low else (high if c2 > high else c2)) * lsb[2],
+                (low if c3 < low else (high if c3 > high else c3)) * lsb[3],
+                (low if c4 < low else (high if c4 > high else c4)) * lsb[4],
+                (low if c5 < low else (high if c5 > high else c5)) * lsb[5])
 
-        # Encoders, latched at the tick: floor of the counts, wrapped to int32 as the counter does.
-        theta_worm, theta_gear = history[0][3], history[0][5]
-        try:
-            count_drive = math.floor(theta_worm * cpr / _TWO_PI)
-            count_load = math.floor(theta_gear * cpr / _TWO_PI)
-        except (ValueError, OverflowError):
-            count_drive, count_load = self._count(theta_worm), self._count(theta_gear)
-
+    def _pack(self, converted: tuple[float, ...], count_drive: int, count_load: int, voltage_drive: float,
+              saturated: bool) -> Measurement:
+        """One sample as the vectorised path's Measurement (1-element arrays); counts wrapped to int32 as
+        the counter does, the angles from the unwrapped counts, as SensorModel._encoder's."""
+        rad_per_count, load_scale, load_count = self._rad_per_count, self._load_torque_scale, self._load_count
+        current_drive, load_1, load_2, tacho_drive, tacho_load_1, tacho_load_2 = converted
         # (1-element arrays: empty + item assignment is the cheapest way numpy makes them; a call
         # per array would cost as much again)
-        # wrap_int32 (skipped inside the range: big-int arithmetic is not free); the angles come
-        # from the unwrapped counts, as SensorModel._encoder's
+        # wrap_int32 (skipped inside the range: big-int arithmetic is not free)
         c_d = _empty(1, _int32)
         c_d[0] = count_drive if -2147483648 <= count_drive < 2147483648 else \
             (count_drive + 2147483648) % 4294967296 - 2147483648
