@@ -80,6 +80,17 @@ def start_hog() -> subprocess.Popen:
                             "_ROS_WHEELS_BOOTSTRAP_COMPLETE": "1"})
 
 
+def _cpu_over(pids: dict[str, int], wait) -> dict[str, float]:
+    """Each process's CPU [cores] while ``wait()`` runs: ``cpu_<name>`` (a group "a+b" as ``a__b``) and their sum."""
+    before = {name: cpu_seconds(pid) for name, pid in pids.items()}
+    t0 = time.monotonic()
+    wait()
+    elapsed = time.monotonic() - t0
+    after = {name: cpu_seconds(pid) for name, pid in pids.items()}
+    cores = {f"cpu_{name.replace('+', '__')}": (after[name] - before[name]) / elapsed for name in pids}
+    return {**cores, "cpu_cores": sum(cores.values())}
+
+
 def run_phase(calibration: Path, work: Path, window: float, hog: bool, together: list[list[str]],
               method: str, priority: int = 0) -> dict[str, float]:
     """One measurement; returns the figures by name (without suffix)."""
@@ -91,8 +102,6 @@ def run_phase(calibration: Path, work: Path, window: float, hog: bool, together:
     from worm_msgs.msg import LoadCommand
 
     from torque_estimator.graph.runner import Graph, parse_overrides
-    from worm_model.bags.reader import BagReader
-    from worm_model.rig_data.samples import command_latencies, missing_seqs, unbatch
     from worm_model.ros.ament import find_executable
     from worm_model.ros.qos import COMMAND
 
@@ -134,15 +143,9 @@ def run_phase(calibration: Path, work: Path, window: float, hog: bool, together:
         info(f"{tag}: graph up; {SPEED_SETPOINT:g} rad/s, load {LOAD:+g} N m; settling {SETTLE:g} s")
         spin_for(SETTLE)
         pids = {name: proc.pid for name, proc in graph.processes.items()}
-        before = {name: cpu_seconds(pid) for name, pid in pids.items()}
-        t0, wall0 = time.monotonic(), time.time_ns()
-        spin_for(window)
-        t1, wall1 = time.monotonic(), time.time_ns()
-        after = {name: cpu_seconds(pid) for name, pid in pids.items()}
-        for name in pids:  # a node alone, or a group "a+b+..." in one process
-            label = name.replace("+", "__")
-            figures[f"cpu_{label}"] = (after[name] - before[name]) / (t1 - t0)
-        figures["cpu_cores"] = sum((after[n] - before[n]) / (t1 - t0) for n in pids)
+        wall0 = time.time_ns()
+        figures.update(_cpu_over(pids, lambda: spin_for(window)))
+        wall1 = time.time_ns()
         if graph.failed():
             raise RuntimeError(f"nodes exited during the run: {graph.failed()}")
     finally:
@@ -161,6 +164,15 @@ def run_phase(calibration: Path, work: Path, window: float, hog: bool, together:
         rclpy.try_shutdown(context=context)
         if any(codes.values()):
             info(f"{tag}: node exit codes {codes}; logs in {work}")
+    figures.update(_figures_from_bag(bag, wall0, wall1, tag, window))
+    return figures
+
+
+def _figures_from_bag(bag: Path, wall0: int, wall1: int, tag: str, window: float) -> dict[str, float]:
+    """Latency, losses and sim_node's skipped periods of the samples the recorder kept within [wall0, wall1] [ns]."""
+    from worm_model.bags.reader import BagReader
+    from worm_model.rig_data.samples import command_latencies, missing_seqs, unbatch
+
     samples, skipped = [], {"before": 0.0, "end": math.nan}
     with BagReader(bag) as reader:
         for message in reader.messages(["/rig/samples"]):
@@ -181,13 +193,11 @@ def run_phase(calibration: Path, work: Path, window: float, hog: bool, together:
     period_ms = 1.0  # the rig's sample period [ms]
     # from sample s's stamp (the end of its period) to the start of the first period the command drives
     latencies = [k * period_ms for k in command_latencies(samples)]
-    figures["latency_p50"] = percentile(latencies, 50)
-    figures["latency_p99"] = percentile(latencies, 99)
-    figures["lost_samples"] = missing_seqs(s.seq for s in samples)
-    figures["sim_skipped_samples"] = skipped["end"] - skipped["before"]
     info(f"{tag}: {len(samples)} samples recorded in the {window:g} s window, {len(latencies)} commands; "
          f"latency max {max(latencies, default=math.nan):.0f} ms")
-    return figures
+    return {"latency_p50": percentile(latencies, 50), "latency_p99": percentile(latencies, 99),
+            "lost_samples": missing_seqs(s.seq for s in samples),
+            "sim_skipped_samples": skipped["end"] - skipped["before"]}
 
 
 def main(argv: list[str] | None = None) -> int:
