@@ -6,17 +6,29 @@ flagged spike at the speed reversal like the live estimate's), so each assertion
 """
 from __future__ import annotations
 
+from itertools import pairwise
 from pathlib import Path
 
 import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 from matplotlib.patches import Polygon, Rectangle
-
-from torque_estimator.demo.plots import (ESTIMATE_LABEL, EstimateTrace, SpeedTrace, draw_estimate_vs_truth,
-                                         draw_load_steps, draw_tracking, estimate_vs_truth, flagged_spans,
-                                         group_steps, load_limits, load_steps, setpoint_changes, torque_text,
-                                         tracking)
+from torque_estimator.demo.plots import (
+    ESTIMATE_LABEL,
+    EstimateTrace,
+    SpeedTrace,
+    draw_estimate_vs_truth,
+    draw_load_steps,
+    draw_tracking,
+    estimate_vs_truth,
+    flagged_spans,
+    group_steps,
+    load_limits,
+    load_steps,
+    setpoint_changes,
+    torque_text,
+    tracking,
+)
 from torque_estimator.demo.run_analysis import recorded_load_steps, steady_spans
 from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.evaluation.scenario import DEMO_SCENARIO, segment_starts
@@ -131,8 +143,9 @@ def test_flagged_estimates_are_marked_and_never_drawn_as_estimates(estimate_runs
 
 
 def test_estimate_axis_is_scaled_to_the_loads_not_to_the_spike(estimate_runs) -> None:
-    fig = draw_estimate_vs_truth(estimate_runs, RANGE)
+    fig = draw_estimate_vs_truth(estimate_runs, RANGE)  # no judged spans: nothing shaded on the error panels
     try:
+        assert not any(ax.patches for ax in fig.axes if "% of range" in ax.get_ylabel())
         loads = load_limits(np.concatenate([r.truth for r in estimate_runs.values()]))
         for ax in _torque_axes(fig):
             lo, hi = ax.get_ylim()
@@ -161,7 +174,7 @@ def test_error_panels_are_in_percent_of_range_and_shade_what_the_table_leaves_ou
             assert ax.get_ylim()[1] < 10  # the steady error (~0.5 %) is visible, not a sliver
             shaded = sorted(_xspan(p) for p in ax.patches)
             # the settling after each change: the gaps between the table's steady spans
-            gaps = [(0.0, judged[0][0])] + [(a[1], b[0]) for a, b in zip(judged, judged[1:])]
+            gaps = [(0.0, judged[0][0])] + [(a[1], b[0]) for a, b in pairwise(judged)]
             np.testing.assert_allclose(shaded, gaps)
     finally:
         plt.close(fig)
@@ -179,9 +192,9 @@ def test_load_steps_figure_has_a_panel_per_step_with_both_runs_and_their_dips(sp
             assert len(labels) == 2 and all(label.startswith(name) for label, name in zip(labels, runs))
             lo, hi = ax.get_ylim()
             assert max(abs(lo), hi) < 3 * DIPS["feedforward off"][0]  # the dips' scale, not +/-150 rad/s
-            for name, run in runs.items():
+            for name in runs:
                 step = steps[name][k]
-                assert f"dip {step.peak_dip:.2f} rad/s" in " ".join(labels)
+                assert f"dip {step.peak_dip:.2f} rad/s, IAE {step.iae:.2f} rad" in " ".join(labels)
                 (line,) = [ln for ln in ax.get_lines() if ln.get_label().startswith(name)]
                 x, y = (np.asarray(a, float) for a in line.get_data())
                 assert x.min() < 0 < x.max()  # from before the step to after it [ms], on the run's own clock

@@ -87,7 +87,8 @@ def _main(argv: list[str] | None) -> int:
     parser.add_argument("--force", action="store_true", help="replace an existing --out folder")
     parser.add_argument("--graph", type=existing_file, default=None,
                         help="graph parameter file (default: installed sim_graph.yaml)")
-    parser.add_argument("--seed", type=integer(0, 2**32 - 2), default=0, help="seed of calibration noise and held-out draws")
+    parser.add_argument("--seed", type=integer(0, 2**32 - 2), default=0,
+                        help="seed of calibration noise and held-out draws")
     args = parser.parse_args(argv)
     out = check_output(args.out, args.force, folder=True).resolve()
     shutil.rmtree(out, ignore_errors=True)
@@ -136,7 +137,7 @@ def _main(argv: list[str] | None) -> int:
              estimate_vs_truth(out / "estimate_vs_truth.png", estimates, db.torque_range, steady_spans(DEMO_SCENARIO)),
              tracking(out / "tracking.png", speeds, steps), load_steps(out / "load_steps.png", speeds, steps)]
 
-    off, on = metrics["feedforward off"], metrics["feedforward on"]
+    on = metrics["feedforward on"]
     mode_names = {1: "resistive", 2: "pseudo-resistive", 3: "assistive"}
     print()
     print("Summary")

@@ -14,9 +14,9 @@ axis' edge with the value printed when it is off the scale (the estimate's spike
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import matplotlib
 
@@ -95,13 +95,13 @@ def group_steps(step_times: Mapping[str, Sequence[float]], tolerance: float = 0.
     return groups
 
 
-def _mark_flagged(ax, t, value, flags, limits, legend: bool) -> None:
+def _mark_flagged(ax, t, value, flags, limits) -> None:
     """Shade the spans of flagged estimates and mark each one's value: a circle on the scale, a triangle
     at the axis' edge off it (the largest of each off-scale run printed)."""
     t, value, flags = np.asarray(t, float), np.asarray(value, float), np.asarray(flags, int)
     for k, (start, end) in enumerate(flagged_spans(t, flags != 0)):
         ax.axvspan(start, end, color="tab:purple", alpha=0.25, lw=0,
-                   label="flagged estimates" if legend and k == 0 else None)
+                   label="flagged estimates" if k == 0 else None)
     lo, hi = limits
     edge = 0.04 * (hi - lo)
     above, below = value > hi, value < lo
@@ -111,7 +111,7 @@ def _mark_flagged(ax, t, value, flags, limits, legend: bool) -> None:
         taken |= kind
         on_scale = kind & ~above & ~below
         ax.plot(t[on_scale], value[on_scale], "o", ms=3.5, mfc="none", color=colour,
-                label=f"flagged: {text}" if legend and kind.any() else None)
+                label=f"flagged: {text}" if kind.any() else None)
         ax.plot(t[kind & above], np.full((kind & above).sum(), hi - edge), "^", ms=6, color=colour)
         ax.plot(t[kind & below], np.full((kind & below).sum(), lo + edge), "v", ms=6, color=colour)
     for off, y, dy in ((above, hi - edge, -4), (below, lo + edge, 0)):
@@ -123,18 +123,18 @@ def _mark_flagged(ax, t, value, flags, limits, legend: bool) -> None:
 
 
 def draw_estimate_vs_truth(runs: Mapping[str, EstimateTrace], torque_range: float,
-                           judged: Sequence[tuple[float, float]] = ()) -> Figure:
+                           judged: Sequence[tuple[float, float]] = (), error_limit: float = 5.0) -> Figure:
     """Estimated and true load torque of each run, and the estimate's error.
 
     Per run two panels: the torque on an axis scaled to the applied loads (flagged estimates marked,
     not drawn as estimates), and estimate - truth in % of the calibrated range ``torque_range`` [N m]
     (the unit of the demo's table). judged: the (start, end) [s] spans the table's live error is taken
-    over; the rest (the settling after each change) is shaded on the error panels.
+    over; the rest (the settling after each change) is shaded on the error panels. error_limit: the error
+    axis' half-height [% of range] (the table's means are well under 1 %, the held-out points' up to ~2 %).
     """
     fig, axes = plt.subplots(2 * len(runs), 1, figsize=(10, 3.9 * len(runs)), sharex=True, squeeze=False,
                              gridspec_kw={"height_ratios": [2.2, 1] * len(runs)})
     limits = load_limits(np.concatenate([r.truth for r in runs.values()]))
-    error_limit = 5.0  # [% of range]: the table reports means well under 1 %, held-out points up to ~2 %
     t_end = max(float(np.max(r.t_truth)) for r in runs.values())
     for k, (name, r) in enumerate(runs.items()):
         top, bottom = axes[2 * k, 0], axes[2 * k + 1, 0]
@@ -143,7 +143,7 @@ def draw_estimate_vs_truth(runs: Mapping[str, EstimateTrace], torque_range: floa
         rate = 1.0 / float(np.median(np.diff(t)))
         top.plot(r.t_truth, r.truth, color="tab:orange", lw=2.2, label="true τ_d (simulator)")
         top.plot(t, clean, color="tab:blue", lw=0.8, label=f"{ESTIMATE_LABEL} (live, {rate:.0f} Hz)")
-        _mark_flagged(top, t, value, flags, limits, legend=True)
+        _mark_flagged(top, t, value, flags, limits)
         top.set_ylim(*limits)
         top.set_ylabel("τ_d [N·m]")
         top.set_title(name, loc="left", fontsize=11, fontweight="bold")
@@ -153,10 +153,10 @@ def draw_estimate_vs_truth(runs: Mapping[str, EstimateTrace], torque_range: floa
         bottom.plot(t, error, color="tab:blue", lw=0.6)
         bottom.axhline(0.0, color="black", lw=0.6)
         edges = [0.0] + [x for span in sorted(judged) for x in span] + [t_end]
-        for j, (start, end) in enumerate(zip(edges[::2], edges[1::2])):
-            if end > start:
-                bottom.axvspan(start, end, color="0.88", lw=0,
-                               label="settling: not in the table's live error" if j == 0 else None)
+        gaps = [(start, end) for start, end in zip(edges[::2], edges[1::2]) if judged and end > start]
+        for j, (start, end) in enumerate(gaps):
+            bottom.axvspan(start, end, color="0.88", lw=0,
+                           label="settling: not in the table's live error" if j == 0 else None)
         bottom.set_ylim(-error_limit, error_limit)
         bottom.set_ylabel("estimate − truth\n[% of range]")
         bottom.grid(alpha=0.3)
@@ -248,7 +248,7 @@ def draw_load_steps(runs: Mapping[str, SpeedTrace], steps: Mapping[str, Sequence
     """A panel per load step: the speed error from ``before`` [s] before it to ``after`` [s] after it, runs overlaid.
 
     Each run is drawn on its own clock, from its own recorded step (run_analysis.recorded_load_steps); a
-    dot marks its peak dip, the number the demo's table reports.
+    dot marks its peak dip, and its legend gives the dip and the IAE, the step's share of the demo's table.
     """
     groups = group_steps({name: [s.time for s in run] for name, run in steps.items()})
     cols = 2 if len(groups) > 1 else 1
@@ -264,7 +264,8 @@ def draw_load_steps(runs: Mapping[str, SpeedTrace], steps: Mapping[str, Sequence
             window = (t >= -before) & (t <= min(after, step.end - step.time))
             error = (np.asarray(r.omega) - np.asarray(r.setpoint))[window]
             ms = 1e3 * t[window]
-            ax.plot(ms, error, color=colour, lw=1.2, label=f"{name}: dip {step.peak_dip:.2f} rad/s")
+            ax.plot(ms, error, color=colour, lw=1.2,
+                    label=f"{name}: dip {step.peak_dip:.2f} rad/s, IAE {step.iae:.2f} rad")
             peak = np.argmax(np.abs(error))
             ax.plot(ms[peak], error[peak], "o", color=colour, ms=5)
         name, index = next(iter(group.items()))
