@@ -26,13 +26,13 @@ from torque_estimator.estimation.database import save_database
 from torque_estimator.estimation.registry import make_estimator
 from torque_estimator.graph.runner import default_graph_file
 from torque_estimator.evaluation.held_out import evaluate_held_out, format_table
-from torque_estimator.demo.plots import estimate_vs_truth, tracking
+from torque_estimator.demo.plots import EstimateTrace, SpeedTrace, estimate_vs_truth, load_steps, tracking
 from torque_estimator.evaluation.plots import held_out_deviation
 from worm_model.cli.progress import ProgressBar
 from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser, existing_file, integer
 from worm_model.files.writing import check_output
-from torque_estimator.demo.run_analysis import analyse_run, recorded_load_steps
+from torque_estimator.demo.run_analysis import analyse_run, recorded_load_steps, steady_spans
 from torque_estimator.evaluation.scenario import DEMO_SCENARIO
 from torque_estimator.demo.scenario_node import live_run
 
@@ -42,7 +42,7 @@ def load_run(bag: Path, start_stamp: float) -> dict:
 
     The truth (applied load, mode, true worm speed) is every sample's, from /sim/truth_samples; a bag
     recorded before sim_node published it has /sim/truth only (every channel_decimation-th sample), read
-    then instead ("truth_every_sample" says which)."""
+    then instead ("truth_every_sample" says which). "flags" are the estimates' TorqueEstimate flags."""
     from worm_model.bags.reader import BagReader
     from worm_model.bags.writer import read_messages
     from worm_model.rig_data.samples import SIM_TRUTHS_TOPIC, batch_stamps_ns, unbatch
@@ -52,7 +52,7 @@ def load_run(bag: Path, start_stamp: float) -> dict:
 
     samples = [(stamp(s.header), s.omega_worm) for _, m in read_messages(bag, "/rig/samples") for s in unbatch(m)]
     commands = [(stamp(m.header), m.speed_setpoint) for _, m in read_messages(bag, "/rig/speed_command")]
-    estimates = [(stamp(m.header), m.torque) for _, m in read_messages(bag, "/torque_estimate")]
+    estimates = [(stamp(m.header), m.torque, m.flags) for _, m in read_messages(bag, "/torque_estimate")]
     with BagReader(bag) as reader:
         every_sample = SIM_TRUTHS_TOPIC in reader.topics
     if every_sample:
@@ -69,7 +69,8 @@ def load_run(bag: Path, start_stamp: float) -> dict:
     e, tr = in_run(e), in_run(tr)
     idx_truth = np.clip(np.searchsorted(c[t_cmd_order, 0], tr[:, 0], side="right") - 1, 0, len(c) - 1)
     return {"t_speed": s[keep, 0], "omega": s[keep, 1], "setpoint": c[t_cmd_order, 1][idx],
-            "t_est": e[:, 0], "estimate": e[:, 1], "t_truth": tr[:, 0], "truth": tr[:, 1], "modes": tr[:, 2],
+            "t_est": e[:, 0], "estimate": e[:, 1], "flags": e[:, 2].astype(int),
+            "t_truth": tr[:, 0], "truth": tr[:, 1], "modes": tr[:, 2],
             "omega_truth": tr[:, 3], "setpoint_truth": c[t_cmd_order, 1][idx_truth],
             "truth_every_sample": every_sample}
 
@@ -86,7 +87,8 @@ def _main(argv: list[str] | None) -> int:
     parser.add_argument("--force", action="store_true", help="replace an existing --out folder")
     parser.add_argument("--graph", type=existing_file, default=None,
                         help="graph parameter file (default: installed sim_graph.yaml)")
-    parser.add_argument("--seed", type=integer(0, 2**32 - 2), default=0, help="seed of calibration noise and held-out draws")
+    parser.add_argument("--seed", type=integer(0, 2**32 - 2), default=0,
+                        help="seed of calibration noise and held-out draws")
     args = parser.parse_args(argv)
     out = check_output(args.out, args.force, folder=True).resolve()
     shutil.rmtree(out, ignore_errors=True)
@@ -124,11 +126,18 @@ def _main(argv: list[str] | None) -> int:
         metrics[name] = analyse_run(DEMO_SCENARIO, r["t_speed"], r["omega"], r["setpoint"], r["t_est"],
                                     r["estimate"], r["t_truth"], r["truth"], r["modes"], db.torque_range)
 
+    # the load steps as the record holds them, on the simulator's true speed at every sample
+    steps = {name: recorded_load_steps(r["t_truth"], r["truth"], r["t_truth"], r["omega_truth"], r["setpoint_truth"])
+             for name, r in runs.items()}
     print("[4/4] plots", flush=True)
-    plots = [out / "held_out_deviation.png", estimate_vs_truth(out / "estimate_vs_truth.png", runs),
-             tracking(out / "tracking.png", runs)]
+    estimates = {name: EstimateTrace(r["t_est"], r["estimate"], r["flags"], r["t_truth"], r["truth"])
+                 for name, r in runs.items()}
+    speeds = {name: SpeedTrace(r["t_truth"], r["omega_truth"], r["setpoint_truth"]) for name, r in runs.items()}
+    plots = [out / "held_out_deviation.png",
+             estimate_vs_truth(out / "estimate_vs_truth.png", estimates, db.torque_range, steady_spans(DEMO_SCENARIO)),
+             tracking(out / "tracking.png", speeds, steps), load_steps(out / "load_steps.png", speeds, steps)]
 
-    off, on = metrics["feedforward off"], metrics["feedforward on"]
+    on = metrics["feedforward on"]
     mode_names = {1: "resistive", 2: "pseudo-resistive", 3: "assistive"}
     print()
     print("Summary")
@@ -149,10 +158,9 @@ def _main(argv: list[str] | None) -> int:
     print(f"  load steps alone (true speed at every sample, {rate:.0f} Hz)" if first["truth_every_sample"] else
           f"  load steps alone (true speed at {rate:.0f} Hz, not every sample: a short dip reads low)")
     print("                                 steps   worst dip      IAE summed")
-    for name, r in runs.items():
-        steps = recorded_load_steps(r["t_truth"], r["truth"], r["t_truth"], r["omega_truth"], r["setpoint_truth"])
-        dip = max((x.peak_dip for x in steps), default=float("nan"))
-        print(f"    {name:16s} {len(steps):15d} {dip:10.2f} rad/s {sum(x.iae for x in steps):11.3f} rad")
+    for name, run_steps in steps.items():
+        dip = max((x.peak_dip for x in run_steps), default=float("nan"))
+        print(f"    {name:16s} {len(run_steps):15d} {dip:10.2f} rad/s {sum(x.iae for x in run_steps):11.3f} rad")
     print(f"  outputs in {out}: calibration.json, bag_ff_off/, bag_ff_on/ (MCAP), "
           + ", ".join(p.name for p in plots))
     print(f"  done in {time.monotonic() - t0:.0f} s")

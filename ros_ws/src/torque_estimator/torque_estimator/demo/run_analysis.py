@@ -13,6 +13,9 @@ import numpy as np
 
 from torque_estimator.evaluation.scenario import segment_starts
 
+#: [s] after a set-point or load change that counts as transient (the steady part starts after it)
+SETTLE = 0.8
+
 
 @dataclass
 class RunMetrics:
@@ -89,7 +92,7 @@ class RecordedLoadStep:
     iae: float  # [rad] integral of |omega - set-point| from the step to `end`
 
 
-def recorded_load_steps(t_load, load, t_speed, omega, setpoint, *, settle: float = 0.8,
+def recorded_load_steps(t_load, load, t_speed, omega, setpoint, *, settle: float = SETTLE,
                         tolerance: float = 1e-4) -> list[RecordedLoadStep]:
     """Pure load steps of a recorded run, found in the record itself rather than in the schedule.
 
@@ -135,14 +138,21 @@ def recorded_load_steps(t_load, load, t_speed, omega, setpoint, *, settle: float
     return steps
 
 
-def _steady_mask(t: np.ndarray, scenario, settle: float) -> np.ndarray:
+def steady_spans(scenario, settle: float = SETTLE) -> list[tuple[float, float]]:
+    """(start, end) [s] of each segment's steady part: from ``settle`` s after its start to its end."""
     starts = segment_starts(scenario)
-    ends = starts + np.array([s.duration for s in scenario])
-    return np.any([(t >= s + settle) & (t < e) for s, e in zip(starts, ends)], axis=0)
+    return [(float(s + settle), float(s + seg.duration)) for s, seg in zip(starts, scenario) if seg.duration > settle]
+
+
+def _steady_mask(t: np.ndarray, scenario, settle: float) -> np.ndarray:
+    mask = np.zeros(np.shape(t), bool)
+    for start, end in steady_spans(scenario, settle):
+        mask |= (t >= start) & (t < end)
+    return mask
 
 
 def analyse_run(scenario, t_speed, omega, setpoint, t_est, estimate, t_truth, truth, modes,
-                torque_range: float, settle: float = 0.8) -> RunMetrics:
+                torque_range: float, settle: float = SETTLE) -> RunMetrics:
     """Tracking and estimation figures of one run (see module docstring)."""
     after_first = t_speed >= scenario[0].duration
     error = omega - setpoint
