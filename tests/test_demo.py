@@ -51,7 +51,8 @@ def test_demo_runs_end_to_end(tmp_path: Path) -> None:
     assert iae_on < 0.4 * iae_off, steps
     assert dip_on < 0.6 * dip_off, steps
 
-    for name in ("calibration.json", "held_out_deviation.png", "estimate_vs_truth.png", "tracking.png"):
+    for name in ("calibration.json", "held_out_deviation.png", "estimate_vs_truth.png", "tracking.png",
+                 "load_steps.png"):
         assert (out / name).stat().st_size > 0, name
     for bag in ("bag_ff_off", "bag_ff_on"):
         counts = read_bag_counts(out / bag)
