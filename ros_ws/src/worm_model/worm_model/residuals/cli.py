@@ -62,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
                     "backlash shows.",
         epilog="CSV schema: header row; required columns t [s], current_drive [A], omega_worm [rad/s], "
                "theta_worm [rad], tau_load [N m] (+ opposes + rotation); optional voltage_drive [V], "
-               "theta_gear [rad], current_load [A], temperature [degC]. See README.md.",
+               "theta_gear [rad], current_load [A], temperature [degC]. See docs/bags-and-tools.md.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("data", help="measured data: a CSV file in the worm_rig_data schema, or a rosbag2 directory "
                                 "(converted with worm_rig_driver's bag exporter, which must be installed)")

@@ -188,7 +188,7 @@ def _parser() -> argparse.ArgumentParser:
     columns = ', '.join([*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS])
     p = commands.add_parser('export', help='RigSample stream -> worm_rig_data CSV',
                             description='Write the bag\'s worm_msgs/msg/RigSample stream as a CSV '
-                            f'with the columns {columns} (units in the README). t [s] counts from '
+                            f'with the columns {columns} (units in docs/bags-and-tools.md). t [s] counts from '
                             'the first sample\'s header.stamp; current_load is the sum of the two '
                             'load-motor currents; tau_load is RigSample.tau_load. Samples with a '
                             'NaN/inf required channel, or a stamp not after the previous one, are '
