@@ -51,7 +51,7 @@ SETTINGS_OPTIONS: tuple[Option, ...] = (
            "model."),
 )
 
-#: Every option any method reads, by name (the defaults replay fills in for estimator_node).
+#: Every estimator parameter of estimator_node, whatever the method, by name (replay fills in their defaults).
 ALL_OPTIONS: dict[str, Option] = {o.name: o for o in SETTINGS_OPTIONS
                                   + tuple(opt for row in METHODS.values() for opt in row.options)}
 
