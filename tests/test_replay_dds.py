@@ -209,4 +209,5 @@ def test_estimator_node_declares_a_methods_options_only_and_names_the_others(
     assert warned == set(given) - reads, err
     assert "estimator_node has no such parameter" in err
     if method == "observer":
-        assert "method observer does not read it (only knn, extended_model do)" in err
+        assert "parameter input_filter is set but method observer does not read it (read by knn, extended_model only)" \
+            in err

@@ -115,7 +115,7 @@ class EstimatorNode(Node):
         without a word. (rclpy has no public accessor for a node's overrides.)"""
         for name in sorted(n for n in self._parameter_overrides if not self.has_parameter(n)):
             readers = [m for m, row in METHODS.items() if any(o.name == name for o in row.options)]
-            why = (f"method {self.method} does not read it (only {', '.join(readers)} do)" if name in ALL_OPTIONS
+            why = (f"method {self.method} does not read it (read by {', '.join(readers)} only)" if name in ALL_OPTIONS
                    else "estimator_node has no such parameter")
             self.get_logger().warning(f"parameter {name} is set but {why}: ignored")
 
