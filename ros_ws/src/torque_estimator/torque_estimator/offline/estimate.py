@@ -7,8 +7,9 @@
 Every sample of the log (a CSV in the worm_rig_data schema or a rosbag2 bag; read by
 worm_model.rig_data.read_rig_data) goes through LiveEstimator with the method, exactly as
 estimator_node runs it on /rig/samples: the same class, the node's parameters (defaults,
-or --params-file's estimator_node section), the same rule for the rig of the inertia
-compensation (rig_file, else model_file, else the bundled rig).  The estimate is written
+or --params-file's estimator_node section), built by the node's builder (estimation.settings:
+the same rule for the rig of the inertia compensation, rig_file, else model_file, else the
+bundled rig; a calibration checked against that rig).  The estimate is written
 as a CSV column (--out): the log's columns, then tau_estimate [N m],
 tau_estimate_uncertainty [N m] and estimate_flags (EstimateFlags bits).
 
@@ -39,15 +40,15 @@ from pathlib import Path
 
 import numpy as np
 
-from worm_model.physics.parameters import ParameterError, load_rig
+from worm_model.physics.parameters import ParameterError
 from worm_model.rig_data.reader import read_rig_data
 from worm_model.rig_data.schema import MeasuredData, RigDataError
 
 from torque_estimator.calibration.operating_points import SteadyStateCriterion
-from torque_estimator.estimation.database import CalibrationError, load_database
+from torque_estimator.estimation.database import CalibrationError
 from torque_estimator.estimation.live import LiveEstimator
-from torque_estimator.estimation.registry import CALIBRATION_OPTIONAL, ESTIMATORS, live_rig_file, make_estimator, \
-    node_options
+from torque_estimator.estimation.registry import ESTIMATORS
+from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.offline.replay import ReplayError, node_parameters
 from worm_model.cli.progress import ProgressBar
 
@@ -184,8 +185,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{PROG}: {where}: {what}", file=sys.stderr)
         return 2
 
-    if args.method not in CALIBRATION_OPTIONAL and args.calibration is None:
-        return fail("--calibration", f"{args.method} needs a calibration database (calibrate --out FILE)")
     for option, path in (("--calibration", args.calibration), ("--model-file", args.model_file), ("--rig", args.rig),
                          ("--params-file", args.params_file)):
         if path is not None and not path.is_file():
@@ -197,35 +196,27 @@ def main(argv: list[str] | None = None) -> int:
         params = node_parameters(args.params_file)["estimator_node"]
     except ReplayError as err:
         return fail("--params-file", str(err))
+    settings = EstimatorSettings.from_parameters(
+        {**params, "method": args.method, "rig_file": args.rig or params.get("rig_file"),
+         "model_file": args.model_file or params.get("model_file"), "calibration_file": args.calibration}, args.method)
+    try:
+        built = build_estimator(settings)
+    except CalibrationError as err:
+        return fail("--calibration", str(err) if args.calibration is not None else f"{err}: pass --calibration FILE")
+    except ParameterError as err:
+        return fail("--model-file" if settings.model_file else "--rig", str(err))
+    except ValueError as err:
+        return fail("--params-file" if args.params_file else "--method", str(err))
     try:
         data = read_rig_data(args.log)
     except RigDataError as err:
         return fail("log", str(err))
     if args.method == "observer" and (data.voltage_drive is None or not np.isfinite(data.voltage_drive).any()):
         return fail("log", f"{args.log}: the observer needs the voltage_drive column")
-    rig_file = str(args.rig or params.get("rig_file") or "")
-    model_file = str(args.model_file or params.get("model_file") or "")
-    try:
-        database = load_database(args.calibration) if args.calibration is not None else None
-        options = node_options(args.method, {"k": int(params["k"]), "weighting": str(params["weighting"]),
-                                             "model_file": model_file, "rig_file": rig_file})
-        estimator = make_estimator(args.method, database, **options)
-        rig = load_rig(live_rig_file(args.method, rig_file, model_file) or None)
-    except CalibrationError as err:
-        return fail("--calibration", str(err))
-    except ParameterError as err:
-        return fail("--model-file" if model_file else "--rig", str(err))
-    except ValueError as err:
-        return fail("--method", str(err))
-    settings = {"input_filter": float(params["input_filter"]),
-                "inertia_compensation": bool(params["inertia_compensation"]),
-                "transient_acceleration": float(params["transient_acceleration"]),
-                "estimate_filter": float(params["estimate_filter"]),
-                "change_threshold": float(params["change_threshold"])}
+    estimator, model_file, rig_file = built.estimator, settings.model_file, settings.rig_file
     start = time.monotonic()
     with ProgressBar(len(data), "samples", enabled=not args.quiet) as bar:
-        estimate = run_estimator(data, lambda: LiveEstimator(rig, estimator, data.sample_period, **settings),
-                                 bar.update_to)
+        estimate = run_estimator(data, lambda: built.live(data.sample_period), bar.update_to)
     try:
         write_estimate_csv(out, data, estimate)
     except OSError as err:

@@ -71,21 +71,17 @@ from worm_model.bags.typestore import BagRecordingError
 from worm_model.rig_data.bags import find_sample_topic
 from worm_model.rig_data.samples import samples_of
 
-from torque_estimator.estimation.database import CalibrationError, load_database
-from torque_estimator.estimation.registry import (CALIBRATION_OPTIONAL, ESTIMATORS, live_rig_file, make_estimator,
-                                                  node_options)
+from torque_estimator.estimation.database import CalibrationError
+from torque_estimator.estimation.registry import ESTIMATORS
+from torque_estimator.estimation.settings import ALL_OPTIONS, EstimatorSettings, build_estimator
 from torque_estimator.graph.runner import GraphError, default_graph_file, parse_overrides
-from torque_estimator.estimation.live import LiveEstimator
 from worm_model.cli.progress import ProgressBar
 
-#: The nodes' parameter defaults (model_node.py, estimator_node.py), for what the file leaves out.
+#: The nodes' parameter defaults (model_node.py; estimator_node.py: every method's options, from
+#: estimation.settings), for what the file leaves out.
 NODE_DEFAULTS: dict[str, dict[str, Any]] = {
     "model_node": {"rig_file": "", "use_acceleration": True, "acceleration_filter": 0.01, "publish_period": 0.02},
-    "estimator_node": {"rig_file": "", "inertia_compensation": True, "calibration_file": "",
-                       "method": "knn", "k": 4, "weighting": "inverse_distance", "model_file": "",
-                       "input_filter": 0.003,
-                       "estimate_filter": 0.05, "change_threshold": 4.0,
-                       "transient_acceleration": 200.0, "sample_rate": 1000.0,
+    "estimator_node": {**{name: option.default for name, option in ALL_OPTIONS.items()}, "sample_rate": 1000.0,
                        "joint_state_topic": "/torque_estimate/joint_states", "joint_name": "gear",
                        "wrench_topic": "/torque_estimate/wrench", "wrench_frame": "gear_output"},
 }
@@ -224,34 +220,12 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
     names = list(estimators) if estimators else [str(est_p["method"])]
     if unknown := [n for n in names if n not in ESTIMATORS]:
         raise ReplayError(f"unknown estimator(s) {unknown}; registry: {sorted(ESTIMATORS)}")
-    database = None
-    if est_p["calibration_file"]:
-        try:
-            database = load_database(est_p["calibration_file"], load_rig(est_p["rig_file"] or None))
-        except CalibrationError as err:
-            raise ReplayError(f"estimator_node.calibration_file: {err}") from None
-    elif needing := [n for n in names if n not in CALIBRATION_OPTIONAL]:
-        raise ReplayError(f"estimator_node.calibration_file is not set and {', '.join(needing)} need(s) one: pass "
-                          "--set estimator_node.calibration_file=FILE (or set it in the parameter file)")
     start = time.perf_counter()
     model = LiveModel(load_rig(model_p["rig_file"] or None), bool(model_p["use_acceleration"]),
                       float(model_p["acceleration_filter"]))
     est_rig = load_rig(est_p["rig_file"] or None)  # the envelope of plausible samples
     period = 1.0 / float(est_p["sample_rate"])
-    options = {**est_p, "k": int(est_p["k"]), "weighting": str(est_p["weighting"]),
-               "model_file": str(est_p["model_file"]), "rig_file": str(est_p["rig_file"])}
-    try:
-        estimators_built = {name: make_estimator(name, database, **node_options(name, options)) for name in names}
-    except ValueError as err:  # worm_model's ParameterError is a ValueError: a bad model_file
-        raise ReplayError(f"estimator_node: {err}") from None
-    rig_files = {name: live_rig_file(name, str(est_p["rig_file"]), str(est_p["model_file"])) for name in names}
-    cores = {name: LiveEstimator(load_rig(rig_files[name] or None), estimators_built[name],
-                                 period, input_filter=float(est_p["input_filter"]),
-                                 inertia_compensation=bool(est_p["inertia_compensation"]),
-                                 transient_acceleration=float(est_p["transient_acceleration"]),
-                                 estimate_filter=float(est_p["estimate_filter"]),
-                                 change_threshold=float(est_p["change_threshold"]))
-             for name in names}
+    cores = {name: _core(est_p, name, period) for name in names}
     model_out, est_out = Outputs(), {name: Outputs() for name in names}
     envelope = Envelope.of(est_rig)
     first = last = None
@@ -303,6 +277,22 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
     return ReplayResult(n, (last - first) if first is not None else 0.0, wall, model_out, est_out,
                         {"model": len(model_out.seq), **{k: len(v.seq) for k, v in est_out.items()}}
                         if follow_live else {})
+
+
+def _core(parameters: Mapping[str, Any], name: str, period: float):
+    """estimator_node's core for estimator ``name`` with the node's ``parameters`` (as the node builds it).
+
+    Raises:
+        ReplayError: a bad or missing calibration, rig or model file, or a bad option (named).
+    """
+    try:
+        return build_estimator(EstimatorSettings.from_parameters(parameters, name)).live(period)
+    except CalibrationError as err:
+        hint = "" if parameters["calibration_file"] else \
+            " (pass --set estimator_node.calibration_file=FILE, or set it in the parameter file)"
+        raise ReplayError(f"estimator_node.calibration_file: {err}{hint}") from None
+    except ValueError as err:  # worm_model's ParameterError is a ValueError: a bad rig_file or model_file
+        raise ReplayError(f"estimator_node: {err}") from None
 
 
 # --- comparison with the live run ------------------------------------------------------------------

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections.abc import Callable
@@ -12,7 +13,9 @@ import pytest
 import yaml
 
 from worm_model.physics.parameters import (
+    ADC_SEQUENCE,
     ParameterError,
+    Sensors,
     default_rig_path,
     load_rig,
     rig_from_dict,
@@ -115,6 +118,49 @@ def test_bad_files_are_rejected_naming_the_field(tmp_path: Path, case: str) -> N
     message = str(info.value)
     assert str(path) in message and field in message and fragment in message, message
     assert isinstance(info.value, ValueError)
+
+
+OPTIONAL_SENSORS = ("tacho_drive_lsb", "tacho_load_lsb", "tacho_ripple_order", "adc_clock_hz", "adc_conversion_cycles",
+                    "adc_hold_cycles")
+
+
+def test_the_sensor_chain_is_in_the_rig_file() -> None:
+    """The numbers the simulator's sensors and the observer's noise model share: the tachos' resolutions (500 and
+    20 rad/s over 512 codes), the ripple order, the ADC timing (13 clocks at 125 kHz per channel, held 1.5 clocks
+    in): the current is sampled 12 us after the tick, the drive tacho 116 us."""
+    s = load_rig().sensors
+    assert (s.tacho_drive_lsb, s.tacho_load_lsb, s.tacho_ripple_order) == (500 / 512, 20 / 512, 7)
+    assert isinstance(s.tacho_ripple_order, int) and isinstance(s.adc_conversion_cycles, int)
+    times = s.sample_times()
+    assert list(times) == list(ADC_SEQUENCE)
+    assert times["current_drive"] == pytest.approx(12e-6, rel=1e-12)
+    assert times["tacho_drive"] == pytest.approx(116e-6, rel=1e-12)
+    assert s.sequence_time() == pytest.approx(6 * 104e-6, rel=1e-12)
+    assert s.counts_per_rev == 2000
+
+
+def test_a_file_without_the_optional_sensor_fields_takes_the_bundled_ones(tmp_path: Path) -> None:
+    """A rig file (or a calibration's embedded rig) written without the sensor chain's optional fields reads as
+    before they existed: the bundled rig's values; one that gives them has its own."""
+    doc = _document()
+    for name in OPTIONAL_SENSORS:
+        del doc["sensors"][name]
+    assert load_rig(_write(tmp_path, doc)).sensors == load_rig().sensors
+    data = rig_to_dict(load_rig())
+    for name in OPTIONAL_SENSORS:
+        del data["sensors"][name]
+    assert rig_from_dict(data).sensors == load_rig().sensors
+    doc["sensors"]["tacho_ripple_order"] = {"value": 9, "unit": "1", "assumption": "a 9-segment tacho"}
+    assert load_rig(_write(tmp_path, doc)).sensors.tacho_ripple_order == 9
+    assert {f.name for f in dataclasses.fields(Sensors) if f.metadata.get("optional")} == set(OPTIONAL_SENSORS)
+
+
+def test_the_bundled_file_gives_every_field() -> None:
+    """The bundled file is what optional fields fall back to: it must have them all, each with its source."""
+    doc = _document()
+    for f in dataclasses.fields(Sensors):
+        assert f.name in doc["sensors"], f.name
+        assert doc["sensors"][f.name].get("source") or doc["sensors"][f.name].get("assumption"), f.name
 
 
 def test_broken_ratio_names_all_fields_and_values(tmp_path: Path) -> None:

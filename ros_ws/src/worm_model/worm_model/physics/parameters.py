@@ -12,7 +12,9 @@ version 1 (current): top-level keys ``format``, ``version``, ``name`` and the se
 with exactly one of ``source`` / ``assumption``.  Values are converted to SI with
 :mod:`worm_model.physics.units`.  Which fields exist, their dimension and their range check
 are declared once, as ``metadata`` on the dataclass fields below; the loader walks
-that table (adding a parameter is adding a field).
+that table (adding a parameter is adding a field).  A field declared optional (the sensor
+chain's tacho scaling, ripple order and ADC timing) may be left out of a file: it then takes
+the bundled rig's value, so a file written without them reads as it always did.
 
 Conventions: SI units, angles in rad.  ``hand`` is +1 for a right-hand worm and -1
 for a left-hand one; it only decides the sign of the gear rotation,
@@ -25,6 +27,7 @@ field (``nmrv030_rig.yaml: gearbox.lead_angle: ...``).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 from collections.abc import Callable, Mapping
@@ -75,9 +78,10 @@ CHECKS: dict[str, tuple[Callable[[float], bool], str]] = {
 }
 
 
-def _num(dimension: str, check: str = "positive") -> Any:
-    """Field declaration of a numeric leaf: its dimension and its range check."""
-    return field(metadata={"dimension": dimension, "check": check})
+def _num(dimension: str, check: str = "positive", optional: bool = False) -> Any:
+    """Field declaration of a numeric leaf: its dimension, its range check, and whether a file may leave it
+    out (``optional``: the bundled rig's value is taken then)."""
+    return field(metadata={"dimension": dimension, "check": check, "optional": optional})
 
 
 def _text() -> Any:
@@ -152,9 +156,19 @@ class Motor:
     max_voltage: float = _num("voltage")  # [V]
 
 
+#: The firmware's analogue conversion order within one sample period (firmware/adc_mux.c): per motor its
+#: armature current, then its tachogenerator. Channel k is held at (k * adc_conversion_cycles +
+#: adc_hold_cycles) ADC clocks after the tick (:meth:`Sensors.sample_times`).
+ADC_SEQUENCE = ("current_drive", "tacho_drive", "current_load_1", "tacho_load_1", "current_load_2", "tacho_load_2")
+
+
 @dataclass(frozen=True)
 class Sensors:
-    """Measurement chain of one motor channel (SI)."""
+    """The rig's measurement chain (SI): what the simulator reproduces and what an estimator's noise model reads.
+
+    The current and tacho figures hold for every motor's channel but the tacho's resolution, which is per
+    shaft (the load motors' tachos turn with the gear, 1/ratio slower than the worm).
+    """
 
     current_noise_std: float = _num("current", "nonnegative")  # [A]
     current_lsb: float = _num("current")  # ADC resolution of the Hall current channel [A]
@@ -163,6 +177,28 @@ class Sensors:
     encoder_pulses_per_rev: int = _num("dimensionless", "count")  # per channel
     encoder_decoding: int = _num("dimensionless", "count")  # 1, 2 or 4 (quadrature)
     sample_rate_hz: float = _num("frequency")  # [Hz]
+    tacho_drive_lsb: float = _num("angular_velocity", optional=True)  # ADC resolution, drive tacho [rad/s]
+    tacho_load_lsb: float = _num("angular_velocity", optional=True)  # ADC resolution, each load tacho [rad/s]
+    tacho_ripple_order: int = _num("dimensionless", "count", optional=True)  # ripple periods per shaft turn
+    adc_clock_hz: float = _num("frequency", optional=True)  # the ADC's conversion clock [Hz]
+    adc_conversion_cycles: int = _num("dimensionless", "count", optional=True)  # ADC clocks per conversion
+    adc_hold_cycles: float = _num("dimensionless", "nonnegative", optional=True)  # clocks to the sample-and-hold
+
+    @property
+    def counts_per_rev(self) -> int:
+        """Encoder counts per shaft turn after decoding."""
+        return self.encoder_pulses_per_rev * self.encoder_decoding
+
+    def sample_times(self, sequence: tuple[str, ...] = ADC_SEQUENCE) -> dict[str, float]:
+        """Signal -> instant [s] after the tick at which its channel is held, for channels converted one after
+        the other in ``sequence`` order (default: the firmware's, :data:`ADC_SEQUENCE`)."""
+        cycle = 1.0 / self.adc_clock_hz
+        return {signal: (k * self.adc_conversion_cycles + self.adc_hold_cycles) * cycle
+                for k, signal in enumerate(sequence)}
+
+    def sequence_time(self, channels: int = len(ADC_SEQUENCE)) -> float:
+        """[s] from the tick to the end of the last of ``channels`` conversions."""
+        return channels * self.adc_conversion_cycles / self.adc_clock_hz
 
 
 @dataclass(frozen=True)
@@ -273,6 +309,19 @@ def _checked(f: dataclasses.Field[Any], value: float, origin: str, where: str, s
     return result
 
 
+@functools.lru_cache(maxsize=1)
+def _bundled_rig() -> Rig:
+    return load_rig(None)
+
+
+def _bundled_value(dotted: str) -> Any:
+    """The bundled rig's value of an optional field (``sensors.adc_clock_hz``) a file leaves out."""
+    value: Any = _bundled_rig()
+    for name in dotted.split("."):
+        value = getattr(value, name)
+    return value
+
+
 def _build(cls: type, node: Any, origin: str, prefix: str, leaves: bool) -> Any:
     """Walk the field table of ``cls``; ``leaves`` False reads plain SI numbers (rig_from_dict)."""
     if not isinstance(node, Mapping):
@@ -285,6 +334,9 @@ def _build(cls: type, node: Any, origin: str, prefix: str, leaves: bool) -> Any:
         if f.metadata.get("kind") == "origin":
             continue
         if f.name not in node:
+            if f.metadata.get("optional") and origin != str(default_rig_path()):
+                kwargs[f.name] = _bundled_value(prefix + f.name)
+                continue
             raise ParameterError(origin, where, "missing")
         raw = node[f.name]
         if "section" in f.metadata:
