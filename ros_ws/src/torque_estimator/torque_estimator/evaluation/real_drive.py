@@ -64,7 +64,7 @@ from worm_model.rig_data.schema import RigDataError
 
 from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.estimation.extended_model import ExtendedModelEstimator
-from torque_estimator.evaluation.steady_fit import FittedModel, Selection, SteadyPoints, fit, halves, \
+from torque_estimator.evaluation.steady_fit import TERMS, FittedModel, Selection, SteadyPoints, fit, halves, \
     model_torque, select
 from torque_estimator.evaluation.tro2021_model import TRO_NOMINAL_TORQUE, TroDrive, motor_torque, payload
 

@@ -121,6 +121,18 @@ class EposHeader:
     channels: tuple[tuple[str, str], ...]
 
 
+class DirtyRowsError(RigDataError):
+    """Dirty rows refused (not ``skip_bad_rows``): the message names the first as ``file: line N: what`` and
+    counts them. ``rows``: every dirty row of the file (or folder)."""
+
+    def __init__(self, rows: list["DirtyRow"], files: int = 1, of_files: int = 1) -> None:
+        self.rows = rows
+        first = rows[0]
+        where = "this file" if of_files == 1 else f"{files} of the folder's {of_files} files"
+        super().__init__(first.source, f"{first.what} ({len(rows)} dirty row(s) in {where}: refused; "
+                                       "--skip-bad-rows leaves them out and reports them)", first.line)
+
+
 @dataclass(frozen=True)
 class DirtyRow:
     """A row left out (``skip_bad_rows``) and why; ``str()`` is ``file: line N: what``."""
@@ -347,9 +359,7 @@ def read_epos(path: str | Path, skip_bad_rows: bool = False) -> EposExport:
     _check_spikes(rows, dirty, header, columns)
     bad_rows = [DirtyRow(source, kept_lines[j], "; ".join(d)) for j, d in enumerate(dirty) if d]
     if bad_rows and not skip_bad_rows:
-        first = bad_rows[0]
-        raise RigDataError(source, f"{first.what} ({len(bad_rows)} dirty row(s) in this file: refused; "
-                                   "--skip-bad-rows leaves them out and reports them)", first.line)
+        raise DirtyRowsError(bad_rows)
     keep = [j for j, d in enumerate(dirty) if not d]
     if not keep:
         raise RigDataError(source, "no clean data row")
@@ -463,16 +473,10 @@ def read_epos_folder(folder: str | Path, skip_bad_rows: bool = False) -> list[Ep
     for path in files:
         try:
             exports.append(read_epos(path, skip_bad_rows))
-        except RigDataError as err:
-            if skip_bad_rows or "dirty row(s)" not in str(err):
-                raise
-            refused.append(err)
-            exports.append(read_epos(path, True))  # read on to count the folder's dirty rows
+        except DirtyRowsError as err:
+            refused.append(err)  # read on: the message counts the folder's dirty rows
     if refused:
-        total = sum(len(e.dirty) for e in exports)
-        first = refused[0]
-        raise RigDataError(first.source, f"{str(first).split(': ', 2)[-1]} [{total} dirty row(s) in "
-                                         f"{len(refused)} of the folder's {len(files)} files]", first.line)
+        raise DirtyRowsError([row for err in refused for row in err.rows], len(refused), len(files))
     return exports
 
 
