@@ -37,6 +37,13 @@ through the model's slope dT/dtau_load, in % of the load; where the model's torq
 V-shaped in the load (lowering at the slowest speeds: two loads give the measured torque),
 the estimator flags AMBIGUOUS and the two candidates are reported.
 
+The residuals tool on the same data, sample by sample (:func:`residuals_tool`:
+worm_model.residuals' analysis as the ``residuals`` command runs it, with the rig file as
+declared and samples down to 0.05 rad/s): once with its standard refitted set, once with the
+set a single load can identify (mu scale and the drags: K_t and the rotor inertia trade off
+against them when the load never changes and the speed is held), each reported as it names
+effects and what it leaves unexplained.
+
 The last line:
     real: drive=tro2021_worm points=<n> fit_rms_mNm=<x> tro_fit_rms_mNm=<x> load_mae_pct=<x>
           load_max_pct=<x> baseline_mae_pct=<x> mu=<x> tro_mu=0.12
@@ -58,8 +65,12 @@ from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser
 from worm_model.files.writing import atomic_dir, check_output
 from worm_model.physics.parameters import ParameterError, Rig, load_rig
+from worm_model.residuals import analysis as residual_analysis
 from worm_model.residuals.extended import ExtendedModel
-from worm_model.rig_data.epos import EposExport, read_epos_folder, steady_point
+from worm_model.residuals.free import STANDARD_REFIT, get_value
+from worm_model.residuals.model import prepare_signals
+from worm_model.rig_data.epos import EposExport, EposSettings, read_epos_folder, steady_point
+from worm_model.rig_data.reader import read_rig_data
 from worm_model.rig_data.schema import RigDataError
 
 from torque_estimator.estimation.base import EstimateFlags
@@ -205,6 +216,55 @@ def _other_crossing(fitted: FittedModel, omega: float, torque: float, chosen: fl
     return float(others[0]) if others else math.nan
 
 
+#: what one load level can identify of the standard refitted set (module docstring)
+SINGLE_LOAD_REFIT = ("friction.scale", "drive_motor.coulomb_drag", "drive_motor.viscous_drag",
+                     "load_motor.coulomb_drag")
+#: [rad/s] the residuals tool's slowest samples here (its default 5 rad/s would leave out 1-47 rpm)
+RESIDUALS_MIN_SPEED = 0.05
+
+
+@dataclass
+class ResidualsRun:
+    """What the residuals tool found: effects named, corrections (declared, identified), the residual left."""
+
+    refit: tuple[str, ...]
+    found: list[str]
+    corrections: dict[str, tuple[float, float]]
+    rms_before: float  # [A]
+    rms_after: float  # [A]
+    floor: float  # [A]
+    unexplained: bool
+    goes_with: list[str]  # "quantity share%: detail", largest first
+
+    def lines(self) -> list[str]:
+        out = [f"  residuals tool, refitted {', '.join(self.refit)}: found {', '.join(self.found) or 'none'}; "
+               f"held-out RMS {self.rms_before:.4f} -> {self.rms_after:.4f} A, {self.rms_after / self.floor:.2f} x "
+               f"the noise floor {self.floor:.4f} A" + ("; UNEXPLAINED" if self.unexplained else "")]
+        out += [f"    correction {p}: {a:.4g} -> {b:.4g} (x{b / a:.3g})" for p, (a, b) in self.corrections.items()]
+        out += [f"    the unexplained residual goes with {g}" for g in self.goes_with[:3]]
+        return out
+
+
+def residuals_tool(refit: tuple[str, ...] = STANDARD_REFIT) -> ResidualsRun:
+    """The residual analysis on the exports, sample by sample, as the ``residuals`` command runs it (module
+    docstring)."""
+    rig = load_rig(rig_file())
+    data = read_rig_data(data_folder(), epos=EposSettings(load_torque=LOAD, nominal_current=rig.drive_motor.rated_current,
+                                                          skip_bad_rows=True))
+    settings = residual_analysis.Settings(min_speed=RESIDUALS_MIN_SPEED, refit=tuple(refit))
+    signals = prepare_signals(rig, data, settings.alpha_time_constant, settings.reference_temperature)
+    split = residual_analysis.make_split(signals, settings, np.isfinite(data.current_drive))
+    problem = residual_analysis.Problem(rig, [], signals, data.current_drive, split, settings)
+    result = residual_analysis.analyse(problem)
+    corrections = {p: (get_value(rig, p), get_value(result.final.rig, p)) for p in problem.free}
+    floor = result.noise.rms if result.noise is not None else math.nan
+    goes = [] if result.unexplained is None else [
+        f"{c.quantity} {100 * c.share:.1f} % ({c.detail})"
+        for c in sorted(result.unexplained.correlations, key=lambda c: -c.share)]
+    return ResidualsRun(tuple(refit), result.found, corrections, result.rms_before, result.final.rms_held_out, floor,
+                        result.unexplained is not None, goes)
+
+
 @dataclass
 class Study:
     """Everything the study found (module docstring)."""
@@ -220,6 +280,7 @@ class Study:
     fitted: np.ndarray  # final's torque [N m]
     selection: Selection
     loads: LoadEstimates
+    residuals: list[ResidualsRun] = field(default_factory=list)
     rig: Rig = field(repr=False, default=None)  # type: ignore[assignment]
 
     # ---------------------------------------------------------------- figures
@@ -268,8 +329,9 @@ def run_study(progress=None) -> Study:
     base = fit(rig, sp, ())
     tro_structure = fit(rig, sp, ("tooth_stribeck",))
     loads = estimate_loads(rig, sp, tuple(selection.accepted))
+    runs = [residuals_tool(STANDARD_REFIT), residuals_tool(SINGLE_LOAD_REFIT)]
     return Study(points, skipped, sp.torque, tro, declared, base, tro_structure, final,
-                 final.torque(sp.omega, sp.tau_load), selection, loads, rig)
+                 final.torque(sp.omega, sp.tau_load), selection, loads, runs, rig)
 
 
 # --------------------------------------------------------------------------- report
@@ -335,6 +397,8 @@ def lines(study: Study) -> list[str]:
         out.append(f"    round {k + 1}: {ranked} -> {taken}")
     out.append(f"  left: held-out RMS {1e3 * sel.held_out[-1]:.4f} mN m = {sel.held_out[-1] / sel.floor:.2f} x the "
                f"floor" + (" (unexplained: above 1.1 x)" if sel.unexplained else " (at the floor)"))
+    for run in study.residuals:
+        out += run.lines()
     out.append(study.line())
     return out
 

@@ -78,6 +78,23 @@ def test_skipping_dirty_rows_reports_each_and_counts_them() -> None:
     assert sum(note.startswith("skipped: ") for note in data.notes) == 3
 
 
+def test_the_spike_threshold_against_the_real_rows(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The largest excursion of a real row of the 48 files is 7 row-to-row spreads (between 6.5 and 7.5); the
+    edited values are 950-2008 spreads; the sampling periods run from 6.4 to 256 ms."""
+    import worm_model.rig_data.epos as epos
+
+    files = epos_files(STEADY) + epos_files(DRIVE / "start_stop")
+    periods = [read_epos(p, skip_bad_rows=True).header.sampling_period for p in files]
+    assert (min(periods), max(periods)) == pytest.approx((0.0064, 0.256))
+    edited = sorted(int(str(r).split(" is a spike: ")[1].split(" x")[0]) for p in files
+                    for r in read_epos(p, skip_bad_rows=True).dirty)
+    assert edited == [950, 1775, 2008]
+    monkeypatch.setattr(epos, "SPIKE_FACTOR", 7.5)
+    assert sum(len(read_epos(p, skip_bad_rows=True).dirty) for p in files) == 3
+    monkeypatch.setattr(epos, "SPIKE_FACTOR", 6.5)
+    assert sum(len(read_epos(p, skip_bad_rows=True).dirty) for p in files) > 3
+
+
 def test_real_transients_are_not_spikes() -> None:
     """The start-stop runs jump from 0 to +-200 rpm in two samples: steps, not spikes; and a quoted trigger line."""
     for name in ("10.csv", "200.csv"):
