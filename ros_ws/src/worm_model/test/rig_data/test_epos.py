@@ -193,3 +193,23 @@ def test_bad_files_are_one_line_naming_the_file(tmp_path: Path, content, words: 
     with pytest.raises(RigDataError) as err:
         read_rig_data(path, epos=EposSettings(load_torque=LOAD, nominal_current=1.0))
     assert str(err.value).startswith(str(path)) and words in str(err.value) and "\n" not in str(err.value)
+
+
+def test_the_load_options_of_the_tools() -> None:
+    import argparse
+
+    from worm_model.cli.errors import InputError
+    from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
+
+    parser = argparse.ArgumentParser()
+    add_epos_arguments(parser)
+    rig = load_rig(RIG)
+    hanging = epos_settings(parser.parse_args(["--load-mass", "0.096", "--pulley-radius", "0.02", "--gravity", "9.812",
+                                               "--lifting", "negative", "--skip-bad-rows"]), rig)
+    assert hanging.load_torque == pytest.approx(-LOAD) and hanging.skip_bad_rows
+    assert hanging.nominal_current == pytest.approx(NOMINAL_CURRENT) and hanging.counts_per_turn == 4096
+    assert epos_settings(parser.parse_args(["--load-torque", "0.01"]), rig).load_torque == 0.01
+    with pytest.raises(InputError, match="not both"):
+        epos_settings(parser.parse_args(["--load-torque", "0.01", "--load-mass", "1", "--pulley-radius", "0.1"]), rig)
+    with pytest.raises(InputError, match="needs both"):
+        epos_settings(parser.parse_args(["--pulley-radius", "0.1"]), rig)
