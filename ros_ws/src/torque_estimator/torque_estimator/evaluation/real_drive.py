@@ -63,6 +63,7 @@ import numpy as np
 
 from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser
+from worm_model.cli.progress import ProgressBar
 from worm_model.files.writing import atomic_dir, check_output
 from worm_model.physics.parameters import ParameterError, Rig, load_rig
 from worm_model.residuals import analysis as residual_analysis
@@ -461,6 +462,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True,
                    help="folder for real_drive_torque.png, created (an existing one only with --force)")
     p.add_argument("--force", action="store_true", help="replace an existing --out folder")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
 
@@ -471,7 +473,8 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     check_output(args.out, args.force, folder=True)
-    study = run_study()
+    with ProgressBar(2 * len(TERMS), "terms tried", enabled=not args.quiet) as bar:
+        study = run_study(progress=bar.update_to)
     with atomic_dir(args.out, args.force) as folder:
         plot(study, folder / "real_drive_torque.png")
     print("\n".join(lines(study)[:-1]))
