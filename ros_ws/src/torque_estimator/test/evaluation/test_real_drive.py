@@ -124,6 +124,9 @@ def test_parameters_and_the_selection(study: real_drive.Study, doc: str) -> None
     assert sel.accepted == ["gear_support_stribeck"] and sel.unexplained
     assert close("0.0846", 1e3 * sel.held_out[0]) and close("0.0305", 1e3 * sel.held_out[1])
     assert close("1.21", sel.held_out[-1] / sel.floor)
+    square = (sel.final.predicted - study.measured) ** 2
+    fast = np.abs([p.rpm for p in study.points]) >= 160
+    assert fast.sum() == 6 and round(100 * square[fast].sum() / square.sum()) == 27
     names = {"gear support Stribeck": "gear_support_stribeck", "tooth Stribeck": "tooth_stribeck",
              "viscous drag": "viscous_drag", "flank-dependent mu": "mode_dependent_mu",
              "worm support Stribeck": "worm_support_stribeck"}
