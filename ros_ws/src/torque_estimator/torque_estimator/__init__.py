@@ -29,8 +29,8 @@ helpers beside the CLIs that talk to a live graph):
                     against its tau_load), ``replay`` (the graph's cores over a bag)
 ``evaluation``      ``make evaluate``'s studies: ``held_out`` (Table 3), ``transient``,
                     ``identified``, ``observer_study``, ``residual_cases``,
-                    ``closed_loop``, the ``scenario`` timelines they and the demo play;
-                    the ``evaluate`` CLI
+                    ``closed_loop``, ``real_drive`` (a real drive's measurements), the
+                    ``scenario`` timelines they and the demo play; the ``evaluate`` CLI
 ``demo``            ``make demo``: the demo's scenario played on the live graph
                     (``scenario_node``), ``run_analysis``, ``plots``, the ``demo`` CLI
 ``graph``           running the node graph: ``runner`` (start nodes from one

@@ -16,7 +16,8 @@ outside ``ros/`` and ``nodes/``):
 ``bags``      rosbag2 bags without rclpy: reader (every layout since Foxy), writer,
               message types, sequence-gap checks, ros2-topic-echo-style YAML
 ``rig_data``  measured rig data: the ``worm_rig_data`` CSV schema and the one reader
-              of CSV files and bags (``read_rig_data``); the ``bag`` command
+              of CSV files, bags and EPOS Studio exports (``read_rig_data``); the ``bag``
+              command
 ``residuals`` closing the loop with measured data: fit, residual, effects, report
 ``calc``      ``worm_calc``: one operating point through the model
 ``figures``   ``report``: the paper's Figures 6-11 from a calibration

@@ -26,6 +26,11 @@ k-NN grid calibrated on that rig, the extended model and the observer with the i
 parameters, on the same held-out points, ending with
     identify: rig_time_s=<x> identified_mae_pct=<x> identified_max_pct=<x> observer_mae_pct=<x> ...
 
+Then, unless --no-real, the model against a real worm drive's measurements (evaluation.real_drive:
+the T-RO 2021 drive's 46 steady points, their published fit beside ours, the load estimated
+cross-fitted; real_drive_torque.png), ending with
+    real: drive=tro2021_worm points=<n> fit_rms_mNm=<x> tro_fit_rms_mNm=<x> load_mae_pct=<x> ...
+
 Errors are |estimated - true| in % of the calibrated torque range (max - min
 of the database's τ_d). The last line printed is
     <method>: mae_pct=<mean error> max_pct=<largest error> points=<n>
@@ -52,6 +57,7 @@ from torque_estimator.estimation.knn import WEIGHTINGS
 from torque_estimator.estimation.observer import steady_state_bound
 from torque_estimator.evaluation.transient import STEP_SPEED, transient_figures
 from torque_estimator.evaluation.identified import evaluate_lines as identified_lines
+from torque_estimator.evaluation import real_drive
 
 #: seeds of the step experiment (the ramp and the reversal take a third)
 TRANSIENT_SEEDS = 12
@@ -121,6 +127,9 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--noise", type=_float_list, default=[0.0, 0.5, 1.0, 2.0, 4.0],
                        help="sensor noise factors (x the rig's current and speed noise), comma-separated "
                             "(default 0,0.5,1,2,4)")
+    p.add_argument("--no-real", action="store_true",
+                   help="skip the real worm drive (the T-RO 2021 measurements, ~1 min): its table, real_drive_torque.png "
+                        "and its `real:` line")
     p.add_argument("--no-residuals", action="store_true", help="skip the residuals tool's case matrix")
     p.add_argument("--residual-cases", choices=("full", "small"), default="full",
                    help="the residuals tool's case matrix: full (every effect alone and in pairs, each with the "
@@ -191,6 +200,12 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
         side_by_side(args, rig, grid, db)
         # issue 18: identify from one short run vs the k-NN grid, on the simulated rig with every effect on
         print("\n".join(identified_lines(rig, args.points, args.seed + 1, args.k, args.weighting)))
+    if not args.no_real:  # a real drive's measurements through the model and the estimator
+        with ProgressBar(2 * len(real_drive.TERMS), "real drive", enabled=not args.quiet) as bar:
+            study = real_drive.run_study(progress=bar.update_to)
+        print("\nA real worm drive (the T-RO 2021 measurements, evaluation.real_drive)")
+        print("\n".join(real_drive.lines(study)))
+        pngs.append(real_drive.plot(study, out / "real_drive_torque.png"))
     if not args.no_residuals:  # the residuals tool's case matrix (issue 15); ends with its `residuals:` line
         cases = full_matrix() if args.residual_cases == "full" else small_matrix()
         with ProgressBar(len(cases), "residuals cases", enabled=not args.quiet) as bar:

@@ -4,8 +4,9 @@
     ros2 run torque_estimator estimate run.csv --method knn --calibration calibration.json
     ros2 run torque_estimator estimate run.csv --method observer [--model-file identified_rig.yaml]
 
-Every sample of the log (a CSV in the worm_rig_data schema or a rosbag2 bag; read by
-worm_model.rig_data.read_rig_data) goes through LiveEstimator with the method, exactly as
+Every sample of the log (a CSV in the worm_rig_data schema, a rosbag2 bag, or an EPOS Studio
+export or a folder of them with the load given by --load-torque or --load-mass/--pulley-radius;
+read by worm_model.rig_data.read_rig_data) goes through LiveEstimator with the method, exactly as
 estimator_node runs it on /rig/samples: the same class, the node's parameters (defaults,
 or --params-file's estimator_node section), built by the node's builder (estimation.settings:
 the same rule for the rig of the inertia compensation, rig_file, else model_file, else the
@@ -20,7 +21,8 @@ SteadyStateCriterion: the mean speeds of its two halves within 2 % + 0.5 rad/s o
 other, its mean currents within 0.01 A) and |omega_worm| >= 5 rad/s (the estimators
 are kinetic).  Per steady point the error is |mean estimate - mean tau_load|; the rest
 of the samples (transients; standstill left out) give an RMS of the sample-by-sample error.
-Errors are in % of the log's load range (the 0.5 .. 99.5 percentiles of tau_load).
+Errors are in % of the log's load range (the 0.5 .. 99.5 percentiles of tau_load); a log held at one
+load (a hanging mass: no range) is scored in % of that load's magnitude.
 Nothing else is used: the figures come from the log and the files given, never from
 knowledge of a simulator.  The last line printed is
     estimate: method=<m> mae_pct=<x> max_pct=<x> steady_points=<n> transient_rms_pct=<x>
@@ -40,7 +42,9 @@ from pathlib import Path
 
 import numpy as np
 
+from worm_model.cli.errors import InputError
 from worm_model.physics.parameters import ParameterError
+from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
 from worm_model.rig_data.reader import read_rig_data
 from worm_model.rig_data.schema import MeasuredData, RigDataError
 
@@ -74,7 +78,8 @@ class Figures:
     max_pct: float
     steady_points: int
     transient_rms_pct: float
-    load_range: float  # [N m]
+    load_range: float  # [N m]: what 100 % is
+    one_load: bool = False  # the log has one load: load_range is its magnitude
 
     def line(self, method: str) -> str:
         return (f"{PROG}: method={method} mae_pct={self.mae_pct:.2f} max_pct={self.max_pct:.2f} "
@@ -128,7 +133,10 @@ def figures(data: MeasuredData, estimate: LogEstimate,
     if not finite.any():
         return None
     low, high = np.percentile(reference[finite], [0.5, 99.5])
-    span = float(high - low) or float("nan")
+    span = float(high - low)
+    one_load = not span > 0.0
+    if one_load:  # one load (e.g. a hanging mass): % of that load
+        span = float(np.max(np.abs(reference[finite]))) or float("nan")
     windows = steady_windows(data, criterion)
     errors = []
     steady = np.zeros(len(data), dtype=bool)
@@ -143,7 +151,7 @@ def figures(data: MeasuredData, estimate: LogEstimate,
     rms = float(np.sqrt(np.mean((estimate.torque[rest] - reference[rest]) ** 2))) if rest.any() else math.nan
     return Figures(float(np.mean(errors_pct)) if len(errors_pct) else math.nan,
                    float(np.max(errors_pct)) if len(errors_pct) else math.nan,
-                   len(errors_pct), 100.0 * rms / span, span)
+                   len(errors_pct), 100.0 * rms / span, span, one_load)
 
 
 def write_estimate_csv(path: Path, data: MeasuredData, estimate: LogEstimate) -> None:
@@ -161,7 +169,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[1:]),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("log", type=Path, help="the logged run: a worm_rig_data CSV or a rosbag2 bag (directory, .mcap, .db3)")
+    p.add_argument("log", type=Path, help="the logged run: a worm_rig_data CSV, a rosbag2 bag (directory, .mcap, .db3), "
+                                          "or an EPOS Studio export or folder of them (with the load options below)")
     p.add_argument("--method", required=True, choices=sorted(ESTIMATORS), help="the estimator (estimator_node's method)")
     p.add_argument("--calibration", type=Path, default=None,
                    help="calibration database (calibrate); required by knn, optional for the others (ranges)")
@@ -175,6 +184,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, default=None,
                    help="CSV to write (default: <log without suffix>_<method>.csv beside the log)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_epos_arguments(p)
     return p
 
 
@@ -208,9 +218,13 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as err:
         return fail("--params-file" if args.params_file else "--method", str(err))
     try:
-        data = read_rig_data(args.log)
+        data = read_rig_data(args.log, epos=epos_settings(args, built.rig))
+    except InputError as err:
+        return fail(err.where, err.what)
     except RigDataError as err:
         return fail("log", str(err))
+    for note in data.notes:
+        print(f"{PROG}: note: {note}")
     if args.method == "observer" and (data.voltage_drive is None or not np.isfinite(data.voltage_drive).any()):
         return fail("log", f"{args.log}: the observer needs the voltage_drive column")
     estimator, model_file, rig_file = built.estimator, settings.model_file, settings.rig_file
@@ -230,7 +244,10 @@ def main(argv: list[str] | None = None) -> int:
     if score is None:
         print(f"{PROG}: method={args.method} samples={len(data)} (no tau_load in the log: no figures)")
         return 0
-    print(f"{PROG}: load range of the log {score.load_range:.4f} N m (0.5..99.5 percentiles of tau_load)")
+    if score.one_load:
+        print(f"{PROG}: the log has one load, {score.load_range:.4f} N m: errors in % of it")
+    else:
+        print(f"{PROG}: load range of the log {score.load_range:.4f} N m (0.5..99.5 percentiles of tau_load)")
     print(score.line(args.method))
     return 0
 

@@ -78,10 +78,13 @@ CHECKS: dict[str, tuple[Callable[[float], bool], str]] = {
 }
 
 
-def _num(dimension: str, check: str = "positive", optional: bool = False) -> Any:
-    """Field declaration of a numeric leaf: its dimension, its range check, and whether a file may leave it
-    out (``optional``: the bundled rig's value is taken then)."""
-    return field(metadata={"dimension": dimension, "check": check, "optional": optional})
+def _num(dimension: str, check: str = "positive", optional: bool = False, default: float | None = None) -> Any:
+    """Field declaration of a numeric leaf: its dimension and its range check. A file may leave the leaf out
+    when it is ``optional`` (the bundled rig's value is taken then) or has a ``default`` (that value [SI], so
+    the files written before the leaf existed still load)."""
+    if default is None:
+        return field(metadata={"dimension": dimension, "check": check, "optional": optional})
+    return field(default=default, metadata={"dimension": dimension, "check": check, "default": default})
 
 
 def _text() -> Any:
@@ -134,11 +137,16 @@ class Gearbox:
 
 @dataclass(frozen=True)
 class Friction:
-    """Tooth-thread friction model: ``model`` is a key of ``worm_model.physics.friction.FRICTION_MODELS``."""
+    """Tooth-thread friction model: ``model`` is a key of ``worm_model.physics.friction.FRICTION_MODELS``.
 
-    model: str = _text()  # "agma" or "constant"
-    mu_constant: float = _num("dimensionless", "nonnegative")  # used by model "constant"
-    scale: float = _num("dimensionless")  # multiplies the AGMA curve
+    ``stribeck_rise`` and ``stribeck_speed`` are optional (model "stribeck" only; 0 and 0.01 m/s when left out).
+    """
+
+    model: str = _text()  # "agma", "constant" or "stribeck"
+    mu_constant: float = _num("dimensionless", "nonnegative")  # "constant"; the kinetic mu of "stribeck"
+    scale: float = _num("dimensionless")  # multiplies the AGMA curve and the Stribeck law
+    stribeck_rise: float = _num("dimensionless", "nonnegative", default=0.0)  # mu_s of "stribeck"
+    stribeck_speed: float = _num("velocity", "positive", default=0.01)  # V_st [m/s] of "stribeck"
 
 
 @dataclass(frozen=True)
@@ -334,6 +342,9 @@ def _build(cls: type, node: Any, origin: str, prefix: str, leaves: bool) -> Any:
         if f.metadata.get("kind") == "origin":
             continue
         if f.name not in node:
+            if "default" in f.metadata:
+                kwargs[f.name] = f.metadata["default"]
+                continue
             if f.metadata.get("optional") and origin != str(default_rig_path()):
                 kwargs[f.name] = _bundled_value(prefix + f.name)
                 continue

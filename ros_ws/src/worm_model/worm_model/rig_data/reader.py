@@ -1,8 +1,12 @@
-"""The one reader of rig data: a ``worm_rig_data`` CSV file or a rosbag2 bag, chosen by the path.
+"""The one reader of rig data: a ``worm_rig_data`` CSV file, a rosbag2 bag, or EPOS Studio exports.
 
-Every tool that takes measured rig data (``residuals``, ``replay``'s CSV mode,
-tests) reads it here, so a bag and its CSV export give the same
-:class:`~worm_model.rig_data.schema.MeasuredData`.
+Every tool that takes measured rig data (``residuals``, ``identify --from``, ``estimate``,
+``replay``'s CSV mode, tests) reads it here, so a bag and its CSV export give the same
+:class:`~worm_model.rig_data.schema.MeasuredData`. Which reader is chosen by the path: a
+``.mcap``/``.db3`` file or a folder with a bag is a bag; a file that starts like an EPOS
+Studio export (``Date:;...``), or a folder of them, is read by
+:mod:`~worm_model.rig_data.epos` with the :class:`~worm_model.rig_data.epos.EposSettings`
+the caller gives (the load, what 100 % torque is); any other file is a ``worm_rig_data`` CSV.
 """
 from __future__ import annotations
 
@@ -10,6 +14,7 @@ from pathlib import Path
 
 from worm_model.bags.typestore import BagRecordingError
 from worm_model.rig_data.bags import bag_to_measured
+from worm_model.rig_data.epos import EposSettings, is_epos_export, is_epos_folder, read_epos_data
 from worm_model.rig_data.schema import MeasuredData, RigDataError, read_rig_csv
 
 #: file suffixes read as a bag (besides a directory)
@@ -22,19 +27,25 @@ def is_bag(path: str | Path) -> bool:
     return p.is_dir() or p.suffix in BAG_SUFFIXES
 
 
-def read_rig_data(path: str | Path, topic: str | None = None) -> MeasuredData:
-    """Measured data from a CSV file, or from a rosbag2 directory / .mcap / .db3 file.
+def read_rig_data(path: str | Path, topic: str | None = None, epos: EposSettings | None = None) -> MeasuredData:
+    """Measured data from a CSV file, a rosbag2 directory / .mcap / .db3 file, or EPOS Studio exports.
 
     Args:
         topic: the RigSample topic of a bag (default: the only one, or ``/rig/sample``).
+        epos: what an EPOS export does not carry (its load, what 100 % torque is) and whether to
+            skip dirty rows; without it an EPOS export is still read (a bad one refused) and then
+            refused for want of the load.
 
     Raises:
         RigDataError: no such file, a bad CSV (see :func:`~worm_model.rig_data.schema.read_rig_csv`),
-            or a bag that cannot be read; the message names the file.
+            a bag that cannot be read, a bad EPOS export or a dirty row in one
+            (:func:`~worm_model.rig_data.epos.read_epos`); the message names the file.
     """
     p = Path(path)
     if not p.exists():
         raise RigDataError(str(p), "no such file or directory")
+    if is_epos_export(p) or is_epos_folder(p):
+        return read_epos_data(p, epos)
     if not is_bag(p):
         return read_rig_csv(p)
     try:

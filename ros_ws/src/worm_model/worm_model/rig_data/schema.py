@@ -114,6 +114,10 @@ class MeasuredData:
     """Line of the CSV file each sample came from (None for other sources)."""
     damage: tuple[str, ...] = ()
     """Storage files read although truncated (messages lost), and what was lost."""
+    notes: tuple[str, ...] = ()
+    """What the reader derived or tolerated and the user should know (rows skipped, channels derived)."""
+    run_sources: tuple[str, ...] = ()
+    """The file each run came from, when the runs are several files (a folder of exports); else empty."""
 
     def __post_init__(self) -> None:
         n = len(self.t)
@@ -162,8 +166,9 @@ def check_envelope(data: MeasuredData, envelope: Envelope) -> None:
         if k is None:
             continue
         problem = envelope.problem(name, float(getattr(data, name)[k]))
+        source = data.run_sources[int(data.run[k])] if data.run_sources else data.source
         if data.lines is not None:
-            raise RigDataError(data.source, problem, int(data.lines[k]), name)
+            raise RigDataError(source, problem, int(data.lines[k]), name)
         raise RigDataError(data.source, f"sample {k}: {problem}", column=name)
 
 
