@@ -163,3 +163,15 @@ def test_the_plot_and_the_split(study: real_drive.Study, tmp_path: Path) -> None
     rpm = [p.rpm for p in study.points]
     half = halves(np.array([p.omega for p in study.points]))
     assert [r for r, h in zip(rpm, half) if h == 1 and r > 0] == [2, 6, 10, 17, 25, 40, 60, 80, 100, 140, 180]
+
+
+def test_the_readme_states_the_pages_figures(study: real_drive.Study) -> None:
+    """The README's real-drive section quotes the study's line and its two RMS figures."""
+    readme = (DOC.parents[1] / "README.md").read_text(encoding="utf-8")
+    printed = re.search(r"^real: drive=.*$", readme, re.M).group(0)
+    for (name, shown), (_, value) in zip(re.findall(r"(\w+)=([-\d.]+)", printed),
+                                         re.findall(r"(\w+)=([-\d.]+)", study.line())):
+        assert close(shown, float(value)), name
+    fit, tro = re.search(r"RMS (\d\.\d+) against (\d\.\d+) mN m", readme).groups()
+    assert close(fit, study.fit_rms * 1e3) and close(tro, study.tro_rms * 1e3)
+    assert "four times more closely" in readme and 3.9 < study.tro_rms / study.fit_rms < 4.5
