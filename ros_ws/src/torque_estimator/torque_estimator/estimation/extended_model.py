@@ -1,4 +1,4 @@
-"""Model-based τ_d estimator: invert the extended model's quasi-static current (issue 7).
+"""Model-based τ_d estimator: invert the extended model's quasi-static current.
 
 Units and signs as :mod:`torque_estimator.estimation.database`: ω_w [rad/s], i [A]
 (the inertia-compensated drive current, as LiveEstimator hands it over), τ_d [N·m]

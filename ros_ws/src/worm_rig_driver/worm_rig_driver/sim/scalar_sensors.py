@@ -1,4 +1,4 @@
-"""The sensors of ONE rig in plain float math: the fast path of sensors.SensorModel (issue 13).
+"""The sensors of ONE rig in plain float math: the fast path of sensors.SensorModel.
 
 :class:`ScalarSensors` reads one sample period exactly as
 SensorModel.measure_period does for n = 1 (see sensors.py for the hardware: ADC
