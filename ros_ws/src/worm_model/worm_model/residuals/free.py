@@ -69,6 +69,23 @@ FREE_PARAMETERS: dict[str, tuple[str, str]] = {
 }
 
 
+#: friction model (worm_model.physics.friction.FRICTION_MODELS) -> the rig parameter its mu is proportional to:
+#: the mu correction of that model (the others of the ``friction`` section are not read by it)
+MU_PARAMETERS: dict[str, str] = {
+    "agma": "friction.scale",
+    "constant": "friction.mu_constant",
+}
+
+
+def mu_parameter(friction_model: str) -> str:
+    """The dotted rig parameter that scales mu under ``friction_model`` (:data:`MU_PARAMETERS`).
+
+    Raises:
+        KeyError: a friction model without a mu parameter here.
+    """
+    return MU_PARAMETERS[friction_model]
+
+
 #: refitted by default on top of the rig file's ``free:`` list (module docstring)
 STANDARD_REFIT: tuple[str, ...] = (
     "friction.scale",
