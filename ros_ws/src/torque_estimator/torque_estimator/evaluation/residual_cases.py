@@ -276,9 +276,9 @@ def _out_of_vocabulary() -> dict[str, Callable[[int, Rig], Any]]:
 #: a worm-shaft torque [N m] (worm_order_1_5_ripple).  Each leaves the true model's held-out RMS well above
 #: 1.3x the floor; the NMRV040 carries a gear torque to the current ~3x more strongly (K_t 0.025 N m/A, ratio 20)
 OOV_SIZES: dict[str, dict[str, float]] = {
-    "nmrv030_rig.yaml": {"stepped_gear_friction": 0.04, "gear_order3_ripple": 0.05, "load_bearing_friction": 0.3,
+    "nmrv030_rig.yaml": {"stepped_gear_friction": 0.04, "gear_order3_ripple": 0.05, "load_bearing_friction": 0.2,
                          "current_drift": 0.02, "worm_order_1_5_ripple": 0.005},
-    "nmrv040_rig.yaml": {"stepped_gear_friction": 0.02, "gear_order3_ripple": 0.025, "load_bearing_friction": 0.2,
+    "nmrv040_rig.yaml": {"stepped_gear_friction": 0.02, "gear_order3_ripple": 0.025, "load_bearing_friction": 0.15,
                          "current_drift": 0.025, "worm_order_1_5_ripple": 0.003},
 }
 

@@ -339,7 +339,7 @@ def fit(problem: Problem, specs: Sequence[tuple[Effect, dict[str, float]]], prev
         if np.any(theta < low):  # a drag (mu, inertia) traded below 0: the same problem with the bound held
             result = least_squares(residual, np.maximum(theta, low), jac=jac, bounds=(low, np.inf), method="trf",
                                    x_scale="jac", max_nfev=200)
-            theta = np.maximum(result.x, low)
+            theta = np.where(result.active_mask < 0, low, np.maximum(result.x, low))  # on the bound: exactly there
     state, rig, _, _ = problem.predict(theta, cur, None, shapes)
     res = problem.current - state.current
     n_train = int(train.sum())
