@@ -62,7 +62,7 @@ from worm_model.physics.parameters import Rig, default_rig_path, load_rig
 from worm_model.rig_data.schema import MeasuredData
 
 import worm_model.residuals.analysis as an
-from worm_model.residuals.free import get_value, mu_parameter, read_free, set_values
+from worm_model.residuals.free import LOWER_BOUNDS, get_value, mu_parameter, read_free, set_values
 from worm_model.residuals.model import prepare_signals
 
 #: rig files the matrix uses: key -> (file in worm_model/data, friction model written into it, None: the file's)
@@ -348,11 +348,6 @@ def simulate(case: Case, rig: Rig | None = None) -> MeasuredData:
 
 
 # --------------------------------------------------------------------------- running and scoring
-#: refitted parameters that cannot be negative (a drag, a friction coefficient): a fit below 0 is unphysical
-NONNEGATIVE = ("friction.scale", "friction.mu_constant", "drive_motor.coulomb_drag", "drive_motor.viscous_drag",
-               "load_motor.coulomb_drag", "load_motor.viscous_drag")
-
-
 @dataclass
 class CaseResult:
     case: Case
@@ -388,8 +383,8 @@ class CaseResult:
 
     @property
     def unphysical(self) -> tuple[str, ...]:
-        """Refitted drags and mu parameters identified below 0."""
-        return tuple(p for p in NONNEGATIVE if self.identified.get(p, 0.0) < 0.0)
+        """Refitted parameters identified below their physical bound (drags, mu, inertias: free.LOWER_BOUNDS)."""
+        return tuple(p for p, low in LOWER_BOUNDS.items() if self.identified.get(p, low) < low)
 
     @property
     def mu_ratio(self) -> float:

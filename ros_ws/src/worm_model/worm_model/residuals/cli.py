@@ -80,9 +80,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="comma-separated parameters refitted always, on top of the free list ('none' for none): "
                         "the declared numbers a rig file typically gets wrong, whatever their source: or assumption: "
                         "(worm_model.residuals.free explains the choice; friction.mu is the friction model's mu "
-                        "parameter, friction.scale under agma, friction.mu_constant under constant); a deviation beyond a parameter's tolerance that an effect is an alias of "
-                        "(K_t: sensor_gain, drags: bearing_coulomb/viscous_drag, rotor inertia: inertia_error) is "
-                        "named as that effect")
+                        "parameter, friction.scale under agma, friction.mu_constant under constant); a deviation "
+                        "beyond a parameter's tolerance that an effect is an alias of (K_t: sensor_gain, drags: "
+                        "bearing_coulomb/viscous_drag, rotor inertia: inertia_error) is named as that effect; drags, "
+                        "mu and inertias are never fitted below 0")
     p.add_argument("--candidates", default=",".join(EFFECTS),
                    help="comma-separated candidate effects to consider")
     p.add_argument("--holdout-fraction", type=number("", 0, 1, open_low=True, open_high=True), default=d.holdout_fraction,
