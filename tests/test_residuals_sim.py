@@ -440,7 +440,7 @@ def test_residual_analysis_does_not_name_pwm_on_a_clean_record(noise_standard: M
     assert not pwm.note  # it was screened (not ruled out), and left out
 
 
-# --------------------------------------------------------------------------- a catalogue rig file under the constant model
+# --------------------------------------------------------------------------- a catalogue rig file, constant mu
 @pytest.fixture(scope="module")
 def constant_rig_logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """The simulated rig under the constant friction model (mu 0.05, no hidden effect): an 85 s identification
@@ -453,7 +453,8 @@ def constant_rig_logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Pat
     write_rig_csv(folder / "log.csv", record_on_simulator(plant, timeline, seed=2))
     return {"record": folder / "record.csv", "log": folder / "log.csv",
             "right": rc.write_rig_file(folder / "right.yaml", "nmrv030_constant", {}),
-            "catalogue": rc.write_rig_file(folder / "catalogue.yaml", "nmrv030_constant", rc.PERTURBATIONS["catalogue"]),
+            "catalogue": rc.write_rig_file(folder / "catalogue.yaml", "nmrv030_constant",
+                                           rc.PERTURBATIONS["catalogue"]),
             "mu_high": rc.write_rig_file(folder / "mu_high.yaml", "nmrv030_constant", {"mu": 1.25})}
 
 
@@ -461,7 +462,8 @@ def constant_rig_logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Pat
 def test_constant_friction_with_mu_declared_high_names_nothing_at_the_floor(perturbation: str, tmp_path: Path) -> None:
     """`residuals` on the case matrix's data (10 rigs x 4 s), the rig file under the constant model with mu 25 % high
     (and K_t 3 % high) with sources: nothing named, at the floor, mu corrected (measured: found none, 1.00-1.02x the
-    floor, mu_constant within 1 % of the plant's 0.05; the correction was dead: 'friction.scale: declared 1 -> 1 +- 0')."""
+    floor, mu_constant within 1 % of the plant's 0.05; the correction was dead: 'friction.scale: declared 1 -> 1
+    +- 0')."""
     off = {"mu": 1.25} if perturbation == "mu_high" else rc.PERTURBATIONS["catalogue"]
     case = rc.Case(f"constant/{perturbation}", seed=11, rig="nmrv030_constant")
     data = rc.simulate(case)

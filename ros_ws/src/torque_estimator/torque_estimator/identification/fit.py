@@ -19,11 +19,13 @@ Which parameters (:func:`default_refit`)
     reports them (declared -> identified +- interval, the tolerance band, what became of it), and
     written into the extended rig file with the declared value and its provenance kept beside them.
 Which effects (:data:`IDENTIFY_SETTINGS`)
-    Every effect ``residuals`` accepts, with three settings changed: an effect must lower the
+    Every effect ``residuals`` accepts, with four settings changed: an effect must lower the
     held-out RMS of the current by 0.1 % (residuals: 2 %), it may raise the transmission
     error's by up to 5 % (residuals: as much as the first; no estimator reads the transmission
-    error, and a Stribeck law moves it by ~3 % through mu), and no effect is refused because
-    the current is already near its noise floor (residuals: within 1.1 x).  An estimator
+    error, and a Stribeck law moves it by ~3 % through mu), no effect is refused because the
+    current is already near its noise floor (residuals: within 1.1 x), and none is dropped for
+    taking only a share of a residual outside the vocabulary (residuals' step 5: that share is
+    still a share of the static map the estimator inverts).  An estimator
     averages the current over hundreds of samples: a systematic 0.01 A, half the per-sample
     noise, is ~5 % of the load range on the coast flank, where the current moves little with
     the load; a Stribeck rise, a load-dependent mu or the PWM ripple's sampled bias each buy
@@ -56,7 +58,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from worm_model.physics.parameters import ParameterError, Rig, default_rig_path, load_rig
+from worm_model.physics.parameters import Rig, default_rig_path, load_rig
 from worm_model.residuals import analysis as an
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
 from worm_model.residuals.free import STANDARD_REFIT, check_free, get_value, read_free, resolve_parameters
@@ -65,7 +67,8 @@ from worm_model.residuals.model import prepare_signals
 from worm_model.rig_data.schema import MeasuredData
 
 #: the residual analysis' settings for identification (module docstring: what differs and why)
-IDENTIFY_SETTINGS = an.Settings(min_improvement=0.001, other_signal_tolerance=0.05, at_floor=0.0, max_effects=10)
+IDENTIFY_SETTINGS = an.Settings(min_improvement=0.001, other_signal_tolerance=0.05, at_floor=0.0, max_effects=10,
+                                check_outside_vocabulary=False)
 #: [rad/s^2] samples accelerating faster are left out of the fit (module docstring: LiveEstimator's TRANSIENT)
 QUASI_STATIC_ACCELERATION = 200.0
 #: fewer samples than this in either set of the split cannot rank the candidates

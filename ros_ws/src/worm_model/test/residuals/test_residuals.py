@@ -293,6 +293,23 @@ def test_free_list_is_read_and_checked(tmp_path: Path) -> None:
         read_free(bad)
 
 
+def test_cli_refuses_a_friction_parameter_the_model_does_not_read(tmp_path: Path,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """A rig file under the constant model asking to fit friction.scale (dead there): one line naming the live one,
+    exit 2, no output folder."""
+    data = tmp_path / "run.csv"
+    write_rig_csv(data, synthetic(seconds=4.0))
+    doc = yaml.safe_load(default_rig_path().read_text())
+    doc["friction"]["model"] = "constant"
+    doc["free"] = ["friction.scale"]
+    params = tmp_path / "constant.yaml"
+    params.write_text(yaml.safe_dump(doc))
+    assert cli.main([str(data), "--out", str(tmp_path / "out"), "--params", str(params), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "friction.scale" in err[0] and "its mu is friction.mu_constant" in err[0], err
+    assert not (tmp_path / "out").exists()
+
+
 def test_extended_parameter_file_round_trips_and_loads_as_a_rig(tmp_path: Path) -> None:
     rig = dataclasses.replace(RIG, friction=dataclasses.replace(RIG.friction, scale=1.2),
                               drive_motor=dataclasses.replace(RIG.drive_motor, coulomb_drag=5e-3))

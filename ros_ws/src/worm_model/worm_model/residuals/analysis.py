@@ -125,7 +125,8 @@ def nominal_fit(problem: Problem) -> Fit:
 def outside_the_vocabulary(problem: Problem, current: Fit) -> tuple[Fit, list[str]]:
     """Step 5: the named current effects that do not earn their keep beside a description of what is left.
 
-    Only when the current stays above ``unexplained_factor`` x its noise floor.  The residual of
+    Only when the current stays above ``unexplained_factor`` x its noise floor (and
+    ``Settings.check_outside_vocabulary``).  The residual of
     ``current`` is described generically (descriptors.describe_residual: the columns that capture it
     best, over speed, load, time, direction, temperature, worm and gear angle orders); with that
     description in the model, each named effect of the current is refitted out and must still pass
@@ -136,7 +137,7 @@ def outside_the_vocabulary(problem: Problem, current: Fit) -> tuple[Fit, list[st
     """
     settings = problem.settings
     dropped: list[str] = []
-    while True:
+    while settings.check_outside_vocabulary:
         named = [e for e in current.effects if e.effect.fitted_signal == "current_drive"]
         if not named:
             return current, dropped
@@ -161,6 +162,7 @@ def outside_the_vocabulary(problem: Problem, current: Fit) -> tuple[Fit, list[st
         e = weakest[1]
         current = fit(problem, [(x.effect, x.grid) for x in current.effects if x is not e], current)
         dropped.append(e.name)
+    return current, dropped
 
 
 def extended_effects(result: Analysis) -> tuple[Rig, list[tuple[Effect, dict, dict]]]:

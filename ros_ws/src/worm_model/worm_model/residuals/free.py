@@ -52,7 +52,6 @@ Physical range: a drag, a friction coefficient and an inertia are never negative
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path

@@ -276,8 +276,8 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
     gear_orders = np.arange(0.1, 4.0 + 1e-9, 0.02)
     for ax, angle, orders, label in ((axes[0], sig.theta_worm, worm_orders, "worm (= motor) orders [cycles/worm turn]"),
                                      (axes[1], sig.theta_gear, gear_orders, "gear orders [cycles/gear turn]")):
-        for fit, name in ((declared, "declared model"), (final, "with effects")):
-            ax.plot(orders, order_spectrum(fit.residual, angle, split.train, orders) * 1e3, lw=0.8, label=name)
+        for fitted, name in ((declared, "declared model"), (final, "with effects")):
+            ax.plot(orders, order_spectrum(fitted.residual, angle, split.train, orders) * 1e3, lw=0.8, label=name)
         ax.set(xlabel=label, ylabel="amplitude [mA]")
         ax.legend(loc="upper right")
     axes[0].axvline(rig.gearbox.worm_starts, color="grey", ls=":", lw=0.8)

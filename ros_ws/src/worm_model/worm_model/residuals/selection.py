@@ -44,7 +44,7 @@ def forward_selection(problem: Problem, start: Fit, progress: Callable[[str, int
     total = len(problem.settings.candidates)
     while len(current.effects) < problem.settings.max_effects:
         label = f"round {len(rounds) + 1}"
-        ranking = screen(problem, current, (lambda k: progress(label, k, total)) if progress else None)
+        ranking = screen(problem, current, (lambda k, label=label: progress(label, k, total)) if progress else None)
         chosen = _choose(problem, current, ranking)
         rounds.append(Round(ranking, chosen[0].name if chosen else None,
                             chosen[1].rms_held_out if chosen else None, current.rms_held_out,

@@ -34,6 +34,9 @@ class Settings:
     # added, and one whose removal stays within it is dropped (its share is below ~half the noise)
     at_floor: float = 1.1
     bootstrap: int = 400  # block-bootstrap resamples for the intervals of unique contributions
+    # analysis step 5: above unexplained_factor x the floor, a named current effect must also earn its keep beside a
+    # generic description of the residual (off: every accepted effect stays, e.g. for a model an estimator inverts)
+    check_outside_vocabulary: bool = True
 
     @property
     def other_tolerance(self) -> float:
