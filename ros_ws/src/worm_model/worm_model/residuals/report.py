@@ -107,6 +107,7 @@ def build_report(problem: Problem, result: Analysis, tau_d: dict[str, float], fi
                      "min_improvement": s.min_improvement, "max_effects": s.max_effects,
                      "alpha_time_constant": s.alpha_time_constant, "confidence": s.confidence,
                      "reference_temperature": s.reference_temperature,
+                     "check_outside_vocabulary": s.check_outside_vocabulary,
                      "candidates": list(s.candidates)},
         "fitted_signal": "current_drive",
         "unit": UNIT,
