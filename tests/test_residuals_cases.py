@@ -4,8 +4,8 @@ nothing for an effect outside its vocabulary (the case matrix of torque_estimato
 Data: the project's simulator (SimulatedRig with effect plug-ins the model is not told about), the analysis given a
 rig file written as a user writes one, its declared numbers off by realistic amounts (cases.PERTURBATIONS, the
 changed numbers with sources), on two rigs under both friction models (cases.RIGS, cases.families).  The full
-matrix is the one ``make evaluate`` prints (163 cases: 18 min on a shared 2-core machine, load ~5); its ``residuals:`` line
-is pinned here, as is that of the 22-case subset (``evaluate --residual-cases small``).
+matrix is the one ``make evaluate`` prints (163 cases: 18 min on a shared 2-core machine, load ~5); its
+``residuals:`` line is pinned here, as is that of the 22-case subset (``evaluate --residual-cases small``).
 """
 
 from __future__ import annotations
