@@ -132,9 +132,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "and its `real:` line")
     p.add_argument("--no-residuals", action="store_true", help="skip the residuals tool's case matrix")
     p.add_argument("--residual-cases", choices=("full", "small"), default="full",
-                   help="the residuals tool's case matrix: full (every effect alone and in pairs, each with the "
-                        "declared values nominal, high and low; clean data; out-of-vocabulary effects: 75 cases, "
-                        "~5 min) or small (a 14-case subset, ~1 min); default full")
+                   help="the residuals tool's case matrix: full (two rigs, both friction models; every effect alone "
+                        "and in pairs with the declared values nominal, high and low, copied from a catalogue, or "
+                        "drags declared 0; clean data; out-of-vocabulary effects; plants without drag: 163 cases, "
+                        "~10 min) or small (a 22-case subset, ~2 min); default full")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     return p
 

@@ -13,10 +13,12 @@ sample is recorded (<record>, the worm_rig_data CSV schema), then fitted.
 
 Offline (--from): fits a recorded run (CSV in that schema, or a rosbag2 bag).
 
-The fit (identification/fit.py): the rig file's uncertain parameters (by default the
-standard set of worm_model.residuals.free that the file marks as assumptions: mu scale, K_t,
-drags, rotor inertia; the file's free: list or --free replaces it) and the effects the
-residual analysis accepts.  Output: the extended rig file (the rig file with identified
+The fit (identification/fit.py): what varies from gearbox to gearbox, whatever the rig file
+says about where its number came from (source: or assumption:): the standard set of
+worm_model.residuals.free (mu under the file's friction model, K_t, drags, rotor inertia), plus
+the file's free: list (--free replaces both); the geometry stays as declared.  Each correction is
+printed as `residuals` prints it (declared -> identified +- interval, tolerance band).  Also
+the effects the residual analysis accepts.  Output: the extended rig file (the rig file with identified
 values, free:, effects: and an identification: section with the ranges covered), which
 estimator_node loads as model_file (method extended_model or observer), and `estimate`
 with --model-file.
@@ -58,8 +60,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, required=True,
                    help="extended rig file to write (YAML; estimator_node's model_file)")
     p.add_argument("--params", type=Path, default=None,
-                   help="the rig file to start from (worm_rig_parameters); its assumption: marks and optional "
-                        "free: list choose what is fitted (default: the bundled NMRV030 rig)")
+                   help="the rig file to start from (worm_rig_parameters); the standard set (mu, K_t, drags, rotor "
+                        "inertia) is fitted whatever its source:/assumption: marks, plus its optional free: list "
+                        "(default: the bundled NMRV030 rig)")
     p.add_argument("--free", default=None,
                    help="comma-separated parameters to fit instead of the default set; allowed: "
                         f"{', '.join(FREE_PARAMETERS)}")
@@ -190,8 +193,7 @@ def summary(ident, wall: float) -> list[str]:
     lines = [f"record: {ident.samples} samples, {ident.rig_time:.1f} s of rig time; speeds up to "
              f"{ident.speed_max:.0f} rad/s, loads {ident.torque_range[0]:+.3f} .. {ident.torque_range[1]:+.3f} N m",
              f"fitted ({ident.choice}): {', '.join(ident.fitted) or 'none'}"]
-    for name, (declared, value, ci) in ident.corrections.items():
-        lines.append(f"  correction {name}: declared {declared:.4g}, identified {value:.4g} +- {ci:.2g}")
+    lines += [f"  {line}" for line in ident.correction_lines()]
     lines.append(f"effects: {', '.join(ident.model.names) or 'none'}; held-out current RMS "
                  f"{ident.analysis.rms_before:.4f} A (rig file as declared) -> {ident.analysis.final.rms_held_out:.4f} A; "
                  f"{wall:.1f} s")

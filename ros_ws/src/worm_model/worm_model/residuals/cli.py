@@ -29,11 +29,11 @@ from worm_model.files.writing import atomic_dir, check_output
 from worm_model.physics.envelope import Envelope
 from worm_model.rig_data.schema import RigDataError, check_envelope
 
-from worm_model.residuals.analysis import Settings, Problem, analyse, extended_effects, make_split
+from worm_model.residuals.analysis import Problem, Settings, analyse, extended_effects, make_split
 from worm_model.residuals.data import load_data
 from worm_model.residuals.effects import EFFECTS
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
-from worm_model.residuals.free import FREE_PARAMETERS, STANDARD_REFIT, check_free, read_free
+from worm_model.residuals.free import FREE_PARAMETERS, STANDARD_REFIT, check_free, read_free, resolve_parameters
 from worm_model.residuals.model import ALPHA_TIME_CONSTANT, prepare_signals
 from worm_model.cli.progress import Progress
 from worm_model.residuals.report import build_report, console_summary, windowed_rms, write_json, write_plots
@@ -78,10 +78,12 @@ def build_parser() -> argparse.ArgumentParser:
                         f"allowed: {', '.join(FREE_PARAMETERS)}")
     p.add_argument("--refit", default=",".join(STANDARD_REFIT),
                    help="comma-separated parameters refitted always, on top of the free list ('none' for none): "
-                        "the declared numbers a rig file typically gets wrong (worm_model.residuals.free explains "
-                        "the choice); a deviation beyond a parameter's tolerance that an effect is an alias of "
-                        "(K_t: sensor_gain, drags: bearing_coulomb/viscous_drag, rotor inertia: inertia_error) is "
-                        "named as that effect")
+                        "the declared numbers a rig file typically gets wrong, whatever their source: or assumption: "
+                        "(worm_model.residuals.free explains the choice; friction.mu is the friction model's mu "
+                        "parameter, friction.scale under agma, friction.mu_constant under constant); a deviation "
+                        "beyond a parameter's tolerance that an effect is an alias of (K_t: sensor_gain, drags: "
+                        "bearing_coulomb/viscous_drag, rotor inertia: inertia_error) is named as that effect; drags, "
+                        "mu and inertias are never fitted below 0")
     p.add_argument("--candidates", default=",".join(EFFECTS),
                    help="comma-separated candidate effects to consider")
     p.add_argument("--holdout-fraction", type=number("", 0, 1, open_low=True, open_high=True), default=d.holdout_fraction,
@@ -127,6 +129,9 @@ def _main(argv: list[str] | None) -> int:
         rig = load_rig(args.params)
         free = check_free(_names(args.free, FREE_PARAMETERS, "free parameter", parser)) if args.free is not None \
             else read_free(args.params)
+        # a friction parameter the rig's friction model does not read would be a correction that cannot move
+        resolve_parameters(rig, free, "--free" if args.free is not None else str(args.params or default_rig_path()))
+        resolve_parameters(rig, settings.refit, "--refit")
         progress.stage("reading data", 1)
         data = load_data(args.data)
         check_envelope(data, Envelope.of(rig))
