@@ -25,7 +25,7 @@ from worm_model.residuals.data import load_data
 from worm_model.residuals.descriptors import time_in_run
 from worm_model.residuals.effects import EFFECTS, Backlash, channels_of, gap_crossing
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
-from worm_model.residuals.free import (LOWER_BOUNDS, MU_PARAMETERS, STANDARD_REFIT, TOLERANCES, get_value, mu_parameter,
+from worm_model.residuals.free import (READ_BY_MODEL, LOWER_BOUNDS, MU_PARAMETERS, STANDARD_REFIT, TOLERANCES, get_value, mu_parameter,
                                        read_free, resolve_parameters, set_value, typical_coulomb_drag)
 from worm_model.residuals.report import correction_line, corrections
 from worm_model.residuals.model import Signals, evaluate, prepare_signals, ripple_response
@@ -378,12 +378,17 @@ def test_every_friction_model_has_a_live_mu_parameter(model: str) -> None:
     live = mu_parameter(model)
     bumped = set_value(rig, live, 1.2 * get_value(rig, live))
     np.testing.assert_allclose(friction_coefficient(bumped.friction, bumped.gearbox, omega), 1.2 * mu, rtol=1e-12)
-    for dead in set(FRICTION_FIELDS) - {live}:
+    dead_fields = set(FRICTION_FIELDS) - READ_BY_MODEL[model]
+    for dead in dead_fields:
         other = set_value(rig, dead, 3.0 * get_value(rig, dead) + 0.1)
         np.testing.assert_array_equal(friction_coefficient(other.friction, other.gearbox, omega), mu)
+    for read in READ_BY_MODEL[model]:  # the model reads it: a refit of it moves mu
+        other = set_value(rig, read, 3.0 * get_value(rig, read) + 0.1)
+        assert not np.array_equal(friction_coefficient(other.friction, other.gearbox, omega), mu), read
     assert resolve_parameters(rig, STANDARD_REFIT)[0] == live
-    with pytest.raises(ParameterError, match=f"not read by the friction model '{model}'"):
-        resolve_parameters(rig, [next(iter(set(FRICTION_FIELDS) - {live}))], "rig.yaml")
+    for dead in dead_fields:
+        with pytest.raises(ParameterError, match=f"not read by the friction model '{model}'"):
+            resolve_parameters(rig, [dead], "rig.yaml")
 
 
 def test_the_constant_models_mu_declared_25_percent_high_is_corrected() -> None:

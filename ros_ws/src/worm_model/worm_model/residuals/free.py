@@ -66,8 +66,8 @@ MU = "friction.mu"
 
 #: dotted path -> (SI unit, what it does in the current model)
 FREE_PARAMETERS: dict[str, tuple[str, str]] = {
-    MU: ("1", "the friction model's mu parameter: friction.scale (agma), friction.mu_constant (constant)"),
-    "friction.scale": ("1", "multiplies the AGMA mu(V_s) curve"),
+    MU: ("1", "the friction model's mu parameter: friction.scale (agma, stribeck), friction.mu_constant (constant)"),
+    "friction.scale": ("1", "multiplies the mu(V_s) curve (agma, stribeck)"),
     "friction.mu_constant": ("1", "mu of the 'constant' friction model"),
     "drive_motor.torque_constant": ("N m/A", "K_t: current per torque"),
     "drive_motor.coulomb_drag": ("N m", "drive motor's Coulomb drag"),
@@ -85,6 +85,15 @@ FREE_PARAMETERS: dict[str, tuple[str, str]] = {
 MU_PARAMETERS: dict[str, str] = {
     "agma": "friction.scale",
     "constant": "friction.mu_constant",
+    "stribeck": "friction.scale",  # the whole curve, kinetic mu and its low-speed rise alike
+}
+
+
+#: friction model -> the ``friction`` numbers of MU_PARAMETERS' kind it reads (a refit of another would never move)
+READ_BY_MODEL: dict[str, frozenset[str]] = {
+    "agma": frozenset({"friction.scale"}),
+    "constant": frozenset({"friction.mu_constant"}),
+    "stribeck": frozenset({"friction.scale", "friction.mu_constant"}),
 }
 
 
@@ -110,7 +119,7 @@ def resolve_parameters(rig: Rig, names: Iterable[str], origin: str = "<free>") -
     for name in names:
         if name == MU:
             name = live
-        elif name in MU_PARAMETERS.values() and name != live:
+        elif name in MU_PARAMETERS.values() and name not in READ_BY_MODEL[rig.friction.model]:
             raise ParameterError(origin, name, f"not read by the friction model {rig.friction.model!r}: its mu is "
                                                f"{live} (or write {MU}, the mu of whichever model)")
         if name not in out:
