@@ -69,3 +69,28 @@ def test_estimate_reads_exports_with_the_load_and_refuses_dirty_rows(tmp_path: P
     assert "method=extended_model" in out.splitlines()[-1] and (tmp_path / "est.csv").stat().st_size > 0
     assert estimate_main([*argv[:-7], "--load-mass", "0.096", "--quiet"]) == 2
     assert "--pulley-radius: a hanging load needs both" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("tool", ["residuals", "identify"])
+def test_residuals_and_identify_take_the_load_options_and_the_skip(tool: str, tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """The load the exports do not carry reaches the fit: without it the file is refused; with it (and the
+    dirty row skipped, listed) the tool runs to its last line."""
+    folder = tmp_path / "exports"
+    folder.mkdir()
+    for name in ("1.csv", "40.csv", "100.csv", "200.csv", "n4.csv", "n40.csv", "n100.csv", "n200.csv"):
+        shutil.copy(STEADY / name, folder / name)
+    load = ["--load-mass", "0.096", "--pulley-radius", "0.02", "--gravity", "9.812"]
+    if tool == "residuals":
+        argv = [str(folder), "--params", str(RIG), "--out", str(tmp_path / "res"), "--quiet", "--no-plots",
+                "--min-speed", "0.05", *load]
+        main = residuals_main
+    else:
+        argv = ["--from", str(folder), "--params", str(RIG), "--out", str(tmp_path / "id.yaml"), "--quiet", *load]
+        main = identify_main
+    assert main(argv) == 2  # 1.csv's edited first row, refused
+    assert "--skip-bad-rows" in capsys.readouterr().err
+    assert main([*argv, "--skip-bad-rows"]) == 0
+    out = capsys.readouterr().out
+    assert f"{tool}: note:" in out and "1.csv: line 15" in out
+    assert (tmp_path / "res" / "report.json").exists() if tool == "residuals" else (tmp_path / "id.yaml").exists()

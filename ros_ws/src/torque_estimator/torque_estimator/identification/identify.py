@@ -38,9 +38,11 @@ import sys
 import time
 from pathlib import Path
 
+from worm_model.cli.errors import InputError
 from worm_model.cli.progress import Progress, ProgressBar
 from worm_model.physics.parameters import ParameterError, load_rig
 from worm_model.residuals.free import FREE_PARAMETERS
+from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
 from worm_model.rig_data.reader import read_rig_data
 from worm_model.rig_data.schema import RigDataError, write_rig_csv
 
@@ -80,6 +82,7 @@ def build_parser() -> argparse.ArgumentParser:
     live.add_argument("--start-timeout", type=float, default=30.0,
                       help="wait this long [s] for the rig's samples and controller_node (default 30)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    add_epos_arguments(p)
     return p
 
 
@@ -117,9 +120,13 @@ def main(argv: list[str] | None = None) -> int:
     start = time.monotonic()
     if args.source is not None:
         try:
-            data = read_rig_data(args.source)
+            data = read_rig_data(args.source, epos=epos_settings(args, rig))
+        except InputError as err:
+            return _fail(err.where, err.what)
         except RigDataError as err:
             return _fail("--from", str(err))
+        for note in data.notes:
+            print(f"identify: note: {note}")
         source = str(args.source)
         journal = None
     else:

@@ -31,6 +31,7 @@ from worm_model.rig_data.schema import RigDataError, check_envelope
 
 from worm_model.residuals.analysis import Problem, Settings, analyse, extended_effects, make_split
 from worm_model.residuals.data import load_data
+from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
 from worm_model.residuals.effects import EFFECTS
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
 from worm_model.residuals.free import FREE_PARAMETERS, STANDARD_REFIT, check_free, read_free, resolve_parameters
@@ -106,6 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--confidence", type=number("", 0, 1, open_low=True, open_high=True), default=d.confidence, help="level of the confidence intervals")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_epos_arguments(p)
     return p
 
 
@@ -133,7 +135,9 @@ def _main(argv: list[str] | None) -> int:
         resolve_parameters(rig, free, "--free" if args.free is not None else str(args.params or default_rig_path()))
         resolve_parameters(rig, settings.refit, "--refit")
         progress.stage("reading data", 1)
-        data = load_data(args.data)
+        data = load_data(args.data, epos_settings(args, rig))
+        for note in data.notes:
+            print(f"residuals: note: {note}")
         check_envelope(data, Envelope.of(rig))
         progress.update_to(1)
         check_output(args.out, args.force, folder=True)
