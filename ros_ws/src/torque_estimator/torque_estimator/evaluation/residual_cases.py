@@ -71,6 +71,17 @@ RIGS: dict[str, tuple[str, str | None]] = {
     "nmrv030_constant": ("nmrv030_rig.yaml", "constant"),  # the same rig, mu a constant (the file's 0.05)
     "nmrv040": ("nmrv040_rig.yaml", None),  # the variant rig: constant mu 0.06
     "nmrv040_agma": ("nmrv040_rig.yaml", "agma"),  # the variant rig under the AGMA curve
+    "nmrv030_stribeck": ("nmrv030_rig.yaml", "stribeck"),  # the bundled rig, mu a Stribeck law (FRICTION_LEAVES)
+}
+
+#: friction leaves a RIGS key writes into its file beside the model: leaf -> (value [SI], assumption)
+FRICTION_LEAVES: dict[str, dict[str, tuple[float, str]]] = {
+    "nmrv030_stribeck": {
+        "stribeck_rise": (0.03, "a Stribeck rise of 60 % of the file's kinetic 0.05, as a lubricated bronze mesh "
+                                "shows at low sliding speed (the residual case matrix's choice)"),
+        "stribeck_speed": (0.3, "V_st 0.3 m/s: the rise is felt over the lower third of the rig's 0.2-3.4 m/s "
+                                "sliding speeds, so the profiles' speeds see it (the residual case matrix's choice)"),
+    },
 }
 
 #: excitation profiles for the NMRV030 rig (24 V, 0.275 N m of load): drive voltage offsets [V], load offset
@@ -143,7 +154,8 @@ def plant_rig(key: str, plant: Mapping[str, float] = {}) -> Rig:  # noqa: B006 (
     rig = load_rig(rig_path(key))
     model = RIGS[key][1]
     if model is not None:
-        rig = dataclasses.replace(rig, friction=dataclasses.replace(rig.friction, model=model))
+        leaves = {leaf: value for leaf, (value, _) in FRICTION_LEAVES.get(key, {}).items()}
+        rig = dataclasses.replace(rig, friction=dataclasses.replace(rig.friction, model=model, **leaves))
     return declared_rig(rig, plant)
 
 
@@ -156,6 +168,9 @@ def write_rig_file(path: str | Path, key: str, perturbation: Mapping[str, float]
     model = RIGS[key][1]
     if model is not None:
         document["friction"]["model"] = model
+        for leaf, (value, why) in FRICTION_LEAVES.get(key, {}).items():
+            document["friction"][leaf] = {"value": value, "unit": "m/s" if leaf == "stribeck_speed" else "1",
+                                          "assumption": why}
     rig = plant_rig(key)
     for name, factor in perturbed_parameters(rig, perturbation).items():
         section, leaf = name.split(".")
@@ -538,6 +553,8 @@ def families() -> dict[str, list[Case]]:
     * ``nmrv040``: the variant rig (constant mu, ratio 20, one load motor): clean data with every
       perturbation, every effect of its table alone, a few pairs, OOV.
     * ``nmrv040_agma``: the variant under the AGMA curve: clean data, a few effects, OOV.
+    * ``stribeck``: the bundled rig under a Stribeck mu law (its low-speed rise, FRICTION_LEAVES): clean data
+      with the declared values off, a few effects, OOV.
     * ``no_drag``: plants with no drag at all, declared as the file has it or as 0 (a fit that trades the
       drags against the rest goes negative there).
     """
@@ -588,6 +605,15 @@ def families() -> dict[str, list[Case]]:
              for k, x in enumerate(("load_bearing_friction", "current_drift"))]
     out["nmrv040_agma"] = agma
 
+    rig = "nmrv030_stribeck"
+    stribeck = [case_of([], pert, seed=51 + k, rig=rig) for k, pert in enumerate(("nominal", "high", "catalogue",
+                                                                                  "zero_drags"))]
+    stribeck += [case_of([n], _cycle(off, k), rig=rig)
+                 for k, n in enumerate(("load_dependent_mu", "sensor_gain", "gear_runout", "viscous_drag"))]
+    stribeck += [case_of([], _cycle(off, k), seed=3, extra=[x], rig=rig)
+                 for k, x in enumerate(("stepped_gear_friction", "current_drift"))]
+    out["stribeck"] = stribeck
+
     no_drag = {"drags": 0.0}
     out["no_drag"] = [case_of([], pert, seed=41 + k, rig=rig, plant=no_drag)
                       for k, (rig, pert) in enumerate((("nmrv030", "nominal"), ("nmrv030", "zero_drags"),
@@ -611,7 +637,7 @@ SMALL = (
     "nmrv030_constant:clean/catalogue", "nmrv030_constant:clean/zero_drags",
     "nmrv030_constant:load_dependent_mu/zero_drags", "nmrv030_constant:load_bearing_friction/catalogue",
     "nmrv040:clean/high", "nmrv040:sensor_offset/low", "nmrv040:current_drift/zero_drags",
-    "clean/zero_drags,plant drags x0",
+    "clean/zero_drags,plant drags x0", "nmrv030_stribeck:clean/high",
 )
 
 
@@ -619,7 +645,7 @@ def small_matrix() -> list[Case]:
     """A representative subset (``evaluate --residual-cases small``, about two minutes; :data:`SMALL`): clean data
     with the declared values off, every alias kind and a periodic, a mu and a sensor effect with them off, two pairs,
     out-of-vocabulary effects; the constant friction model with mu and K_t off (with sources) and with the drags
-    declared 0; the variant rig; a plant without drag."""
+    declared 0; the variant rig; a plant without drag; the Stribeck mu law with mu off."""
     by_name = {c.name: c for c in full_matrix()}
     return [by_name[name] for name in SMALL]
 
