@@ -1,12 +1,16 @@
 """Command-line options and numbers read from files, checked alike: finite, inside a physical range,
-the unit named in the message; :class:`Parser`, an ArgumentParser whose errors are one line and exit 2.
+the unit named in the message; input and output paths (:func:`existing_file`, :func:`existing_input`,
+:func:`output_path`); :class:`Parser`, an ArgumentParser whose errors are one line and exit 2.
 """
 from __future__ import annotations
 
 import argparse
+import difflib
 import math
+import os
+import stat
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -77,14 +81,62 @@ def integer(low: int | None = None, high: int | None = None, unit: str = "", wha
     return parse
 
 
+_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISSOCK, "a socket"),
+          (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
+
+
+def article(what: str) -> str:
+    """``what`` with its indefinite article ("an effects file")."""
+    return f"{'an' if what[:1] in 'aeiou' else 'a'} {what}"
+
+
+def input_problem(path: str | os.PathLike[str], what: str = "file", folder: bool = False) -> str | None:
+    """Why ``path`` cannot be read as ``what`` (missing, a folder, a FIFO, a device, ...), or None.
+
+    The path is only stat-ed, never opened: opening a FIFO waits for a writer that may never come.
+    ``folder``: a folder is fine too (a bag folder).
+    """
+    if not str(path):
+        return f"empty path, expected {article(what)} (an unset shell variable?)"
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return f"no such file (expected {article(what)})"
+    except OSError as err:
+        return f"cannot read: {err.strerror or err}"
+    if stat.S_ISREG(mode) or folder and stat.S_ISDIR(mode):
+        return None
+    kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+    return f"is {kind}, expected {article(what)}" + (" or a folder" if folder else "")
+
+
 def existing_file(text: str) -> Path:
-    """An argparse ``type``: a path that is an existing file (not a folder)."""
-    path = Path(text)
-    if not path.exists():
-        raise argparse.ArgumentTypeError(f"{text}: no such file")
-    if path.is_dir():
-        raise argparse.ArgumentTypeError(f"{text}: is a folder, expected a file")
-    return path
+    """An argparse ``type``: an existing regular file (not a folder, FIFO or device; stat-ed, never opened)."""
+    problem = input_problem(text, "file")
+    if problem:
+        raise argparse.ArgumentTypeError(f"{text}: {problem}" if text else problem)
+    return Path(text)
+
+
+def existing_input(text: str) -> Path:
+    """An argparse ``type``: an existing regular file, or a folder (a bag folder)."""
+    problem = input_problem(text, "file", folder=True)
+    if problem:
+        raise argparse.ArgumentTypeError(f"{text}: {problem}" if text else problem)
+    return Path(text)
+
+
+def output_path(text: str) -> Path:
+    """An argparse ``type`` for an output: any path but an empty one (what ``--out "$UNSET"`` becomes)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty path (an unset shell variable?): name the file or folder to write")
+    return Path(text)
+
+
+def nearest(name: str, known: Iterable[str]) -> str:
+    """`` (did you mean 'x'?)`` for the known name closest to a misspelt ``name``, or ""."""
+    match = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    return f" (did you mean {match[0]!r}?)" if match else ""
 
 
 class Parser(argparse.ArgumentParser):

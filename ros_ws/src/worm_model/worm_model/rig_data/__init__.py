@@ -3,6 +3,7 @@
 =================  ==============================================================
 ``schema``         the CSV schema, :class:`MeasuredData`, CSV reader and writer
 ``reader``         :func:`read_rig_data`: the one entry for CSV files and bags
+``plausibility``   rig data and calibration points against the rig: sample rate, units, angle
 ``bags``           RigSample bags <-> MeasuredData (``bag export`` / ``bag import``)
 ``samples``        the rig's sample streams as recorded (RigSample or RigSamples batches)
 =================  ==============================================================

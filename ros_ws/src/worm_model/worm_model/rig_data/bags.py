@@ -31,13 +31,15 @@ from worm_model.rig_data.schema import (
     MeasuredData,
     RigDataError,
     check_envelope,
+    is_rig_csv,
     read_rig_csv,
     write_rig_csv,
 )
 from worm_model.rig_data.samples import SAMPLE_TOPICS, SAMPLE_TYPES, iter_samples
 from worm_model.bags.reader import BagReader
 from worm_model.bags.typestore import BagRecordingError
-from worm_model.files.writing import atomic_file
+from worm_model.files.writing import Output, atomic_file
+from worm_model.rig_data.plausibility import check_rig_data
 from worm_model.physics.envelope import Envelope
 from worm_model.bags.writer import BagWriter
 from worm_model.bags.typestore import MessageTypes
@@ -240,11 +242,17 @@ def measured_to_bag(data: MeasuredData, out: Path | str, storage: str = 'mcap',
         return writer.counts[topic]
 
 
+#: what ``bag export`` writes, and recognises as its own (a CSV in the worm_rig_data schema) for --force
+EXPORT_OUTPUT: Final = Output("bag export", recognise=is_rig_csv)
+
+
 def bag_to_csv(bag: Path | str, csv_path: Path | str, topic: str | None = None,
-               allow_truncated: bool = False) -> MeasuredData:
+               allow_truncated: bool = False, force: bool = False) -> MeasuredData:
     """``bag export``: the bag's RigSample stream as a ``worm_rig_data`` CSV; returns what was written.
 
-    The CSV is written to a temporary file beside ``csv_path`` and renamed at the end.
+    The CSV is written to a temporary file beside ``csv_path`` and renamed at the end, under the output
+    policy of worm_model.files.writing (``force``: an existing worm_rig_data CSV may be replaced; never the
+    bag itself nor a file inside it).
 
     Raises:
         RigDataError: No usable RigSample topic or sample, or the CSV cannot be written.
@@ -252,17 +260,19 @@ def bag_to_csv(bag: Path | str, csv_path: Path | str, topic: str | None = None,
 
     """
     data = bag_to_measured(bag, topic, allow_truncated=allow_truncated)
-    with atomic_file(csv_path, force=True) as tmp:
+    with atomic_file(csv_path, force, inputs=[bag], output=EXPORT_OUTPUT) as tmp:
         write_rig_csv(tmp, data)
     return data
 
 
 def csv_to_bag(csv_path: Path | str, bag: Path | str, storage: str = 'mcap',
-               topic: str = DEFAULT_TOPIC, start_ns: int = 0, envelope: Envelope | None = None) -> int:
+               topic: str = DEFAULT_TOPIC, start_ns: int = 0, envelope: Envelope | None = None,
+               rig: Any = None) -> int:
     """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample; returns the message count.
 
-    The CSV is read and checked whole first (every stamp a bag can hold; with ``envelope``, every
-    value inside what the rig can do), and the bag is written in a temporary folder beside ``bag``
+    The CSV is read and checked whole first (every stamp a bag can hold; with ``rig``, its units against
+    the rig as every reader of rig data checks them, worm_model.rig_data.plausibility; with only
+    ``envelope``, every value inside what the rig can do), and the bag is written in a temporary folder beside ``bag``
     and renamed at the end, so a bad file or a failed write leaves no bag.
 
     Raises:
@@ -272,7 +282,9 @@ def csv_to_bag(csv_path: Path | str, bag: Path | str, storage: str = 'mcap',
 
     """
     data = read_rig_csv(csv_path)
-    if envelope is not None:
+    if rig is not None:
+        check_rig_data(data, rig)
+    elif envelope is not None:
         check_envelope(data, envelope)
     check_stamps(data, start_ns)
     target = Path(bag)

@@ -50,6 +50,8 @@ from typing import Final
 
 import numpy as np
 
+from worm_model.cli.errors import InputError
+from worm_model.files.reading import check_input
 from worm_model.physics.envelope import Envelope
 from worm_model.physics.units import FloatArray
 
@@ -204,7 +206,10 @@ def read_rig_csv(path: str | Path) -> MeasuredData:
     """
     source = str(path)
     try:
-        handle = Path(path).open(newline="", encoding="utf-8")
+        check_input(path, "worm_rig_data CSV file")  # a FIFO or a device is refused before it is opened
+        handle = Path(path).open(newline="", encoding="utf-8-sig")  # -sig: a byte-order mark is dropped
+    except InputError as err:
+        raise RigDataError(source, err.what) from None
     except OSError as err:
         raise RigDataError(source, f"cannot read: {err.strerror or err}") from err
     with handle:
@@ -254,6 +259,20 @@ def read_rig_csv(path: str | Path) -> MeasuredData:
             del arrays[name]  # an all-empty optional column is an absent one
     ignored = tuple(n for n in header if n not in REQUIRED_COLUMNS and n not in OPTIONAL_COLUMNS)
     return MeasuredData(**arrays, source=source, ignored_columns=ignored, lines=np.asarray(lines))
+
+
+def csv_header(path: str | Path) -> list[str]:
+    """The column names of a CSV file's first line ([] when it has none or cannot be read as text)."""
+    try:
+        with Path(path).open(newline="", encoding="utf-8-sig") as handle:
+            return [h.strip() for h in next(csv.reader([handle.readline(1 << 16)]), [])]
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return []
+
+
+def is_rig_csv(path: str | Path) -> bool:
+    """``path`` is a CSV whose header holds the required columns of the schema (what ``bag export`` writes)."""
+    return set(REQUIRED_COLUMNS) <= set(csv_header(path))
 
 
 def _cell(value: float) -> str:
