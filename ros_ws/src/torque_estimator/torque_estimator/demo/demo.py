@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import os
 import random
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -30,11 +29,15 @@ from torque_estimator.demo.plots import estimate_vs_truth, tracking
 from torque_estimator.evaluation.plots import held_out_deviation
 from worm_model.cli.progress import ProgressBar
 from worm_model.cli.errors import run_tool
-from worm_model.cli.options import Parser, existing_file, integer
-from worm_model.files.writing import check_output
+from worm_model.cli.options import Parser, existing_file, integer, output_path
+from worm_model.files.writing import Output, atomic_dir, check_output
 from torque_estimator.demo.run_analysis import analyse_run, recorded_load_steps
 from torque_estimator.evaluation.scenario import DEMO_SCENARIO
 from torque_estimator.demo.scenario_node import live_run
+
+
+#: what the demo writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
+OUTPUT = Output("demo", names=("calibration.json", "*.png", "bag_ff_*", "logs_ff_*"))
 
 
 def load_run(bag: Path, start_stamp: float) -> dict:
@@ -81,16 +84,23 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None) -> int:
     parser = Parser(prog="demo", description=__doc__.split("\n\n")[0],
                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path("out/demo"),
+    parser.add_argument("--out", type=output_path, default=Path("out/demo"),
                         help="folder for every output (an existing one is replaced only with --force)")
     parser.add_argument("--force", action="store_true", help="replace an existing --out folder")
     parser.add_argument("--graph", type=existing_file, default=None,
                         help="graph parameter file (default: installed sim_graph.yaml)")
     parser.add_argument("--seed", type=integer(0, 2**32 - 2), default=0, help="seed of calibration noise and held-out draws")
     args = parser.parse_args(argv)
-    out = check_output(args.out, args.force, folder=True).resolve()
-    shutil.rmtree(out, ignore_errors=True)
-    out.mkdir(parents=True)
+    inputs = [args.graph]
+    check_output(args.out, args.force, folder=True, inputs=inputs, output=OUTPUT)
+    # everything goes to a folder beside --out that replaces it at the end: an interrupted or failed demo
+    # leaves the earlier output (or none), never half of one
+    with atomic_dir(args.out, args.force, inputs=inputs, output=OUTPUT) as work:
+        return _demo(args, work, args.out.resolve())
+
+
+def _demo(args: argparse.Namespace, out: Path, final: Path) -> int:
+    """The demo, writing into ``out`` (the folder that becomes ``final``, the one named in messages)."""
     os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(100, 230)))
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     rig = load_rig()
@@ -103,7 +113,7 @@ def _main(argv: list[str] | None) -> int:
         db = calibrate_simulated(rig, grid, seed=args.seed, progress=lambda f: bar.update_to(round(f * n_points)))
     calibration = out / "calibration.json"
     save_database(db, calibration)
-    print(f"      {len(db)} points, torque range {db.torque_range:.3f} N m -> {calibration}")
+    print(f"      {len(db)} points, torque range {db.torque_range:.3f} N m -> {final / calibration.name}")
 
     print("[2/4] k-NN estimate on 17 held-out operating points", flush=True)
     estimator = make_estimator("knn", db)
@@ -153,7 +163,7 @@ def _main(argv: list[str] | None) -> int:
         steps = recorded_load_steps(r["t_truth"], r["truth"], r["t_truth"], r["omega_truth"], r["setpoint_truth"])
         dip = max((x.peak_dip for x in steps), default=float("nan"))
         print(f"    {name:16s} {len(steps):15d} {dip:10.2f} rad/s {sum(x.iae for x in steps):11.3f} rad")
-    print(f"  outputs in {out}: calibration.json, bag_ff_off/, bag_ff_on/ (MCAP), "
+    print(f"  outputs in {final}: calibration.json, bag_ff_off/, bag_ff_on/ (MCAP), "
           + ", ".join(p.name for p in plots))
     print(f"  done in {time.monotonic() - t0:.0f} s")
     return 0

@@ -51,6 +51,7 @@ from worm_model.files.reading import load_json
 from worm_model.files.writing import write_text_atomically
 from worm_model.physics.envelope import Envelope
 from worm_model.physics.parameters import Rig
+from worm_model.rig_data.plausibility import calibration_problem
 
 FORMAT: Final = "worm_torque_calibration"
 VERSION: Final = 1
@@ -307,9 +308,10 @@ def load_database(path: str | os.PathLike[str], rig: Rig | None = None) -> Calib
         CalibrationError: the file is missing or unreadable, is not JSON (the
             message gives line and column), has the wrong format or an
             unsupported version, lacks a field, has columns of unequal length,
-            has a non-finite mean value, or (``rig`` given) a point far outside
-            what that rig can do (check_plausible); the message names the file and the
-            field (and the point index where relevant).
+            has a non-finite mean value, spans no torque range or holds one point repeated,
+            or (``rig`` given) has a point far outside what that rig can do (speeds in rpm:
+            worm_model.rig_data.plausibility.calibration_problem); the message names the file
+            and the field (and the point index where relevant).
     """
     source = Path(path)
     try:
@@ -318,8 +320,9 @@ def load_database(path: str | os.PathLike[str], rig: Rig | None = None) -> Calib
         raise CalibrationError(f"calibration file {err}") from None
     try:
         db = _from_document(doc)
-        if rig is not None:
-            check_plausible(db, rig)
+        problem = calibration_problem(db.omega_worm, db.current_drive, db.tau_load, rig)  # what every reader checks
+        if problem:
+            raise CalibrationError(problem)
     except CalibrationError as err:
         raise CalibrationError(f"calibration file {source}: {err}") from None
     return db

@@ -19,11 +19,12 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import yaml
 
 from worm_model.cli.errors import InputError
-from worm_model.files.reading import load_yaml
+from worm_model.files.reading import load_parameter_file, load_yaml
 from worm_model.ros.ament import ament_prefixes, find_executable
 from worm_rig_driver.drive.realtime import realtime_permitted
 
@@ -41,18 +42,44 @@ def default_graph_file() -> Path:
     return Path(__file__).resolve().parents[2] / "config" / "sim_graph.yaml"
 
 
-def graph_nodes(params_file: Path) -> list[str]:
-    """Node names (= executable names) at the top level of a ROS 2 parameter file."""
+def graph_sections(params_file: Path) -> dict[str, dict[str, Any]]:
+    """{node: {parameter: value}} of a ROS 2 parameter file, read as rcl reads it in every node
+    (worm_model.files.reading.load_parameter_file: no YAML anchors, a ros__parameters section per node)."""
     try:
-        data = load_yaml(params_file, "graph parameter file")
+        return load_parameter_file(params_file)
     except InputError as err:
         raise GraphError(f"graph file {err}") from None
-    if not isinstance(data, dict) or not data:
-        raise GraphError(f"graph file {params_file}: expected node names at the top level")
-    for name, body in data.items():
-        if not isinstance(body, dict) or "ros__parameters" not in body:
-            raise GraphError(f"graph file {params_file}: node '{name}' has no ros__parameters")
-    return [name for name in data if name != "/**"]
+
+
+def graph_nodes(params_file: Path) -> list[str]:
+    """Node names (= executable names) at the top level of a ROS 2 parameter file."""
+    return [name for name in graph_sections(params_file) if "*" not in name]
+
+
+def check_parameters(params_file: Path, overrides: dict[str, list[str]], nodes: list[str]) -> None:
+    """Refuse, before anything starts, what the nodes would refuse once started: a parameter a node does not
+    declare (a misspelling; the closest name given), a value of the wrong type, out of range or not one of
+    its choices, in the file's section of a node of this project or in an override.
+
+    Raises:
+        GraphError: naming the node, the parameter and the problem.
+    """
+    from torque_estimator.nodes.composed import NODE_CLASSES, node_class  # rclpy: only for run_graph
+    from worm_model.ros.parameters import declared_parameters, parameters_problem, ros_value
+
+    sections = graph_sections(params_file)
+    for node in nodes:
+        if node not in NODE_CLASSES:
+            continue  # another package's node: it checks its own parameters
+        values = dict(sections.get(node, {}))
+        values.update({name: ros_value(text) for name, _, text in
+                       (a.partition(":=") for a in overrides.get(node, []))})
+        refused = parameters_problem(node, declared_parameters(node_class(node)), values)
+        if refused:
+            name, problem = refused
+            if any(a.startswith(name + ":=") for a in overrides.get(node, [])):
+                raise GraphError(f"--set {node}.{name}: {problem}")
+            raise GraphError(f"graph file {params_file}: {node}: parameter {name}: {problem}")
 
 
 #: SCHED_FIFO priority of a rig computer's graph process (below the rig loop thread's 50)
@@ -132,6 +159,7 @@ class Graph:
         unknown = set(self.overrides) - set(nodes)
         if unknown:
             raise GraphError(f"overrides name nodes not in {self.params_file}: {sorted(unknown)}")
+        check_parameters(self.params_file, self.overrides, nodes)
         grouped = [n for group in self.together for n in group]
         if stray := sorted(set(grouped) - set(nodes)):
             raise GraphError(f"groups name nodes not in {self.params_file}: {stray}")

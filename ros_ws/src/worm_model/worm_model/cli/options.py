@@ -19,7 +19,7 @@ from worm_model.cli.errors import EXIT_BAD_INPUT, InputError
 
 def _bound(low: float | None, high: float | None, open_low: bool, open_high: bool, unit: str) -> str:
     u = f" {unit}" if unit else ""
-    lo, hi = (str(x) if isinstance(x, int) else f"{x:g}" for x in (low, high))
+    lo, hi = (str(x) if isinstance(x, int) or x is None else f"{x:g}" for x in (low, high))
     if low is not None and high is not None:
         return f"in {'(' if open_low else '['}{lo}, {hi}{')' if open_high else ']'}{u}"
     if low is not None:

@@ -189,6 +189,23 @@ def parse_yaml(text: str, source: str) -> Any:
         loader.dispose()
 
 
+def check_yaml(text: str, source: str) -> None:
+    """Refuse YAML text beyond the limits of the module docstring without building it (for files another
+    YAML library reads: a bag's metadata.yaml); InputError with the line and column."""
+    if len(text) > MAX_YAML_BYTES:
+        raise InputError(source, f"{len(text)} characters: too large for a YAML file (at most {MAX_YAML_BYTES})")
+    loader = _LimitedLoader(text)
+    try:
+        while loader.check_node():
+            loader.get_node()
+    except yaml.YAMLError as err:
+        raise _yaml_error(err, source) from None
+    except RecursionError:
+        raise InputError(source, f"refused: nested too deeply (at most {MAX_YAML_DEPTH} levels)") from None
+    finally:
+        loader.dispose()
+
+
 def load_yaml(path: str | os.PathLike[str], what: str = "YAML file") -> Any:
     """A YAML file (see :func:`read_text`, :func:`parse_yaml`)."""
     return parse_yaml(read_text(path, what, MAX_YAML_BYTES), str(path))

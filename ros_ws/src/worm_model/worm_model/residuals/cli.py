@@ -24,8 +24,8 @@ import numpy as np
 
 from worm_model.physics.parameters import ParameterError, default_rig_path, load_rig
 from worm_model.cli.errors import run_tool
-from worm_model.cli.options import Parser, existing_file, integer, number
-from worm_model.files.writing import atomic_dir, check_output
+from worm_model.cli.options import Parser, existing_file, integer, number, output_path
+from worm_model.files.writing import Output, atomic_dir, check_output
 from worm_model.physics.envelope import Envelope
 from worm_model.rig_data.schema import RigDataError, check_envelope
 
@@ -38,6 +38,8 @@ from worm_model.residuals.model import ALPHA_TIME_CONSTANT, prepare_signals
 from worm_model.cli.progress import Progress
 from worm_model.residuals.report import build_report, console_summary, windowed_rms, write_json, write_plots
 
+#: what residuals writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
+OUTPUT = Output("residuals", names=("report.json", "extended_rig.yaml", "*.png"))
 MIN_SAMPLES = 200  # per set: fewer cannot rank the 14 candidates (effects.EFFECTS)
 
 
@@ -66,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("data", help="measured data: a CSV file in the worm_rig_data schema, or a rosbag2 directory "
                                 "(converted with worm_rig_driver's bag exporter, which must be installed)")
-    p.add_argument("--out", required=True,
+    p.add_argument("--out", required=True, type=output_path,
                    help="output directory (created; an existing one is replaced only with --force): report.json, "
                         "extended_rig.yaml, PNG plots")
     p.add_argument("--force", action="store_true", help="replace an existing --out directory")
@@ -128,10 +130,10 @@ def _main(argv: list[str] | None) -> int:
         free = check_free(_names(args.free, FREE_PARAMETERS, "free parameter", parser)) if args.free is not None \
             else read_free(args.params)
         progress.stage("reading data", 1)
-        data = load_data(args.data)
+        data = load_data(args.data, rig)
         check_envelope(data, Envelope.of(rig))
         progress.update_to(1)
-        check_output(args.out, args.force, folder=True)
+        check_output(args.out, args.force, folder=True, inputs=[args.data, args.params], output=OUTPUT)
     finally:
         progress.close()
     signals = prepare_signals(rig, data, settings.alpha_time_constant, settings.reference_temperature)
@@ -143,7 +145,7 @@ def _main(argv: list[str] | None) -> int:
                   f"{settings.min_speed} rad/s (need {MIN_SAMPLES}); record longer or lower --block / --min-speed",
                   file=sys.stderr)
             return 2
-    with atomic_dir(args.out, args.force) as folder:
+    with atomic_dir(args.out, args.force, inputs=[args.data, args.params], output=OUTPUT) as folder:
         return _analyse(args, rig, free, data, signals, split, settings, progress, folder, Path(args.out))
 
 

@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import math
 import os
-import shutil
-import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any, Final
@@ -38,7 +36,7 @@ from worm_model.rig_data.schema import (
 from worm_model.rig_data.samples import SAMPLE_TOPICS, SAMPLE_TYPES, iter_samples
 from worm_model.bags.reader import BagReader
 from worm_model.bags.typestore import BagRecordingError
-from worm_model.files.writing import Output, atomic_file
+from worm_model.files.writing import Output, atomic_dir, atomic_file
 from worm_model.rig_data.plausibility import check_rig_data
 from worm_model.physics.envelope import Envelope
 from worm_model.bags.writer import BagWriter
@@ -244,6 +242,8 @@ def measured_to_bag(data: MeasuredData, out: Path | str, storage: str = 'mcap',
 
 #: what ``bag export`` writes, and recognises as its own (a CSV in the worm_rig_data schema) for --force
 EXPORT_OUTPUT: Final = Output("bag export", recognise=is_rig_csv)
+#: what ``bag import`` writes: a bag folder with the marker naming it (what --force may replace)
+IMPORT_OUTPUT: Final = Output("bag import")
 
 
 def bag_to_csv(bag: Path | str, csv_path: Path | str, topic: str | None = None,
@@ -267,13 +267,14 @@ def bag_to_csv(bag: Path | str, csv_path: Path | str, topic: str | None = None,
 
 def csv_to_bag(csv_path: Path | str, bag: Path | str, storage: str = 'mcap',
                topic: str = DEFAULT_TOPIC, start_ns: int = 0, envelope: Envelope | None = None,
-               rig: Any = None) -> int:
+               rig: Any = None, force: bool = False) -> int:
     """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample; returns the message count.
 
     The CSV is read and checked whole first (every stamp a bag can hold; with ``rig``, its units against
     the rig as every reader of rig data checks them, worm_model.rig_data.plausibility; with only
-    ``envelope``, every value inside what the rig can do), and the bag is written in a temporary folder beside ``bag``
-    and renamed at the end, so a bad file or a failed write leaves no bag.
+    ``envelope``, every value inside what the rig can do), and the bag is written in a temporary folder beside
+    ``bag`` and renamed at the end, so a bad file or a failed write leaves no bag (worm_model.files.writing:
+    ``force`` replaces only a bag ``bag import`` wrote).
 
     Raises:
         RigDataError: A bad CSV (named by file, line and column), a stamp out of range, or a value
@@ -288,13 +289,10 @@ def csv_to_bag(csv_path: Path | str, bag: Path | str, storage: str = 'mcap',
         check_envelope(data, envelope)
     check_stamps(data, start_ns)
     target = Path(bag)
-    if target.exists():
-        msg = f'{target}: exists; a new bag needs a new name'
-        raise BagRecordingError(msg)
-    work = Path(tempfile.mkdtemp(prefix=f'.{target.name}.', suffix='.tmp', dir=target.absolute().parent))
-    try:
-        n = measured_to_bag(data, work / target.name, storage, topic, start_ns)
-        os.replace(work / target.name, target)
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
+    with atomic_dir(target, force, inputs=[csv_path], output=IMPORT_OUTPUT) as work:
+        inner = work / target.name  # the writer names the storage files after the bag's folder
+        n = measured_to_bag(data, inner, storage, topic, start_ns)
+        for part in inner.iterdir():
+            os.replace(part, work / part.name)
+        inner.rmdir()
     return n

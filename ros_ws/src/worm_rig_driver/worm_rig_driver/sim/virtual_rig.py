@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from worm_model.cli.errors import InputError, run_tool
-from worm_model.cli.options import Parser, existing_file, integer, number
+from worm_model.cli.options import Parser, existing_file, integer, number, output_path
 from worm_model.physics.parameters import load_rig
 
 import worm_rig_driver.protocol.table as table
@@ -383,7 +383,7 @@ def _main(argv: list[str] | None) -> int:
         description="The simulated worm-gear rig behind a pseudo-terminal, speaking the rig firmware's serial "
                     "protocol (docs/protocol.md) byte for byte, in real time. Run driver_node with "
                     "port:=<LINK> against it.")
-    parser.add_argument("--link", default="/tmp/worm_rig",
+    parser.add_argument("--link", type=output_path, default="/tmp/worm_rig",
                         help="path of the symlink to the pty's slave end, the 'serial port' to give driver_node")
     parser.add_argument("--rig", type=existing_file, default=None,
                         help="rig parameter YAML (default: the bundled NMRV030 rig)")
