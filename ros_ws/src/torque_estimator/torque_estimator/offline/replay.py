@@ -69,6 +69,7 @@ from worm_model.rig_data.schema import RigDataError
 from worm_model.bags.reader import BagReader
 from worm_model.bags.typestore import BagRecordingError
 from worm_model.rig_data.bags import find_sample_topic
+from worm_model.rig_data.plausibility import sample_rate_problem
 from worm_model.rig_data.reader import is_bag
 from worm_model.rig_data.samples import samples_of
 
@@ -256,6 +257,7 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
     envelope = Envelope.of(est_rig)
     first = last = None
     n = 0
+    early: list[float] | None = []
     try:
         with BagReader(bag, allow_truncated=allow_truncated) as reader:
             topic = find_sample_topic(reader, sample_topic)
@@ -279,6 +281,12 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
                     if last_seq < start_seq:
                         continue
                     stamps = [s.header.stamp.sec + 1e-9 * s.header.stamp.nanosec for s in batch]
+                    if early is not None:  # the stamps' step against the rig's sample rate, as every reader checks
+                        early += stamps
+                        if len(early) >= 50 or n_messages == total:
+                            if problem := sample_rate_problem(np.asarray(early), 1.0 / period, est_rig.name):
+                                raise ReplayError(f"{bag}: {topic}: sample stamps: {problem}")
+                            early = None
                     first = stamps[0] if first is None else first
                     last = stamps[-1]
                     n += len(batch)

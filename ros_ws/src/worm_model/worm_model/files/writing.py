@@ -179,9 +179,21 @@ def check_output(path: PathLike, force: bool = False, *, folder: bool = False, o
     parent = target.parent
     if not parent.is_dir():
         raise OutputError(where, f"folder {given.absolute().parent} does not exist")
-    if not os.access(parent, os.W_OK):
-        raise OutputError(where, f"folder {given.absolute().parent} is not writable")
+    problem = _unwritable(parent)
+    if problem:
+        raise OutputError(where, f"folder {given.absolute().parent}: cannot write there ({problem})")
     return given
+
+
+def _unwritable(folder: Path) -> str | None:
+    """Why no file can be made in ``folder`` (tried: permissions do not tell for root or a read-only mount)."""
+    try:
+        fd, name = tempfile.mkstemp(prefix=".write-test.", dir=folder)
+    except OSError as err:
+        return err.strerror or type(err).__name__
+    os.close(fd)
+    os.unlink(name)
+    return None
 
 
 def _cannot_write(where: str, err: OSError, tmp: Path) -> OutputError:
@@ -203,13 +215,16 @@ def write_text_atomically(path: PathLike, text: str) -> None:
     The text goes to a temporary file in the same directory, is synced, then moved over ``path``.
 
     Raises:
-        OSError: the directory is not writable.
+        OutputError: it cannot be written (the message names ``path``).
     """
-    with _temporary_file(Path(path)) as tmp:
-        with open(tmp, "w", encoding="utf-8") as stream:
-            stream.write(text)
-            stream.flush()
-            os.fsync(stream.fileno())
+    try:
+        with _temporary_file(Path(path)) as tmp:
+            with open(tmp, "w", encoding="utf-8") as stream:
+                stream.write(text)
+                stream.flush()
+                os.fsync(stream.fileno())
+    except OSError as err:  # named by the file meant, never by the temporary one
+        raise OutputError(str(path), f"cannot write: {err.strerror or type(err).__name__}") from None
 
 
 @contextmanager

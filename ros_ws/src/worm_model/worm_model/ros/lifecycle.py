@@ -31,7 +31,8 @@ from rclpy.signals import SignalHandlerOptions
 
 from worm_model.cli.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, InputError, one_line
 from worm_model.files.reading import load_parameter_file, ros_arguments
-from worm_model.ros.parameters import check_undeclared, help_text, wants_help, wildcard_names
+from worm_model.ros.parameters import (check_undeclared, help_text, undeclared_problem, wants_help,
+                                      wildcard_names)
 from worm_model.ros.teardown import deadline
 
 try:  # rclpy >= Jazzy: callbacks dispatched from C++, several times less CPU per message at 1 kHz
@@ -71,13 +72,14 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> in
     return run_nodes([make_node], args)
 
 
-def start_problem(program: str, argv: Sequence[str]) -> int | None:
-    """What every node executable checks before rclpy.init; an exit code (printed help, or a refusal), or None.
+def start_problem(program: str, argv: Sequence[str], makers: Sequence[Callable[[], Node]] = ()) -> int | None:
+    """What every node executable checks before rclpy.init; an exit code (a refusal: 2), or None.
 
-    ``-h``/``--help`` prints the parameters and returns 0. Every ``--params-file`` is read as rcl will read
-    it (worm_model.files.reading.load_parameter_file: a regular file, UTF-8, YAML within limits, no anchors,
-    aliases or merge keys, node sections rcl accepts): a file rcl would refuse with a traceback in every
-    node is one line and exit code 2 here instead.
+    Every ``--params-file`` is read as rcl will read it (worm_model.files.reading.load_parameter_file: a
+    regular file, UTF-8, YAML within limits, no anchors, aliases or merge keys, node sections rcl accepts):
+    a file rcl would refuse with a traceback in every node is one line and exit code 2 here instead. Then
+    a parameter given to one of ``makers``' nodes that it does not declare is refused the same way, naming
+    the closest declared name, before the node logs a word.
     """
     for flag, value in ros_arguments(list(argv)):
         if flag == "--params-file":
@@ -86,6 +88,10 @@ def start_problem(program: str, argv: Sequence[str]) -> int | None:
             except InputError as err:
                 print(f"{program}: --params-file {one_line(err)}", file=sys.stderr)
                 return EXIT_BAD_INPUT
+    problem = undeclared_problem(makers, argv) if makers else None
+    if problem:
+        print(f"{program}: {problem}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     return None
 
 
@@ -127,7 +133,7 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
     if wants_help(argv):  # before rclpy.init: no context, no DDS
         print(help_text(makers, program))
         return 0
-    code_or_none = start_problem(program, argv)
+    code_or_none = start_problem(program, argv, makers)
     if code_or_none is not None:
         return code_or_none
     stop = threading.Event()

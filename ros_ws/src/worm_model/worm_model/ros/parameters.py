@@ -260,6 +260,50 @@ def wildcard_names(argv: Sequence[str]) -> set[str]:
     return names
 
 
+def given_names(argv: Sequence[str], node: str) -> dict[str, str]:
+    """The parameter names the arguments give the node named ``node`` -> where ("-p", or the file): the
+    ``-p NAME:=VALUE`` ones (all nodes of the process, or ``-p node:NAME:=VALUE``) and those of the parameter
+    files' sections for it (``node``, ``/node``, ``/ns/node``; wildcard sections are for every node)."""
+    given: dict[str, str] = {}
+    for flag, value in ros_arguments(list(argv)):
+        if flag == "-p":
+            assignment = value.partition(":=")[0]
+            target, _, name = assignment.rpartition(":")
+            if not target or target.split("/")[-1] == node:
+                given.setdefault(name, "-p")
+            continue
+        try:
+            sections = load_parameter_file(value)
+        except InputError:
+            continue  # refused before (lifecycle.start_problem)
+        for section, values in sections.items():
+            if "*" not in section and section.split("/")[-1] == node:
+                for name in values:
+                    given.setdefault(name, f"--params-file {value}")
+    return given
+
+
+def undeclared_problem(makers: Sequence[Callable[[], Node]], argv: Sequence[str]) -> str | None:
+    """A parameter the arguments give a node that it does not declare, found before anything starts (the
+    nodes' declarations as --help reads them), or None: ``parameter <name> (<where>): ...``."""
+    declared: dict[str, set[str]] = {}
+    for make_node in makers:
+        try:
+            found = declared_parameters(make_node)
+        except Exception:  # noqa: BLE001 - cannot tell now; check_undeclared tells once the node is built
+            return None
+        if found:
+            declared[found[0].node] = {p.name for p in found}
+    everywhere = set().union(*declared.values()) if declared else set()
+    exempt = wildcard_names(argv)
+    for node, names in declared.items():
+        for name, where in given_names(argv, node).items():
+            if name not in everywhere and name not in exempt:
+                return (f"parameter {name} ({where}): {node} declares no such parameter{nearest(name, names)}; "
+                        f"see {node} --help")
+    return None
+
+
 def check_undeclared(nodes: Sequence[Node], exempt: set[str] = frozenset()) -> None:
     """Refuse a parameter given to a node (by -p or its section of a parameter file) that it does not declare.
 

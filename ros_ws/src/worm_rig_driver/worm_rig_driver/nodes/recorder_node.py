@@ -420,6 +420,10 @@ class RecorderNode(Node):
         )
         for topic in [*(topics or []), *exclude]:  # before the bag exists: a refusal leaves nothing behind
             check_topic_name(topic)
+        for name, value, known in (('storage', storage, sorted(STORAGES)), ('compression', compression,
+                                                                            list(COMPRESSIONS))):
+            if value not in known:
+                raise ValueError(f'parameter {name}: {value!r} is not one of {", ".join(known)}')
         path = Path(output or datetime.now().strftime('rosbag2_%Y_%m_%d-%H_%M_%S'))
         check_output(path, folder=True, option='parameter output')  # a new folder: never over anything
         writer = BagWriter(path, storage, compression=compression)
@@ -506,7 +510,7 @@ def main(args: list[str] | None = None) -> int:
     if wants_help(given[1:]):  # before rclpy.init: no context, no DDS, no bag
         print(help_text([RecorderNode], 'recorder'))
         return 0
-    refused = start_problem('recorder', given[1:])
+    refused = start_problem('recorder', given[1:], [RecorderNode])
     if refused is not None:
         return refused
     stop = threading.Event()
