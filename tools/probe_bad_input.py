@@ -838,6 +838,11 @@ def run_case(case: Case, fixtures: dict[str, Path], work: Path, timeout: float) 
     return "ok", lines[0]
 
 
+def _timed(case: Case, fixtures: dict[str, Path], work: Path, timeout: float) -> tuple[str, str, float]:
+    start = time.monotonic()
+    return (*run_case(case, fixtures, work, timeout), time.monotonic() - start)
+
+
 def probe(selected: list[Case], jobs: int = 2, timeout: float = 30.0, verbose: bool = True
           ) -> dict[str, list[tuple[str, str]]]:
     """Run the cases; returns verdict -> [(case name, detail)]."""
@@ -846,12 +851,12 @@ def probe(selected: list[Case], jobs: int = 2, timeout: float = 30.0, verbose: b
         fixtures = build_fixtures(work / "fixtures")
         results: dict[str, list[tuple[str, str]]] = {v: [] for v in VERDICTS}
         with ThreadPoolExecutor(max_workers=jobs) as pool:
-            futures = [(case, pool.submit(run_case, case, fixtures, work, timeout)) for case in selected]
+            futures = [(case, pool.submit(_timed, case, fixtures, work, timeout)) for case in selected]
             for case, future in futures:
-                verdict, detail = future.result()
+                verdict, detail, seconds = future.result()
                 results[verdict].append((case.name, detail))
                 if verbose:
-                    print(f"{verdict:<9} {case.name}: {detail}", flush=True)
+                    print(f"{verdict:<9} {case.name} [{seconds:.1f} s]: {detail}", flush=True)
         return results
     finally:
         shutil.rmtree(work, ignore_errors=True)

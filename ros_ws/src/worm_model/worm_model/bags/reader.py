@@ -325,10 +325,16 @@ def read_metadata_file(path: Path) -> BagMetadata:
     """
     try:
         text = read_text(path, 'bag metadata file', MAX_YAML_BYTES)
+    except InputError as err:
+        msg = f'Cannot read bag metadata {err}'
+        raise BagReadError(msg) from None
+    try:
         check_yaml(text, str(path))  # depth, size, alias expansion: the limits of every YAML file read
         document = YAML(typ='safe', pure=True).load(text)
     except InputError as err:
-        msg = f'Cannot read bag metadata {err}'
+        place = err.where.removeprefix(str(path)).lstrip(': ')
+        msg = f'Bag metadata {path} is not YAML{" (" + place + ")" if place else ""}: ' \
+              f'{err.what.removeprefix("not valid YAML: ")}'
         raise BagReadError(msg) from None
     except YAMLError as err:
         msg = f'Bag metadata {path} is not YAML: {err}'

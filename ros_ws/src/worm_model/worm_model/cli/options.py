@@ -101,7 +101,7 @@ def input_problem(path: str | os.PathLike[str], what: str = "file", folder: bool
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
-        return f"no such file (expected {article(what)})"
+        return f"cannot read: no such file (expected {article(what)})"
     except OSError as err:
         return f"cannot read: {err.strerror or err}"
     if stat.S_ISREG(mode) or folder and stat.S_ISDIR(mode):

@@ -215,21 +215,21 @@ def write_text_atomically(path: PathLike, text: str) -> None:
     The text goes to a temporary file in the same directory, is synced, then moved over ``path``.
 
     Raises:
-        OutputError: it cannot be written (the message names ``path``).
+        OSError: it cannot be written; the error names ``path``, never the temporary file.
     """
-    try:
-        with _temporary_file(Path(path)) as tmp:
-            with open(tmp, "w", encoding="utf-8") as stream:
-                stream.write(text)
-                stream.flush()
-                os.fsync(stream.fileno())
-    except OSError as err:  # named by the file meant, never by the temporary one
-        raise OutputError(str(path), f"cannot write: {err.strerror or type(err).__name__}") from None
+    with _temporary_file(Path(path)) as tmp:
+        with open(tmp, "w", encoding="utf-8") as stream:
+            stream.write(text)
+            stream.flush()
+            os.fsync(stream.fileno())
 
 
 @contextmanager
 def _temporary_file(target: Path) -> Iterator[Path]:
-    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.absolute().parent)
+    try:
+        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.absolute().parent)
+    except OSError as err:
+        raise OSError(err.errno, err.strerror, str(target)) from None
     tmp = Path(name)
     try:
         umask = os.umask(0o022)  # mkstemp makes the file 0600; give it the mode open() would
@@ -238,6 +238,11 @@ def _temporary_file(target: Path) -> Iterator[Path]:
         os.close(fd)
         yield tmp
         os.replace(tmp, target)
+    except OSError as err:
+        tmp.unlink(missing_ok=True)
+        if err.filename == str(tmp):  # the user's file is what could not be written
+            raise OSError(err.errno, err.strerror, str(target)) from None
+        raise
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
