@@ -61,7 +61,7 @@ import yaml
 from worm_model.live.live_model import FIELDS as FORCE_FIELDS
 from worm_model.live.live_model import LiveModel
 from worm_model.cli.errors import InputError, run_tool
-from worm_model.cli.options import Parser, existing_file, existing_input, nearest, number
+from worm_model.cli.options import Parser, existing_file, existing_bag, nearest, number
 from worm_model.files.reading import load_parameter_file
 from worm_model.physics.envelope import Envelope
 from worm_model.physics.parameters import ParameterError, load_rig
@@ -394,7 +394,7 @@ def _main(argv: Sequence[str] | None) -> int:
                "the live outputs the bag holds, replay_forces_* and replay_estimates_* (matched, compared,\n"
                "live_only, replay_only, max_abs_diff; per-field differences on stderr).\n"
                "exit code 2 on a bad bag, parameter file or calibration (the message names it).")
-    parser.add_argument("bag", type=existing_input,
+    parser.add_argument("bag", type=existing_bag,
                         help="bag directory (or .mcap/.db3 file) holding /rig/samples or /rig/sample")
     parser.add_argument("--params-file", type=existing_file, default=None, metavar="FILE",
                         help="graph parameter file of the live run (default: the installed sim_graph.yaml)")

@@ -1,6 +1,7 @@
 """Command-line options and numbers read from files, checked alike: finite, inside a physical range,
-the unit named in the message; input and output paths (:func:`existing_file`, :func:`existing_input`,
-:func:`output_path`); :class:`Parser`, an ArgumentParser whose errors are one line and exit 2.
+the unit named in the message; input and output paths (:func:`input_path`, ``existing_file``,
+``existing_bag``, :func:`output_path`); :func:`nearest` for a misspelt name; :class:`Parser`, an
+ArgumentParser whose errors are one line and exit 2.
 """
 from __future__ import annotations
 
@@ -110,20 +111,23 @@ def input_problem(path: str | os.PathLike[str], what: str = "file", folder: bool
     return f"is {kind}, expected {article(what)}" + (" or a folder" if folder else "")
 
 
-def existing_file(text: str) -> Path:
-    """An argparse ``type``: an existing regular file (not a folder, FIFO or device; stat-ed, never opened)."""
-    problem = input_problem(text, "file")
-    if problem:
-        raise argparse.ArgumentTypeError(f"{text}: {problem}" if text else problem)
-    return Path(text)
+def input_path(what: str = "file", folder: bool = False) -> Callable[[str], Path]:
+    """An argparse ``type``: an existing regular file (with ``folder``, or a folder), refused naming ``what``."""
+    def parse(text: str) -> Path:
+        problem = input_problem(text, what, folder)
+        if problem:
+            raise argparse.ArgumentTypeError(f"{text}: {problem}" if text else problem)
+        return Path(text)
+    parse.__name__ = "input_path"
+    return parse
 
 
-def existing_input(text: str) -> Path:
-    """An argparse ``type``: an existing regular file, or a folder (a bag folder)."""
-    problem = input_problem(text, "file", folder=True)
-    if problem:
-        raise argparse.ArgumentTypeError(f"{text}: {problem}" if text else problem)
-    return Path(text)
+#: an argparse ``type``: an existing regular file (not a folder, FIFO or device; stat-ed, never opened)
+existing_file = input_path()
+#: an argparse ``type``: an existing regular file, or a folder (a bag folder)
+existing_input = input_path(folder=True)
+#: an argparse ``type``: a rosbag2 bag, a folder or one storage file
+existing_bag = input_path("bag folder or .mcap/.db3 file", folder=True)
 
 
 def output_path(text: str) -> Path:

@@ -25,7 +25,7 @@ from typing import Final, TextIO
 from tqdm import tqdm
 
 from worm_model.cli.errors import run_tool
-from worm_model.cli.options import Parser, existing_file, existing_input, integer, number, output_path
+from worm_model.cli.options import Parser, existing_file, existing_bag, integer, number, output_path
 from worm_model.files.writing import check_output
 from worm_model.physics.parameters import ParameterError, load_rig
 from worm_model.rig_data.schema import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, RigDataError
@@ -173,12 +173,12 @@ def _parser() -> argparse.ArgumentParser:
                             'storage (not the count metadata.yaml claims), a sequence-number '
                             'check of every stream with a seq field, and warnings (e.g. '
                             'metadata.yaml and storage disagreeing).')
-    p.add_argument('bag', type=existing_input, help='bag directory, or one .db3/.mcap(.zstd) file')
+    p.add_argument('bag', type=existing_bag, help='bag directory, or one .db3/.mcap(.zstd) file')
 
     p = commands.add_parser('echo', help='print a topic\'s messages as YAML',
                             description='Print the messages of one topic decoded, as YAML, each '
                             'followed by a "---" line (the format of ros2 topic echo).')
-    p.add_argument('bag', type=existing_input, help='bag directory, or one .db3/.mcap(.zstd) file')
+    p.add_argument('bag', type=existing_bag, help='bag directory, or one .db3/.mcap(.zstd) file')
     p.add_argument('topic', help='topic to print, e.g. /rig/sample')
     p.add_argument('-n', '--count', type=integer(0), default=None, metavar='N',
                    help='print only the first N messages (default: all)')
@@ -192,7 +192,7 @@ def _parser() -> argparse.ArgumentParser:
                             'load-motor currents; tau_load is RigSample.tau_load. Samples with a '
                             'NaN/inf required channel, or a stamp not after the previous one, are '
                             'left out and counted on stderr.')
-    p.add_argument('bag', type=existing_input, help='bag directory, or one .db3/.mcap(.zstd) file')
+    p.add_argument('bag', type=existing_bag, help='bag directory, or one .db3/.mcap(.zstd) file')
     p.add_argument('--out', type=output_path, required=True, metavar='FILE.csv',
                    help='CSV file to write (an existing one is replaced only with --force, and only if it is a '
                         'worm_rig_data CSV; never the bag or a file inside it)')
