@@ -178,15 +178,17 @@ def parse_yaml(text: str, source: str) -> Any:
     """YAML text -> data within the limits of the module docstring; InputError with the line and column."""
     if len(text) > MAX_YAML_BYTES:
         raise InputError(source, f"{len(text)} characters: too large for a YAML file (at most {MAX_YAML_BYTES})")
-    loader = _LimitedLoader(text)
+    loader = None
     try:
+        loader = _LimitedLoader(text)  # its reader refuses control characters already
         return loader.get_single_data()
     except yaml.YAMLError as err:
         raise _yaml_error(err, source) from None
     except RecursionError:  # a limit above should come first; this is the backstop
         raise InputError(source, f"not valid YAML: nested too deeply (at most {MAX_YAML_DEPTH} levels)") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
 
 
 def check_yaml(text: str, source: str) -> None:
@@ -194,8 +196,9 @@ def check_yaml(text: str, source: str) -> None:
     YAML library reads: a bag's metadata.yaml); InputError with the line and column."""
     if len(text) > MAX_YAML_BYTES:
         raise InputError(source, f"{len(text)} characters: too large for a YAML file (at most {MAX_YAML_BYTES})")
-    loader = _LimitedLoader(text)
+    loader = None
     try:
+        loader = _LimitedLoader(text)
         while loader.check_node():
             loader.get_node()
     except yaml.YAMLError as err:
@@ -203,7 +206,8 @@ def check_yaml(text: str, source: str) -> None:
     except RecursionError:
         raise InputError(source, f"refused: nested too deeply (at most {MAX_YAML_DEPTH} levels)") from None
     finally:
-        loader.dispose()
+        if loader is not None:
+            loader.dispose()
 
 
 def load_yaml(path: str | os.PathLike[str], what: str = "YAML file") -> Any:

@@ -123,12 +123,16 @@ def angle_problem(data: MeasuredData, min_speed: float) -> str | None:
     same_run = data.run[1:] == data.run[:-1]
     dt = np.diff(t)
     mean_omega = 0.5 * (omega[1:] + omega[:-1])
-    moving = same_run & np.isfinite(mean_omega) & np.isfinite(np.diff(theta)) & (np.abs(mean_omega) >= min_speed)
+    step = np.diff(theta)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fast = (np.abs(mean_omega) >= min_speed) | (np.abs(step / dt) >= min_speed)  # moving by either
+    moving = same_run & np.isfinite(mean_omega) & np.isfinite(step) & fast
     travel = (mean_omega * dt)[moving]
-    advance = np.diff(theta)[moving]
-    if float(np.sum(np.abs(travel))) < MIN_TRAVEL:
+    advance = step[moving]
+    if max(float(np.sum(np.abs(travel))), float(np.sum(np.abs(advance)))) < MIN_TRAVEL:
         return None
-    ratio = float(np.dot(advance, travel) / np.dot(travel, travel))
+    power = float(np.dot(travel, travel))
+    ratio = float(np.dot(advance, travel) / power) if power > 0 else math.inf
     if abs(ratio - 1.0) <= ANGLE_TOLERANCE:
         return None
     cause = next((text for value, text in ANGLE_SLIPS if abs(ratio / value - 1.0) <= ANGLE_TOLERANCE), "")
