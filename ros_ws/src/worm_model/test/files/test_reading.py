@@ -118,3 +118,11 @@ def test_a_parameter_file_is_read_as_rcl_reads_it(tmp_path: Path) -> None:
         path.write_text(text)
         with pytest.raises(InputError, match=message):
             load_parameter_file(path)
+
+
+def test_the_users_page_states_the_limits_in_force() -> None:
+    from worm_model.files.reading import MAX_YAML_BYTES
+    page = (Path(__file__).resolve().parents[5] / "docs" / "files-and-inputs.md").read_text(encoding="utf-8")
+    for figure in (f"at most {MAX_YAML_BYTES} bytes", f"at most {MAX_YAML_DEPTH} levels",
+                   f"at most {MAX_YAML_NODES} values"):
+        assert figure in page, figure

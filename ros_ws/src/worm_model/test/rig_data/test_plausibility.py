@@ -97,3 +97,18 @@ def test_calibrations_every_reader_refuses() -> None:
     assert "same operating point" in calibration_problem(np.full(6, 50.0), np.full(6, 0.1), np.full(6, 0.2))
     assert "looks like rpm" in calibration_problem(omega * 60 / (2 * math.pi), current, tau, RIG)
     assert calibration_problem([], [], []) == "no calibration points"
+
+
+def test_the_users_page_states_the_thresholds_in_force() -> None:
+    from worm_model.physics import parameters
+    from worm_model.rig_data import plausibility
+    page = (Path(__file__).resolve().parents[5] / "docs" / "files-and-inputs.md").read_text(encoding="utf-8")
+    for figure in (f"more than {plausibility.MAX_DECIMATION:g} or less than {plausibility.MIN_RATE_RATIO:g} rig "
+                   "sample periods", f"more than {plausibility.ANGLE_TOLERANCE:.0%} off",
+                   f"at least {plausibility.MIN_TRAVEL / (2 * math.pi):.0f} turns".replace("2 turns", "two turns"),
+                   f"within a factor {parameters.MOTOR_CONSTANT_RATIO:g}",
+                   f"at most {parameters.SUPPLY_OVER_MOTOR:g} x the drive motor's",
+                   "constant 1e-4 .. 50 N m/A", "a voltage 0.1 .. 1000 V", "a sample rate 1 Hz ..\n10 MHz"):
+        assert figure in page, figure
+    assert parameters.PLAUSIBLE["torque_constant"] == (1e-4, 50.0) and parameters.PLAUSIBLE["voltage"] == (0.1, 1e3)
+    assert parameters.PLAUSIBLE["frequency"] == (1.0, 1e7)
