@@ -490,6 +490,8 @@ def parameter_cases() -> list[Case]:
         Case("run_graph --set estimator_node.method=kalman", ["run_graph", "{graph}", "--set",
              "estimator_node.method=kalman"], stderr_has="kalman"),
         Case("run_graph a graph file with methd:", ["run_graph", "{graph_typo}"], stderr_has="'method'"),
+        Case("run_graph a node that does not exist (none started)", ["run_graph", "{graph_unknown_node}"],
+             stderr_has="no_such_node"),
         Case("demo --graph a graph file with methd:", ["demo", "--graph", "{graph_typo}", "--out", "d"],
              stderr_has="'method'"),
         Case("replay --params-file with methd:", ["replay", "{bag}", "--params-file", "{graph_typo}"],
@@ -714,6 +716,7 @@ def _policy_fixtures(folder: Path, f: dict[str, Path], data, cal_doc: dict, put)
     put("graph_mixed.yaml", "estimator_node:\n  ros__parameters:\n    k: 4\n    exclude: [1, two]\n")
     put("graph_value_beside.yaml", "estimator_node:\n  k: 4\n  ros__parameters:\n    method: knn\n")
     put("graph_bomb.yaml", graph + "bomb:\n" + _bomb())
+    put("graph_unknown_node.yaml", graph + "no_such_node:\n  ros__parameters: {a: 1}\n")
 
     # earlier outputs of the tools themselves, which --force may replace
     report_out = folder / "report_out"
@@ -755,6 +758,19 @@ def _executable(name: str) -> str:
 
 def _matches(rel: str, patterns: tuple[str, ...]) -> bool:
     return any(fnmatch.fnmatch(rel, p) for p in patterns)
+
+
+def _left_running(session: int) -> list[str]:
+    """Command lines of the processes still in ``session`` (the case's: every child it started)."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            if int(fields[3]) == session:  # the session id, after state, ppid, pgrp
+                found.append((stat.parent / "cmdline").read_bytes().replace(b"\0", b" ").decode().strip())
+        except (OSError, ValueError, IndexError):
+            continue
+    return found
 
 
 def _interrupt(process: subprocess.Popen, case: Case, folder: Path, deadline: float) -> None:
@@ -805,6 +821,9 @@ def run_case(case: Case, fixtures: dict[str, Path], work: Path, timeout: float) 
         os.killpg(process.pid, signal.SIGKILL)
         out, err = process.communicate()
         hung = True
+    stray = _left_running(process.pid)
+    if stray:  # a node a refused run started and never stopped: stop it, and say so below
+        os.killpg(process.pid, signal.SIGKILL)
     out_text, err_text = out.decode(errors="replace"), err.decode(errors="replace")
     lines = [line for line in err_text.splitlines() if line.strip()]
     changed = [name for name, digest in inputs.items() if _digest(fixtures[name]) != digest]
@@ -824,6 +843,8 @@ def run_case(case: Case, fixtures: dict[str, Path], work: Path, timeout: float) 
         if process.returncode == 0:
             return "silent", f"exit 0; stdout: {out_text.strip().splitlines()[-1:] or ''}"
         return "message", f"exit {process.returncode}, expected {case.expect}: {first}"
+    if stray:
+        return "leftover", f"left running: {stray[0][:120]}"
     if left:
         return "leftover", ", ".join(left)
     if 2 not in expected:  # a run that must work, or end cleanly on Ctrl-C

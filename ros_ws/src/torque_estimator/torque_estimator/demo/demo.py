@@ -23,7 +23,7 @@ from worm_model.physics.parameters import load_rig
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import save_database
 from torque_estimator.estimation.registry import make_estimator
-from torque_estimator.graph.runner import GraphError, check_parameters, default_graph_file, graph_nodes
+from torque_estimator.graph.runner import GraphError, check_graph, default_graph_file, graph_nodes
 from torque_estimator.evaluation.held_out import evaluate_held_out, format_table
 from torque_estimator.demo.plots import estimate_vs_truth, tracking
 from torque_estimator.evaluation.plots import held_out_deviation
@@ -94,7 +94,7 @@ def _main(argv: list[str] | None) -> int:
     inputs = [args.graph]
     check_output(args.out, args.force, folder=True, inputs=inputs, output=OUTPUT)
     graph_file = args.graph or default_graph_file()
-    check_parameters(graph_file, {}, graph_nodes(graph_file))  # what the live graph would refuse, before calibrating
+    check_graph(graph_file, {}, graph_nodes(graph_file))  # what the live graph would refuse, before calibrating
     # everything goes to a folder beside --out that replaces it at the end: an interrupted or failed demo
     # leaves the earlier output (or none), never half of one
     with atomic_dir(args.out, args.force, inputs=inputs, output=OUTPUT) as work:

@@ -56,10 +56,11 @@ def graph_nodes(params_file: Path) -> list[str]:
     return [name for name in graph_sections(params_file) if "*" not in name]
 
 
-def check_parameters(params_file: Path, overrides: dict[str, list[str]], nodes: list[str]) -> None:
-    """Refuse, before anything starts, what the nodes would refuse once started: a parameter a node does not
-    declare (a misspelling; the closest name given), a value of the wrong type, out of range or not one of
-    its choices, in the file's section of a node of this project or in an override.
+def check_graph(params_file: Path, overrides: dict[str, list[str]], nodes: list[str]) -> None:
+    """Refuse, before anything starts, what the graph would refuse once started: a node with no executable,
+    a parameter a node does not declare (a misspelling; the closest name given), a value of the wrong type,
+    out of range or not one of its choices, in the file's section of a node of this project or in an
+    override.
 
     Raises:
         GraphError: naming the node, the parameter and the problem.
@@ -70,7 +71,11 @@ def check_parameters(params_file: Path, overrides: dict[str, list[str]], nodes: 
     sections = graph_sections(params_file)
     for node in nodes:
         if node not in NODE_CLASSES:
-            continue  # another package's node: it checks its own parameters
+            try:
+                find_executable(node)  # another package's node: it checks its own parameters
+            except FileNotFoundError as err:
+                raise GraphError(str(err)) from None
+            continue
         values = dict(sections.get(node, {}))
         values.update({name: ros_value(text) for name, _, text in
                        (a.partition(":=") for a in overrides.get(node, []))})
@@ -159,7 +164,7 @@ class Graph:
         unknown = set(self.overrides) - set(nodes)
         if unknown:
             raise GraphError(f"overrides name nodes not in {self.params_file}: {sorted(unknown)}")
-        check_parameters(self.params_file, self.overrides, nodes)
+        check_graph(self.params_file, self.overrides, nodes)
         grouped = [n for group in self.together for n in group]
         if stray := sorted(set(grouped) - set(nodes)):
             raise GraphError(f"groups name nodes not in {self.params_file}: {stray}")
@@ -170,19 +175,24 @@ class Graph:
             print(f"graph: SCHED_FIFO {self.priority} is not permitted here (needs CAP_SYS_NICE or an rtprio "
                   "limit): the nodes run at normal priority", file=sys.stderr)
             self.priority = 0
-        for unit in units:
-            name = "+".join(unit)
-            out = None
-            if self.log_dir is not None:
-                self.log_dir.mkdir(parents=True, exist_ok=True)
-                out = open(self.log_dir / f"{name}.log", "wb")
-            command = self.command(unit[0]) if len(unit) == 1 else self.composed_command(unit)
-            if self.priority:
-                command = ["chrt", "-f", str(self.priority), *command]
-            # numpy's BLAS with one thread in every node: see torque_estimator/__init__.py
-            env = {**os.environ, "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "1")}
-            self.processes[name] = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT if out else None,
-                                                    env=env)
+        # every command first: a node that cannot be found is refused before any other has started
+        commands = {"+".join(unit): self.command(unit[0]) if len(unit) == 1 else self.composed_command(unit)
+                    for unit in units}
+        try:
+            for name, command in commands.items():
+                out = None
+                if self.log_dir is not None:
+                    self.log_dir.mkdir(parents=True, exist_ok=True)
+                    out = open(self.log_dir / f"{name}.log", "wb")
+                if self.priority:
+                    command = ["chrt", "-f", str(self.priority), *command]
+                # numpy's BLAS with one thread in every node: see torque_estimator/__init__.py
+                env = {**os.environ, "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "1")}
+                self.processes[name] = subprocess.Popen(command, stdout=out,
+                                                        stderr=subprocess.STDOUT if out else None, env=env)
+        except BaseException:  # no node left running when the graph could not start whole
+            self.stop()
+            raise
         return self
 
     def failed(self) -> dict[str, int]:

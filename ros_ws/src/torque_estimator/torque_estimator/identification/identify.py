@@ -36,7 +36,7 @@ import sys
 import time
 from pathlib import Path
 
-from worm_model.cli.errors import InputError
+from worm_model.cli.errors import InputError, run_tool
 from worm_model.cli.options import Parser, output_path
 from worm_model.cli.progress import Progress, ProgressBar
 from worm_model.files.reading import load_yaml
@@ -108,6 +108,10 @@ def _interrupt(signum, _frame) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    return run_tool(PROG, lambda: _main(argv))  # Ctrl-C while reading: exit 130, nothing written
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     if not args.out.parent.is_dir():
         return _fail("--out", f"folder {args.out.parent} does not exist")
