@@ -124,18 +124,29 @@ class _Limit(yaml.composer.ComposerError):
     """A YAML file beyond one of the reader's limits (not malformed: too deep or too large)."""
 
 
-class _LimitedLoader(yaml.SafeLoader):
-    """SafeLoader with limits: nesting depth, nodes after alias expansion, and no key given twice."""
+class _NoAliases(yaml.composer.ComposerError):
+    """An anchor, alias or merge key where rcl reads the file (a ROS parameter file)."""
 
-    def __init__(self, stream: str) -> None:
+
+class _LimitedLoader(yaml.SafeLoader):
+    """SafeLoader with limits: nesting depth, nodes after alias expansion, and no key given twice; with
+    ``anchors`` False, no anchor or alias at all."""
+
+    def __init__(self, stream: str, anchors: bool = True) -> None:
         super().__init__(stream)
         self._depth = 0
         self._sizes: dict[int, int] = {}
+        self._anchors = anchors
 
     def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node:
-        if self.check_event(yaml.AliasEvent):
-            return super().compose_node(parent, index)  # its size counts where it is used, below
         event = self.peek_event()
+        if not self._anchors and (isinstance(event, yaml.AliasEvent) or getattr(event, "anchor", None)):
+            shown = f"*{event.anchor}" if isinstance(event, yaml.AliasEvent) else f"&{event.anchor}"
+            raise _NoAliases(None, None, f"{shown}: ROS parameter files cannot use YAML anchors, aliases or merge "
+                                         "keys (&name, *name, <<): rcl, which reads them in every node, does not; "
+                                         "write the values out", event.start_mark)
+        if isinstance(event, yaml.AliasEvent):
+            return super().compose_node(parent, index)  # its size counts where it is used, below
         self._depth += 1
         try:
             if self._depth > MAX_YAML_DEPTH:
@@ -171,16 +182,21 @@ def _yaml_error(err: yaml.YAMLError, source: str) -> InputError:
     mark = getattr(err, "problem_mark", None)
     where = f"{source}: line {mark.line + 1}, column {mark.column + 1}" if mark else source
     problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+    if isinstance(err, _NoAliases):
+        return InputError(where, problem)
     return InputError(where, f"refused: {problem}" if isinstance(err, _Limit) else f"not valid YAML: {problem}")
 
 
-def parse_yaml(text: str, source: str) -> Any:
-    """YAML text -> data within the limits of the module docstring; InputError with the line and column."""
+def parse_yaml(text: str, source: str, anchors: bool = True) -> Any:
+    """YAML text -> data within the limits of the module docstring; InputError with the line and column.
+
+    ``anchors`` False refuses anchors, aliases and merge keys (what rcl cannot read).
+    """
     if len(text) > MAX_YAML_BYTES:
         raise InputError(source, f"{len(text)} characters: too large for a YAML file (at most {MAX_YAML_BYTES})")
     loader = None
     try:
-        loader = _LimitedLoader(text)  # its reader refuses control characters already
+        loader = _LimitedLoader(text, anchors)  # its reader refuses control characters already
         return loader.get_single_data()
     except yaml.YAMLError as err:
         raise _yaml_error(err, source) from None
@@ -250,22 +266,6 @@ def load_json(path: str | os.PathLike[str], what: str = "JSON file") -> Any:
 PARAMETERS_KEY: Final = "ros__parameters"
 
 
-def _no_aliases(text: str, source: str) -> None:
-    """Refuse anchors, aliases and merge keys, which rcl's parameter-file parser does not read."""
-    try:
-        for event in yaml.parse(text, Loader=yaml.SafeLoader):
-            anchor = getattr(event, "anchor", None)
-            if isinstance(event, yaml.AliasEvent) or anchor is not None:
-                mark = event.start_mark
-                shown = f"*{anchor}" if isinstance(event, yaml.AliasEvent) else f"&{anchor}"
-                raise InputError(f"{source}: line {mark.line + 1}, column {mark.column + 1}",
-                                 f"{shown}: ROS parameter files cannot use YAML anchors, aliases or merge keys "
-                                 "(&name, *name, <<): rcl, which reads them in every node, does not; "
-                                 "write the values out")
-    except yaml.YAMLError as err:
-        raise _yaml_error(err, source) from None
-
-
 def _parameter_kind(value: Any) -> str | None:
     if isinstance(value, bool):
         return "bool"
@@ -330,9 +330,7 @@ def load_parameter_file(path: str | os.PathLike[str]) -> dict[str, dict[str, Any
             keys, no node sections, a value beside ``ros__parameters``, a list mixing types.
     """
     source = str(path)
-    text = read_text(path, "ROS parameter file", MAX_YAML_BYTES)
-    _no_aliases(text, source)
-    document = parse_yaml(text, source)
+    document = parse_yaml(read_text(path, "ROS parameter file", MAX_YAML_BYTES), source, anchors=False)
     if not isinstance(document, dict) or not document:
         raise InputError(source, f"expected node names at the top level, each with '{PARAMETERS_KEY}:'")
     out: dict[str, dict[str, Any]] = {}
