@@ -366,6 +366,34 @@ def test_node_help_lists_every_parameter_and_starts_nothing(node: str, work) -> 
     assert _digest(folder) == {}, "help wrote a file"
 
 
+REAL_PARAMETERS = """
+import importlib, json, sys
+import rclpy
+module, name = sys.argv[1].split(":")
+rclpy.init(args=["node", "--ros-args", *sys.argv[2:]])
+node = getattr(importlib.import_module(module), name)()
+print(json.dumps(sorted(node._parameters)))
+node.destroy_node()
+rclpy.try_shutdown()
+"""
+
+
+@pytest.mark.parametrize("node", sorted(NODES))
+def test_help_knows_every_parameter_the_node_declares(node: str, ros_env, work) -> None:
+    """What --help lists (and the check for undeclared parameters before a node starts uses) is every
+    parameter the built node has, but rclpy's own: a name declared after the first call into rcl would
+    otherwise be refused as undeclared."""
+    import json
+    from worm_model.ros.parameters import ROS_PARAMETERS, declared_parameters
+    folder = work({})
+    extra = {"driver_node": ["-p", "port:=/nonexistent/tty"], "recorder": ["-p", "output:=bag"]}.get(node, [])
+    done = subprocess.run([sys.executable, "-c", REAL_PARAMETERS, NODES[node], *extra], cwd=folder, env=ros_env,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    real = set(json.loads(done.stdout.strip().splitlines()[-1])) - ROS_PARAMETERS
+    assert real == {p.name for p in declared_parameters(_node_class(node))}
+
+
 def _bad_value(p) -> st.SearchStrategy[str]:
     if p.type in ("integer", "double") and p.range.startswith("["):
         low, high = (float(x) for x in p.range.split(";")[0].strip("[]").split(","))

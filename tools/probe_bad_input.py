@@ -516,6 +516,10 @@ def parameter_cases() -> list[Case]:
              "output:=b"), stderr_has="1bad"),
         Case("recorder an unknown storage", _node("recorder", "-p", "storage:=nosuch", "-p", "output:=b"),
              stderr_has="storage"),
+        Case("estimator_node an invalid topic name", _node("estimator_node", "-p", "joint_state_topic:=bad topic"),
+             stderr_has="bad topic"),
+        Case("controller_node an invalid topic name", _node("controller_node", "-p", "feedforward_topic:=1bad"),
+             stderr_has="1bad"),
         Case("calibrate --speed-min 0", ["calibrate", "--out", "c.json", "--speed-min", "0"], stderr_has="> 0"),
         Case("replay a CSV", ["replay", "{csv}"], stderr_has="estimate"),
     ]

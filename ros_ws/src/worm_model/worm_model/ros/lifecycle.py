@@ -24,7 +24,7 @@ import threading
 from collections.abc import Callable, Sequence
 
 import rclpy
-from rclpy.exceptions import ParameterException
+from rclpy.exceptions import NameValidationException, ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -46,6 +46,14 @@ def parameter_problem(err: ParameterException) -> str:
     text = one_line(err)
     message, _, name = text.rpartition(": ")
     return f"parameter {name}: {message}" if message else text
+
+
+def name_problem(err: NameValidationException) -> str:
+    """rclpy's three-line 'Invalid topic name: why:\n  'name'\n   ^' as one line: 'invalid topic name 'name': why'."""
+    lines = [line.strip() for line in str(err).splitlines() if line.strip() and set(line.strip()) != {"^"}]
+    kind, _, why = lines[0].partition(": ") if lines else ("invalid name", "", "")
+    name = lines[1] if len(lines) > 1 else ""
+    return f"{kind.lower()} {name}: {why.rstrip(':')}" if name else one_line(err)
 
 
 def freeze_built_objects() -> None:
@@ -165,6 +173,9 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
         code = EXIT_INTERRUPTED
     except ParameterException as err:  # a value outside the declared range or of the wrong type
         print(f"{program}: {parameter_problem(err)}", file=sys.stderr)
+        code = EXIT_BAD_INPUT
+    except NameValidationException as err:  # a topic (or other ROS name) given in a parameter
+        print(f"{program}: {name_problem(err)}", file=sys.stderr)
         code = EXIT_BAD_INPUT
     except (ValueError, OSError) as err:  # bad parameters or files: say so, exit non-zero
         print(f"{program}: {one_line(err)}", file=sys.stderr)

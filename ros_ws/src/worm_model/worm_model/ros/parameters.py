@@ -20,7 +20,9 @@ from unittest import mock
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
+from rclpy.exceptions import InvalidTopicNameException
 from rclpy.parameter import Parameter
+from rclpy.validate_full_topic_name import validate_full_topic_name
 
 from worm_model.cli.errors import InputError
 from worm_model.cli.options import article, nearest
@@ -157,9 +159,11 @@ def declared_parameters(make_node: Callable[[], Node]) -> list[DeclaredParameter
                "get_logger": lambda self: _QUIET,  # "Recording into ..." and the like would be untrue
                "destroy_node": lambda self: None,
                "handle": property(stop),  # every call into rcl goes through it
+               # plain Python in rclpy, and a node may declare more after them (controller_node does)
+               "add_on_set_parameters_callback": lambda self, *args, **kwargs: None,
+               "add_post_set_parameters_callback": lambda self, *args, **kwargs: None,
                **{name: stop for name in ("create_publisher", "create_subscription", "create_timer",
                                           "create_service", "create_client", "create_guard_condition",
-                                          "add_on_set_parameters_callback", "add_post_set_parameters_callback",
                                           "get_clock")}}
     try:
         os.chdir(work)
@@ -260,17 +264,27 @@ def wildcard_names(argv: Sequence[str]) -> set[str]:
     return names
 
 
-def given_names(argv: Sequence[str], node: str) -> dict[str, str]:
-    """The parameter names the arguments give the node named ``node`` -> where ("-p", or the file): the
-    ``-p NAME:=VALUE`` ones (all nodes of the process, or ``-p node:NAME:=VALUE``) and those of the parameter
-    files' sections for it (``node``, ``/node``, ``/ns/node``; wildcard sections are for every node)."""
-    given: dict[str, str] = {}
+#: parameters rclpy declares in every node itself (and the QoS overrides it declares for an endpoint that
+#: allows them): never "undeclared" to the check before the node is built
+ROS_PARAMETERS = frozenset({"use_sim_time", "start_type_description_service"})
+
+
+def _ros_own(name: str) -> bool:
+    return name in ROS_PARAMETERS or name.startswith("qos_overrides.")
+
+
+def given_values(argv: Sequence[str], node: str) -> dict[str, tuple[str, Any]]:
+    """The parameters the arguments give the node named ``node``: name -> (where: "-p" or the file, value):
+    the ``-p NAME:=VALUE`` ones (all nodes of the process, or ``-p node:NAME:=VALUE``) and those of the
+    parameter files' sections for it (``node``, ``/node``, ``/ns/node``; wildcard sections are for every
+    node). A name given twice keeps its last value, as rcl does (-p after the files)."""
+    given: dict[str, tuple[str, Any]] = {}
     for flag, value in ros_arguments(list(argv)):
         if flag == "-p":
-            assignment = value.partition(":=")[0]
+            assignment, _, text = value.partition(":=")
             target, _, name = assignment.rpartition(":")
             if not target or target.split("/")[-1] == node:
-                given.setdefault(name, "-p")
+                given[name] = ("-p", ros_value(text))
             continue
         try:
             sections = load_parameter_file(value)
@@ -278,14 +292,33 @@ def given_names(argv: Sequence[str], node: str) -> dict[str, str]:
             continue  # refused before (lifecycle.start_problem)
         for section, values in sections.items():
             if "*" not in section and section.split("/")[-1] == node:
-                for name in values:
-                    given.setdefault(name, f"--params-file {value}")
+                for name, setting in values.items():
+                    given[name] = (f"--params-file {value}", setting)
     return given
 
 
+def given_names(argv: Sequence[str], node: str) -> dict[str, str]:
+    """The parameter names the arguments give the node ``node`` -> where (:func:`given_values`)."""
+    return {name: where for name, (where, _value) in given_values(argv, node).items()}
+
+
+def _topic_problem(value: Any) -> str | None:
+    """Why ``value`` (a topic name, or a list of them) is no valid ROS topic name, or None."""
+    for topic in value if isinstance(value, list) else [value]:
+        if not isinstance(topic, str) or not topic:
+            continue  # a type problem (rclpy names it) or empty (the node's default)
+        try:
+            validate_full_topic_name(topic if topic.startswith(("/", "~")) else "/" + topic)
+        except InvalidTopicNameException as err:
+            why = [line for line in str(err).splitlines() if line.strip()][0].partition(": ")[2].rstrip(":")
+            return f"{topic!r} is not a valid topic name ({why})"
+    return None
+
+
 def undeclared_problem(makers: Sequence[Callable[[], Node]], argv: Sequence[str]) -> str | None:
-    """A parameter the arguments give a node that it does not declare, found before anything starts (the
-    nodes' declarations as --help reads them), or None: ``parameter <name> (<where>): ...``."""
+    """A parameter the arguments give a node that it does not declare (the nodes' declarations as --help
+    reads them), or a topic parameter (``*topic``, ``*topics``) that is no valid ROS name, found before
+    anything starts, or None: ``parameter <name> (<where>): ...``."""
     declared: dict[str, set[str]] = {}
     for make_node in makers:
         try:
@@ -297,10 +330,12 @@ def undeclared_problem(makers: Sequence[Callable[[], Node]], argv: Sequence[str]
     everywhere = set().union(*declared.values()) if declared else set()
     exempt = wildcard_names(argv)
     for node, names in declared.items():
-        for name, where in given_names(argv, node).items():
-            if name not in everywhere and name not in exempt:
+        for name, (where, value) in given_values(argv, node).items():
+            if name not in everywhere and name not in exempt and not _ros_own(name):
                 return (f"parameter {name} ({where}): {node} declares no such parameter{nearest(name, names)}; "
                         f"see {node} --help")
+            if name.endswith(("topic", "topics")) and (problem := _topic_problem(value)):
+                return f"parameter {name} ({where}): {problem}"
     return None
 
 
