@@ -285,6 +285,12 @@ def output_cases() -> list[Case]:
                              ("estimate", ["estimate", "{csv}", "--method", "observer"]),
                              ("identify", ["identify", "--from", "{csv}"]),
                              ("bag export", ["bag", "export", "{bag}"]), ("bag import", ["bag", "import", "{csv}"]))],
+        Case("virtual_rig --link unwritable", ["virtual_rig", "--link", "/proc/worm_probe_link", "--duration", "1"],
+             stderr_has="--link"),
+        Case("calibrate --journal unwritable", ["calibrate", "--out", "c.json", "--journal", "/proc/j.partial", *GRID],
+             stderr_has="--journal"),
+        Case("estimate --out a name too long", ["estimate", "{csv}", "--method", "observer", "--out", "x" * 300],
+             stderr_has="too long"),
         # --force over the tool's own earlier output: must work (make demo and make evaluate do it on reruns)
         Case("report --force over its own output", ["report", "{cal}", "--out", "figs", "--force"], expect=0,
              user_files={"figs": "report_out"}, may_leave=("figs", "figs/*")),
@@ -343,6 +349,8 @@ def input_cases() -> list[Case]:
         Case("worm_calc --rig a character device", ["worm_calc", "--rig", "/dev/null", "--mu", "0.05"],
              stderr_has="device"),
         Case("worm_calc --rig a folder", ["worm_calc", "--rig", "{bag}", "--mu", "0.05"], stderr_has="folder"),
+        Case("worm_calc --rig a symlink loop", ["worm_calc", "--rig", "loop.yaml", "--mu", "0.05"],
+             user_files={"loop.yaml": "symlink_loop"}, stderr_has="symbolic links"),
         Case("estimate --calibration a folder", ["estimate", "{csv}", "--method", "knn", "--calibration", "{bag}",
              "--out", "e.csv"], stderr_has="folder"),
         # a UTF-8 byte-order mark (what some editors and Excel write) is read like any text
@@ -725,6 +733,7 @@ def _policy_fixtures(folder: Path, f: dict[str, Path], data, cal_doc: dict, put)
     put("graph_mixed.yaml", "estimator_node:\n  ros__parameters:\n    k: 4\n    exclude: [1, two]\n")
     put("graph_value_beside.yaml", "estimator_node:\n  k: 4\n  ros__parameters:\n    method: knn\n")
     put("graph_bomb.yaml", graph + "bomb:\n" + _bomb())
+    f["symlink_loop"] = folder / "text.txt"  # made per case as a link to itself (run_case)
     put("graph_unknown_node.yaml", graph + "no_such_node:\n  ros__parameters: {a: 1}\n")
 
     # earlier outputs of the tools themselves, which --force may replace
@@ -800,7 +809,9 @@ def run_case(case: Case, fixtures: dict[str, Path], work: Path, timeout: float) 
     for rel, fixture in case.user_files.items():
         target = folder / rel
         target.parent.mkdir(parents=True, exist_ok=True)
-        if fixtures[fixture].is_dir():
+        if fixture == "symlink_loop":
+            os.symlink(target.name, target)
+        elif fixtures[fixture].is_dir():
             shutil.copytree(fixtures[fixture], target)
         else:
             shutil.copy(fixtures[fixture], target)

@@ -129,6 +129,8 @@ def _main(argv: list[str] | None) -> int:
     check_output(args.out, args.force, inputs=[args.rig, journal_path], output=OUTPUT)
     if journal_path.is_dir():
         raise InputError(f"--journal {journal_path}", "is a folder, expected a file name")
+    if not journal_path.exists():  # a new journal is an output like --out: writable, never over an input
+        check_output(journal_path, option="--journal", inputs=[args.rig, args.out])
     if args.resume and journal_path.exists():  # a journal that cannot be finished is refused before measuring
         journal = CalibrationJournal.load(journal_path, len(grid.speeds) * len(grid.torques), args.drop_bad_points)
         for dropped in journal.dropped:

@@ -157,6 +157,14 @@ def check_output(path: PathLike, force: bool = False, *, folder: bool = False, o
         raise OutputError(option, "empty path (an unset shell variable?): name the file or folder to write")
     given = Path(path)
     where = f"{option} {given}"
+    try:
+        return _checked_output(given, where, force, folder, inputs, output)
+    except OSError as err:  # a name too long, a folder on the way that is a file, a symlink loop
+        raise OutputError(where, f"cannot write there: {err.strerror or type(err).__name__}") from None
+
+
+def _checked_output(given: Path, where: str, force: bool, folder: bool, inputs: Iterable[PathLike],
+                    output: Output | None) -> Path:
     target = _resolved(given)
     problem = _never_replaced(target) if (folder or target.is_dir()) else None
     if problem:
@@ -179,13 +187,13 @@ def check_output(path: PathLike, force: bool = False, *, folder: bool = False, o
     parent = target.parent
     if not parent.is_dir():
         raise OutputError(where, f"folder {given.absolute().parent} does not exist")
-    problem = _unwritable(parent)
+    problem = unwritable(parent)
     if problem:
         raise OutputError(where, f"folder {given.absolute().parent}: cannot write there ({problem})")
     return given
 
 
-def _unwritable(folder: Path) -> str | None:
+def unwritable(folder: Path) -> str | None:
     """Why no file can be made in ``folder`` (tried: permissions do not tell for root or a read-only mount)."""
     try:
         fd, name = tempfile.mkstemp(prefix=".write-test.", dir=folder)

@@ -46,6 +46,7 @@ from pathlib import Path
 
 from worm_model.cli.errors import InputError, run_tool
 from worm_model.cli.options import Parser, existing_file, integer, number, output_path
+from worm_model.files.writing import unwritable
 from worm_model.physics.parameters import load_rig
 
 import worm_rig_driver.protocol.table as table
@@ -400,8 +401,8 @@ def _main(argv: list[str] | None) -> int:
         raise InputError(f"--link {link}", "exists and is not a symlink: refusing to replace it")
     if not link.absolute().parent.is_dir():
         raise InputError(f"--link {link}", f"folder {link.absolute().parent} does not exist")
-    if not os.access(link.absolute().parent, os.W_OK):
-        raise InputError(f"--link {link}", f"folder {link.absolute().parent} is not writable")
+    if problem := unwritable(link.absolute().parent):  # tried: permissions do not tell for root
+        raise InputError(f"--link {link}", f"folder {link.absolute().parent}: cannot write there ({problem})")
     rig = load_rig(args.rig)
     sim = SimulatedRig(rig, n=1, seed=args.seed, substeps=args.substeps, effects=args.effects)
     firmware = VirtualFirmware(sim)
