@@ -49,7 +49,6 @@ from numpy.typing import ArrayLike, NDArray
 from worm_model.cli.errors import InputError
 from worm_model.files.reading import load_json
 from worm_model.files.writing import write_text_atomically
-from worm_model.physics.envelope import Envelope
 from worm_model.physics.parameters import Rig
 from worm_model.rig_data.plausibility import calibration_problem
 
@@ -328,20 +327,6 @@ def load_database(path: str | os.PathLike[str], rig: Rig | None = None) -> Calib
     return db
 
 
-def check_plausible(db: CalibrationDatabase, rig: Rig) -> None:
-    """Every point inside what ``rig`` can do (worm_model.physics.envelope.Envelope).
-
-    Raises:
-        CalibrationError: a point far outside the rig's envelope (the field and the point are named).
-    """
-    envelope = Envelope.of(rig)
-    for name in ("omega_worm", "current_drive", "tau_load"):
-        values = getattr(db, name)
-        k = envelope.first_outside(name, values)
-        if k is not None:
-            raise CalibrationError(f"field 'points.{name}' at point {k}: {envelope.problem(name, float(values[k]))}")
-
-
 __all__ = [
     "FORMAT",
     "VERSION",
@@ -353,5 +338,4 @@ __all__ = [
     "save_database",
     "load_database",
     "write_text_atomically",
-    "check_plausible",
 ]

@@ -26,8 +26,7 @@ from worm_model.physics.parameters import ParameterError, default_rig_path, load
 from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser, existing_file, integer, number, output_path
 from worm_model.files.writing import Output, atomic_dir, check_output
-from worm_model.physics.envelope import Envelope
-from worm_model.rig_data.schema import RigDataError, check_envelope
+from worm_model.rig_data.schema import RigDataError
 
 from worm_model.residuals.analysis import Settings, Problem, analyse, extended_effects, make_split
 from worm_model.residuals.data import load_data
@@ -130,8 +129,7 @@ def _main(argv: list[str] | None) -> int:
         free = check_free(_names(args.free, FREE_PARAMETERS, "free parameter", parser)) if args.free is not None \
             else read_free(args.params)
         progress.stage("reading data", 1)
-        data = load_data(args.data, rig)
-        check_envelope(data, Envelope.of(rig))
+        data = load_data(args.data, rig)  # its units checked against the rig (rig_data.plausibility)
         progress.update_to(1)
         check_output(args.out, args.force, folder=True, inputs=[args.data, args.params], output=OUTPUT)
     finally:

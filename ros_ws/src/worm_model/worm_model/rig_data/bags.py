@@ -28,7 +28,6 @@ from worm_model.rig_data.schema import (
     REQUIRED_COLUMNS,
     MeasuredData,
     RigDataError,
-    check_envelope,
     is_rig_csv,
     read_rig_csv,
     write_rig_csv,
@@ -38,7 +37,6 @@ from worm_model.bags.reader import BagReader
 from worm_model.bags.typestore import BagRecordingError
 from worm_model.files.writing import Output, atomic_dir, atomic_file
 from worm_model.rig_data.plausibility import check_rig_data
-from worm_model.physics.envelope import Envelope
 from worm_model.bags.writer import BagWriter
 from worm_model.bags.typestore import MessageTypes
 
@@ -266,13 +264,11 @@ def bag_to_csv(bag: Path | str, csv_path: Path | str, topic: str | None = None,
 
 
 def csv_to_bag(csv_path: Path | str, bag: Path | str, storage: str = 'mcap',
-               topic: str = DEFAULT_TOPIC, start_ns: int = 0, envelope: Envelope | None = None,
-               rig: Any = None, force: bool = False) -> int:
+               topic: str = DEFAULT_TOPIC, start_ns: int = 0, rig: Any = None, force: bool = False) -> int:
     """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample; returns the message count.
 
     The CSV is read and checked whole first (every stamp a bag can hold; with ``rig``, its units against
-    the rig as every reader of rig data checks them, worm_model.rig_data.plausibility; with only
-    ``envelope``, every value inside what the rig can do), and the bag is written in a temporary folder beside
+    the rig as every reader of rig data checks them, worm_model.rig_data.plausibility), and the bag is written in a temporary folder beside
     ``bag`` and renamed at the end, so a bad file or a failed write leaves no bag (worm_model.files.writing:
     ``force`` replaces only a bag ``bag import`` wrote).
 
@@ -285,8 +281,6 @@ def csv_to_bag(csv_path: Path | str, bag: Path | str, storage: str = 'mcap',
     data = read_rig_csv(csv_path)
     if rig is not None:
         check_rig_data(data, rig)
-    elif envelope is not None:
-        check_envelope(data, envelope)
     check_stamps(data, start_ns)
     target = Path(bag)
     with atomic_dir(target, force, inputs=[csv_path], output=IMPORT_OUTPUT) as work:

@@ -52,7 +52,6 @@ import numpy as np
 
 from worm_model.cli.errors import InputError
 from worm_model.files.reading import check_input
-from worm_model.physics.envelope import Envelope
 from worm_model.physics.units import FloatArray
 
 REQUIRED_COLUMNS: Final[dict[str, str]] = {
@@ -150,23 +149,6 @@ class MeasuredData:
             if kwargs[name] is not None:
                 kwargs[name] = np.asarray(kwargs[name])[index]
         return MeasuredData(**kwargs)
-
-
-def check_envelope(data: MeasuredData, envelope: Envelope) -> None:
-    """Every sample inside what the rig can do (worm_model.physics.envelope.Envelope, from the rig file).
-
-    Raises:
-        RigDataError: the first sample far outside it, naming the file, the line (CSV) or the
-            sample index, and the column.
-    """
-    for name in data.names:
-        k = envelope.first_outside(name, getattr(data, name))
-        if k is None:
-            continue
-        problem = envelope.problem(name, float(getattr(data, name)[k]))
-        if data.lines is not None:
-            raise RigDataError(data.source, problem, int(data.lines[k]), name)
-        raise RigDataError(data.source, f"sample {k}: {problem}", column=name)
 
 
 def split_runs(t: FloatArray) -> np.ndarray:
