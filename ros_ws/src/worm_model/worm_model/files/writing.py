@@ -14,8 +14,10 @@ The policy (:func:`check_output`, applied before any work, and again by :func:`a
   ``recognise``: a calibration database for ``calibrate``, a CSV with an estimate column for
   ``estimate``). Anything else is the user's: choose another name, or remove it yourself.
 * The output is written under a temporary name beside the target and renamed over it at the end, so a
-  failure or Ctrl-C leaves the old output or none, never half of one; a failure to write names the
-  user's path, never the temporary one (:class:`OutputError`, exit code 2).
+  failure or Ctrl-C leaves the old output or none, never half of one. A place that cannot be written is
+  refused before any work (the folder is tried: permissions do not tell for root or a read-only mount);
+  a failure to write names the user's path, never the temporary one (:class:`OutputError`, exit code 2;
+  a write that fails later, a full disk, is an OSError naming the user's file, exit code 1).
 """
 from __future__ import annotations
 
