@@ -266,7 +266,8 @@ def load_json(path: str | os.PathLike[str], what: str = "JSON file") -> Any:
 PARAMETERS_KEY: Final = "ros__parameters"
 
 
-def _parameter_kind(value: Any) -> str | None:
+def parameter_kind(value: Any) -> str | None:
+    """The ROS parameter type of a scalar (bool, integer, double, string), None for anything else."""
     if isinstance(value, bool):
         return "bool"
     if isinstance(value, int):
@@ -289,11 +290,11 @@ def _flatten(values: Any, prefix: str, source: str, node: str, out: dict[str, An
             _flatten(value, name, source, node, out)
             continue
         if isinstance(value, list):
-            kinds = {_parameter_kind(v) for v in value}
+            kinds = {parameter_kind(v) for v in value}
             if None in kinds or len(kinds) > 1:
                 raise InputError(source, f"{node}: parameter {name}: a list must hold values of one type "
                                          f"(bool, integer, double or string), got {value!r}")
-        elif value is not None and _parameter_kind(value) is None:
+        elif value is not None and parameter_kind(value) is None:
             raise InputError(source, f"{node}: parameter {name}: {value!r} is not a parameter value")
         out[name] = value
 

@@ -234,18 +234,27 @@ def write_text_atomically(path: PathLike, text: str) -> None:
             os.fsync(stream.fileno())
 
 
-@contextmanager
-def _temporary_file(target: Path) -> Iterator[Path]:
+def _new_file_beside(target: Path) -> Path:
+    """A new empty file ``.<name>.XXXX.tmp`` beside ``target``, with the mode open() would give it.
+
+    Raises:
+        OSError: the folder cannot be written (naming ``target``, not the temporary name).
+    """
     try:
         fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.absolute().parent)
     except OSError as err:
         raise OSError(err.errno, err.strerror, str(target)) from None
-    tmp = Path(name)
+    umask = os.umask(0o022)  # mkstemp makes the file 0600
+    os.umask(umask)
+    os.chmod(fd, 0o666 & ~umask)
+    os.close(fd)
+    return Path(name)
+
+
+@contextmanager
+def _temporary_file(target: Path) -> Iterator[Path]:
+    tmp = _new_file_beside(target)
     try:
-        umask = os.umask(0o022)  # mkstemp makes the file 0600; give it the mode open() would
-        os.umask(umask)
-        os.chmod(fd, 0o666 & ~umask)
-        os.close(fd)
         yield tmp
         os.replace(tmp, target)
     except OSError as err:
@@ -270,15 +279,10 @@ def atomic_file(path: PathLike, force: bool = False, *, option: str = "--out", i
     target = check_output(path, force, option=option, inputs=inputs, output=output)
     where = f"{option} {target}"
     try:
-        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.absolute().parent)
+        tmp = _new_file_beside(target)
     except OSError as err:
         raise _cannot_write(where, err, target.absolute().parent) from None
-    tmp = Path(name)
     try:
-        umask = os.umask(0o022)  # mkstemp makes the file 0600; give it the mode open() would
-        os.umask(umask)
-        os.chmod(fd, 0o666 & ~umask)
-        os.close(fd)
         try:
             yield tmp
         except OSError as err:

@@ -26,7 +26,7 @@ from rclpy.validate_full_topic_name import validate_full_topic_name
 
 from worm_model.cli.errors import InputError
 from worm_model.cli.options import article, nearest
-from worm_model.files.reading import load_parameter_file, parse_yaml, ros_arguments
+from worm_model.files.reading import load_parameter_file, parameter_kind, parse_yaml, ros_arguments
 
 
 def declare(node: Node, name: str, default: Any, description: str, *,
@@ -95,15 +95,9 @@ def _type_name(value: Any) -> str:
     if isinstance(value, Parameter.Type):
         return {Parameter.Type.STRING_ARRAY: "string[]", Parameter.Type.DOUBLE_ARRAY: "double[]",
                 Parameter.Type.INTEGER_ARRAY: "integer[]", Parameter.Type.BOOL_ARRAY: "bool[]"}.get(value, "string")
-    if isinstance(value, bool):
-        return "bool"
-    if isinstance(value, int):
-        return "integer"
-    if isinstance(value, float):
-        return "double"
     if isinstance(value, (list, tuple)):
         return f"{_type_name(value[0]) if value else 'string'}[]"
-    return "string"
+    return parameter_kind(value) or "string"
 
 
 def _range(descriptor: ParameterDescriptor | None) -> str:
