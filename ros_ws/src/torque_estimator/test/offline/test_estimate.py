@@ -75,7 +75,7 @@ def test_bad_input_is_one_line_and_exit_2(args, where, log) -> None:
                           text=True, timeout=60)
     assert done.returncode == 2, done.stderr
     lines = done.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith(f"estimate: {where}: "), lines
+    assert len(lines) == 1 and lines[0].startswith(f"estimate: {where}"), lines
 
 
 def test_a_missing_log_is_named(tmp_path) -> None:

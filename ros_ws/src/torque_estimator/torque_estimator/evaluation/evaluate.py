@@ -44,8 +44,8 @@ from pathlib import Path
 from typing import Any
 
 from worm_model.cli.errors import run_tool
-from worm_model.cli.options import Parser, existing_file, integer
-from worm_model.files.writing import atomic_dir, check_output
+from worm_model.cli.options import Parser, existing_file, integer, output_path
+from worm_model.files.writing import Output, atomic_dir, check_output
 from worm_model.physics.parameters import ParameterError, load_rig
 from torque_estimator.evaluation.residual_cases import evaluate_lines, full_matrix, small_matrix
 
@@ -59,6 +59,8 @@ from torque_estimator.evaluation.transient import STEP_SPEED, transient_figures
 from torque_estimator.evaluation.identified import evaluate_lines as identified_lines
 from torque_estimator.evaluation import real_drive
 
+#: what evaluate writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
+OUTPUT = Output("evaluate", names=("*.png",))
 #: seeds of the step experiment (the ramp and the reversal take a third)
 TRANSIENT_SEEDS = 12
 from torque_estimator.evaluation.plots import held_out_deviation, sweeps
@@ -102,7 +104,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="calibration database to evaluate (default: calibrate the paper's grid now)")
     p.add_argument("--rig", type=existing_file, default=None,
                    help="rig parameter YAML of the simulated rig (default: the bundled NMRV030 rig)")
-    p.add_argument("--out", type=Path, default=Path("out/evaluate"),
+    p.add_argument("--out", type=output_path, default=Path("out/evaluate"),
                    help="folder for the PNGs, created (default out/evaluate; an existing one only with --force)")
     p.add_argument("--force", action="store_true", help="replace an existing --out folder")
     p.add_argument("--method", default="knn", choices=sorted(ESTIMATORS), help="estimator (default knn)")
@@ -147,13 +149,11 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     start = time.monotonic()
-    check_output(args.out, args.force, folder=True)
+    inputs = [args.calibration, args.rig]
+    check_output(args.out, args.force, folder=True, inputs=inputs, output=OUTPUT)
     rig = load_rig(args.rig)
     if args.calibration is not None:
-        db = load_database(args.calibration, rig)
-        if db.torque_range <= 0:
-            raise CalibrationError(f"calibration file {args.calibration}: its {len(db)} point(s) span no torque "
-                                   "range: errors are in % of that range; calibrate at two loads at least")
+        db = load_database(args.calibration, rig)  # refuses no torque range, one point repeated, rpm
         grid = CalibrationGrid(speeds=db.speed_setpoints, torques=db.torque_setpoints)
         source = str(args.calibration)
     else:
@@ -168,7 +168,7 @@ def _main(argv: list[str] | None) -> int:
         estimator = make_estimator(args.method, db, **options)
     except ValueError as err:
         raise CalibrationError(f"--method {args.method}: {err}") from None
-    with atomic_dir(args.out, args.force) as folder:
+    with atomic_dir(args.out, args.force, inputs=inputs, output=OUTPUT) as folder:
         pngs, ev = _evaluate(args, rig, grid, db, estimator, options, source, folder)
     print(f"\nevaluate: wrote {', '.join(str(args.out / p.name) for p in pngs)} in {time.monotonic() - start:.1f} s")
     print(f"{args.method}: mae_pct={ev.mae_pct:.2f} max_pct={ev.max_pct:.2f} points={len(ev.tau_true)}")

@@ -38,13 +38,16 @@ import sys
 import time
 from pathlib import Path
 
-from worm_model.cli.errors import InputError
+from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.options import Parser, output_path
 from worm_model.cli.progress import Progress, ProgressBar
+from worm_model.files.reading import load_yaml
+from worm_model.files.writing import Output, atomic_file, check_output
 from worm_model.physics.parameters import ParameterError, load_rig
 from worm_model.residuals.free import FREE_PARAMETERS
 from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import RigDataError, write_rig_csv
+from worm_model.rig_data.schema import RigDataError, is_rig_csv, write_rig_csv
 
 from torque_estimator.calibration.live import LiveRigError
 from torque_estimator.identification.excitation import DEFAULT_DURATION, MAX_DURATION, default_excitation, total_duration
@@ -55,12 +58,26 @@ PROG = "identify"
 EXIT_INTERRUPTED = 130
 
 
+def _is_identified(path: Path) -> bool:
+    """``path`` is an extended rig file identify wrote (a rig file with an identification: section)."""
+    document = load_yaml(path, "rig parameter file")
+    return isinstance(document, dict) and "identification" in document
+
+
+#: what identify writes; --force replaces only its own earlier output (worm_model.files.writing)
+OUTPUT = Output(PROG, recognise=_is_identified)
+RECORD = Output(PROG, recognise=is_rig_csv)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
+    p = Parser(prog=PROG, description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[1:]),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", type=Path, required=True,
-                   help="extended rig file to write (YAML; estimator_node's model_file)")
+    p.add_argument("--out", type=output_path, required=True,
+                   help="extended rig file to write (YAML; estimator_node's model_file); an existing one is "
+                        "replaced only with --force, and only if identify wrote it")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing --out (and --record) that identify wrote before")
     p.add_argument("--params", type=Path, default=None,
                    help="the rig file to start from (worm_rig_parameters); the standard set (mu, K_t, drags, rotor "
                         "inertia) is fitted whatever its source:/assumption: marks, plus its optional free: list "
@@ -75,7 +92,7 @@ def build_parser() -> argparse.ArgumentParser:
     live.add_argument("--duration", type=float, default=DEFAULT_DURATION,
                       help=f"rig time of the excitation [s], at most {MAX_DURATION:g}; shorter runs fit less well "
                            f"(default {DEFAULT_DURATION:g})")
-    live.add_argument("--record", type=Path, default=None,
+    live.add_argument("--record", type=output_path, default=None,
                       help="where to keep the recorded run as CSV (default: <out without suffix>_record.csv)")
     live.add_argument("--resume", action="store_true",
                       help="continue the interrupted run in the journal (same --out and --duration required)")
@@ -96,6 +113,10 @@ def _interrupt(signum, _frame) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    return run_tool(PROG, lambda: _main(argv))  # Ctrl-C while reading: exit 130, nothing written
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     if not args.out.parent.is_dir():
         return _fail("--out", f"folder {args.out.parent} does not exist")
@@ -112,6 +133,14 @@ def main(argv: list[str] | None = None) -> int:
         if bad or not free:
             return _fail("--free", f"{bad[0] if bad else args.free!r} cannot be fitted "
                                    f"(allowed: {', '.join(FREE_PARAMETERS)})")
+    record = None if args.source is not None else args.record or args.out.with_name(args.out.stem + "_record.csv")
+    inputs = [args.params, args.source]
+    try:  # before any work: never over an input, --force only over identify's own output
+        check_output(args.out, args.force, inputs=inputs, output=OUTPUT)
+        if record is not None:
+            check_output(record, args.force, option="--record", inputs=[*inputs, args.out], output=RECORD)
+    except InputError as err:
+        return _fail(err.where, err.what)
     try:
         rig = load_rig(args.params)
     except ParameterError as err:
@@ -120,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     start = time.monotonic()
     if args.source is not None:
         try:
-            data = read_rig_data(args.source, epos=epos_settings(args, rig))
+            data = read_rig_data(args.source, rig=rig, epos=epos_settings(args, rig))
         except InputError as err:
             return _fail(err.where, err.what)
         except RigDataError as err:
@@ -130,7 +159,6 @@ def main(argv: list[str] | None = None) -> int:
         source = str(args.source)
         journal = None
     else:
-        record = args.record or args.out.with_name(args.out.stem + "_record.csv")
         try:
             journal, data = _record_live(args, rig)
         except KeyboardInterrupt:
@@ -145,7 +173,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{PROG}: live rig: {err}\n{PROG}: the finished segments are in {state}; fix the graph and run "
                   "the same command with --resume", file=sys.stderr)
             return 1
-        write_rig_csv(record, data)
+        with atomic_file(record, args.force, option="--record", inputs=[*inputs, args.out], output=RECORD) as tmp:
+            write_rig_csv(tmp, data)
         source = f"{record.name} (live rig, {total_duration(default_excitation(rig, args.duration)):.1f} s excitation)"
     progress = Progress(enabled=not args.quiet)
 
@@ -156,7 +185,8 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         ident = identify(data, args.params, free, progress=on_progress)
-        write_identified(args.out, args.params, ident, source)
+        with atomic_file(args.out, args.force, inputs=inputs, output=OUTPUT) as tmp:
+            write_identified(tmp, args.params, ident, source)
     except KeyboardInterrupt:
         progress.close()
         print(f"\n{PROG}: interrupted while fitting" + ("; the record is in the journal: run the same command with "
@@ -169,6 +199,9 @@ def main(argv: list[str] | None = None) -> int:
     except IdentificationError as err:
         progress.close()
         return _fail("--from" if args.source else "record", str(err))
+    except InputError as err:  # --out cannot be written
+        progress.close()
+        return _fail(err.where, err.what)
     progress.close()
     if journal is not None:
         journal.remove()

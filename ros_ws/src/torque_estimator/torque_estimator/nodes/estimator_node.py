@@ -39,9 +39,11 @@ observers follow) and geometry_msgs/WrenchStamped on ``wrench_topic`` (torque
 about +z of ``wrench_frame``, the output shaft's axis pointing so that positive
 rotation is about +z: torque.z = -tau_d; force and the other torques 0).
 
-A missing or broken calibration, rig or model file is reported (log +
-/diagnostics ERROR) and the node keeps running without publishing estimates, so
-the rest of the graph (the controller falls back to no feedforward) carries on.
+A calibration, model or rig file that is named but cannot be used (missing,
+damaged, implausible for the rig) stops the node at start: one line, exit code 2.
+With none named and a method that needs a calibration (knn), the node reports it
+(log + /diagnostics ERROR) and keeps running without publishing estimates, so the
+rest of the graph (the controller falls back to no feedforward) carries on.
 """
 from __future__ import annotations
 
@@ -92,6 +94,8 @@ class EstimatorNode(Node):
                 f"{self.settings.calibration_file}" if built.database is not None else
                 f"{self.method} estimator without a calibration (ranges from the rig file)")
         except (CalibrationError, ParameterError) as err:
+            if self.calibration_file or model_file or rig_file:  # a file the user named cannot be used: stop (exit 2)
+                raise
             self.problem = str(err)
             self.get_logger().error(f"no estimates: {err}")
 

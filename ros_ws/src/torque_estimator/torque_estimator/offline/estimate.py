@@ -42,11 +42,13 @@ from pathlib import Path
 
 import numpy as np
 
-from worm_model.cli.errors import InputError
+from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.options import Parser, input_problem, output_path
+from worm_model.files.writing import Output, atomic_file, check_output
 from worm_model.physics.parameters import ParameterError
 from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import MeasuredData, RigDataError
+from worm_model.rig_data.schema import MeasuredData, RigDataError, csv_header
 
 from torque_estimator.calibration.operating_points import SteadyStateCriterion
 from torque_estimator.estimation.database import CalibrationError
@@ -57,6 +59,8 @@ from torque_estimator.offline.replay import ReplayError, node_parameters
 from worm_model.cli.progress import ProgressBar
 
 PROG = "estimate"
+#: what estimate writes; --force replaces only a CSV with its estimate column (worm_model.files.writing)
+OUTPUT = Output(PROG, recognise=lambda path: "tau_estimate" in csv_header(path))
 #: windows slower than this [rad/s] are not steady points, and standstill samples are left out of the RMS
 MIN_SPEED = 5.0
 
@@ -166,7 +170,7 @@ def write_estimate_csv(path: Path, data: MeasuredData, estimate: LogEstimate) ->
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
+    p = Parser(prog=PROG, description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[1:]),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("log", type=Path, help="the logged run: a worm_rig_data CSV, a rosbag2 bag (directory, .mcap, .db3), "
@@ -181,14 +185,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--params-file", type=Path, default=None,
                    help="a graph parameter file whose estimator_node section sets the filters (default: the node's "
                         "defaults)")
-    p.add_argument("--out", type=Path, default=None,
-                   help="CSV to write (default: <log without suffix>_<method>.csv beside the log)")
+    p.add_argument("--out", type=output_path, default=None,
+                   help="CSV to write (default: <log without suffix>_<method>.csv beside the log); an existing "
+                        "one is replaced only with --force, and only if estimate wrote it")
+    p.add_argument("--force", action="store_true", help="replace an existing --out that estimate wrote before")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_epos_arguments(p)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
+    return run_tool(PROG, lambda: _main(argv))  # Ctrl-C: exit 130, the output untouched
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
 
     def fail(where: str, what: str) -> int:
@@ -197,11 +207,14 @@ def main(argv: list[str] | None = None) -> int:
 
     for option, path in (("--calibration", args.calibration), ("--model-file", args.model_file), ("--rig", args.rig),
                          ("--params-file", args.params_file)):
-        if path is not None and not path.is_file():
-            return fail(option, f"{path}: no such file")
+        if path is not None and (problem := input_problem(path, "file")):
+            return fail(option, f"{path}: {problem}")
     out = args.out or args.log.with_name(f"{args.log.stem}_{args.method}.csv")
-    if not out.parent.is_dir():
-        return fail("--out", f"folder {out.parent} does not exist")
+    inputs = [args.log, args.calibration, args.model_file, args.rig, args.params_file]
+    try:  # before any work: never over an input, --force only over estimate's own output
+        check_output(out, args.force, inputs=inputs, output=OUTPUT)
+    except InputError as err:
+        return fail(err.where, err.what)
     try:
         params = node_parameters(args.params_file)["estimator_node"]
     except ReplayError as err:
@@ -217,8 +230,8 @@ def main(argv: list[str] | None = None) -> int:
         return fail("--model-file" if settings.model_file else "--rig", str(err))
     except ValueError as err:
         return fail("--params-file" if args.params_file else "--method", str(err))
-    try:
-        data = read_rig_data(args.log, epos=epos_settings(args, built.rig))
+    try:  # its units checked against the rig
+        data = read_rig_data(args.log, rig=built.rig, epos=epos_settings(args, built.rig))
     except InputError as err:
         return fail(err.where, err.what)
     except RigDataError as err:
@@ -232,9 +245,10 @@ def main(argv: list[str] | None = None) -> int:
     with ProgressBar(len(data), "samples", enabled=not args.quiet) as bar:
         estimate = run_estimator(data, lambda: built.live(data.sample_period), bar.update_to)
     try:
-        write_estimate_csv(out, data, estimate)
-    except OSError as err:
-        return fail("--out", f"{out}: cannot write: {err.strerror or err}")
+        with atomic_file(out, args.force, inputs=inputs, output=OUTPUT) as tmp:
+            write_estimate_csv(tmp, data, estimate)
+    except InputError as err:
+        return fail(err.where, err.what)
     ranges = getattr(estimator, "ranges_from", None)
     print(f"{PROG}: {args.log}: {len(data)} samples, {data.t[-1] - data.t[0]:.1f} s, {len(np.unique(data.run))} run(s); "
           f"{args.method} from {args.calibration or model_file or rig_file or 'the bundled rig'}"

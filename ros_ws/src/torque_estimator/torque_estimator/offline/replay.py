@@ -61,14 +61,16 @@ import yaml
 from worm_model.live.live_model import FIELDS as FORCE_FIELDS
 from worm_model.live.live_model import LiveModel
 from worm_model.cli.errors import InputError, run_tool
-from worm_model.cli.options import Parser, existing_file, number
-from worm_model.files.reading import load_yaml
+from worm_model.cli.options import Parser, existing_file, existing_bag, nearest, number
+from worm_model.files.reading import load_parameter_file
 from worm_model.physics.envelope import Envelope
 from worm_model.physics.parameters import ParameterError, load_rig
 from worm_model.rig_data.schema import RigDataError
 from worm_model.bags.reader import BagReader
 from worm_model.bags.typestore import BagRecordingError
 from worm_model.rig_data.bags import find_sample_topic
+from worm_model.rig_data.plausibility import sample_rate_problem
+from worm_model.rig_data.reader import is_bag
 from worm_model.rig_data.samples import samples_of
 
 from torque_estimator.estimation.database import CalibrationError
@@ -108,16 +110,15 @@ def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> 
     params = {node: dict(values) for node, values in NODE_DEFAULTS.items()}
     if params_file is not None:
         try:
-            document = load_yaml(params_file, "graph parameter file") or {}
+            document = load_parameter_file(params_file)  # read as rcl reads it in the nodes
         except InputError as err:
             raise ReplayError(f"parameter file {err}") from None
-        if not isinstance(document, dict):
-            raise ReplayError(f"parameter file {params_file}: expected node names at the top level")
         for node in params:
-            section = document.get(node, {}) or {}
-            values = section.get("ros__parameters", {}) if isinstance(section, dict) else None
-            if not isinstance(values, dict):
-                raise ReplayError(f"parameter file {params_file}: {node}.ros__parameters is not a mapping")
+            values = document.get(node, {})
+            for name in values:  # a misspelt name would leave the node's default in force without a word
+                if name not in NODE_DEFAULTS[node]:
+                    raise ReplayError(f"parameter file {params_file}: {node}: {node} declares no parameter "
+                                      f"{name!r}{nearest(name, NODE_DEFAULTS[node])}")
             params[node].update(values)
     try:
         parsed = parse_overrides(list(overrides))
@@ -130,8 +131,8 @@ def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> 
             name, _, text = assignment.partition(":=")
             default = NODE_DEFAULTS[node].get(name)
             if name not in NODE_DEFAULTS[node]:
-                raise ReplayError(f"--set {node}.{name}={text}: {node} has no parameter {name!r} "
-                                  f"(it has: {', '.join(NODE_DEFAULTS[node])})")
+                raise ReplayError(f"--set {node}.{name}={text}: {node} has no parameter {name!r}"
+                                  f"{nearest(name, NODE_DEFAULTS[node])} (it has: {', '.join(NODE_DEFAULTS[node])})")
             try:
                 value = yaml.safe_load(text) if text else ""
             except yaml.YAMLError:
@@ -230,6 +231,7 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
     envelope = Envelope.of(est_rig)
     first = last = None
     n = 0
+    early: list[float] | None = []
     try:
         with BagReader(bag, allow_truncated=allow_truncated) as reader:
             topic = find_sample_topic(reader, sample_topic)
@@ -253,6 +255,12 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
                     if last_seq < start_seq:
                         continue
                     stamps = [s.header.stamp.sec + 1e-9 * s.header.stamp.nanosec for s in batch]
+                    if early is not None:  # the stamps' step against the rig's sample rate, as every reader checks
+                        early += stamps
+                        if len(early) >= 50 or n_messages == total:
+                            if problem := sample_rate_problem(np.asarray(early), 1.0 / period, est_rig.name):
+                                raise ReplayError(f"{bag}: {topic}: sample stamps: {problem}")
+                            early = None
                     first = stamps[0] if first is None else first
                     last = stamps[-1]
                     n += len(batch)
@@ -376,7 +384,8 @@ def _main(argv: Sequence[str] | None) -> int:
                "the live outputs the bag holds, replay_forces_* and replay_estimates_* (matched, compared,\n"
                "live_only, replay_only, max_abs_diff; per-field differences on stderr).\n"
                "exit code 2 on a bad bag, parameter file or calibration (the message names it).")
-    parser.add_argument("bag", type=Path, help="bag directory (or .mcap/.db3 file) holding /rig/samples or /rig/sample")
+    parser.add_argument("bag", type=existing_bag,
+                        help="bag directory (or .mcap/.db3 file) holding /rig/samples or /rig/sample")
     parser.add_argument("--params-file", type=existing_file, default=None, metavar="FILE",
                         help="graph parameter file of the live run (default: the installed sim_graph.yaml)")
     parser.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
@@ -396,6 +405,9 @@ def _main(argv: Sequence[str] | None) -> int:
                         help="leave the first SECONDS of live outputs out of the comparison (filter start-up)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
+    if not is_bag(args.bag):  # a CSV log is estimate's input
+        raise InputError(str(args.bag), "replay reads a bag (a folder, or a .mcap or .db3 file) of the graph's "
+                                        "sample stream; for a worm_rig_data CSV run `estimate` on it")
     params = node_parameters(args.params_file or default_graph_file(), args.set)
     names = args.estimators.split(",") if args.estimators else None
     result = replay(args.bag, params, names, follow_live=args.follow_live, sample_topic=args.topic,

@@ -104,6 +104,19 @@ BAD = {
     "unknown model": (lambda d: d["friction"].update(model="magic"), "friction.model", "unknown model"),
     "bare number": (lambda d: d.update(supply_voltage=24), "supply_voltage", "mapping"),
     "wrong format": (lambda d: d.update(format="other"), "format", "worm_rig_parameters"),
+    # physically implausible numbers: a unit slip or a typo, refused with the plausible range
+    "K_t 1e-12": (_set("drive_motor", "torque_constant", value=1e-12), "drive_motor.torque_constant",
+                  "not a plausible torque_constant: expected 0.0001 .. 50 N m/A"),
+    "1 MV supply": (lambda d: d.update(supply_voltage={**d["supply_voltage"], "value": 1e6}), "supply_voltage",
+                    "not a plausible supply_voltage"),
+    "48 V supply on 24 V motors x3": (lambda d: d.update(supply_voltage={**d["supply_voltage"], "value": 72}),
+                                      "supply_voltage", "3 x the drive motor's max_voltage"),
+    "K_e in V/krpm as V s/rad": (_set("drive_motor", "back_emf_constant", value=5.759), "back_emf_constant",
+                                 "differ 105-fold"),
+    "lead angle in rad written deg": (_set("gearbox", "lead_angle", value=0.0996687), "gearbox.lead_angle",
+                                      "expected 0.5 .. 45 deg"),
+    "encoder decoding 8": (_set("sensors", "encoder_decoding", value=8), "sensors.encoder_decoding",
+                           "expected 1 .. 4"),
 }
 
 

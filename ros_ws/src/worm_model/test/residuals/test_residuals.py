@@ -87,7 +87,7 @@ def test_one_sample_is_no_data_set_for_the_analysis(tmp_path: Path) -> None:
     path = tmp_path / "one.csv"
     path.write_text(HEADER + "0,1,1,0,0.1\n")
     assert len(read_rig_csv(path)) == 1  # valid rig data (bag import takes it) ...
-    with pytest.raises(RigDataError, match="1 sample.s.; the residual analysis needs at least 2") as err:
+    with pytest.raises(RigDataError, match="1 sample.s.: a log needs 2 at least") as err:
         load_data(path)  # ... but not enough to analyse
     assert err.value.source == str(path)
 

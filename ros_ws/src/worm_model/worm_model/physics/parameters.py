@@ -40,6 +40,11 @@ from worm_model.files.reading import load_yaml
 from worm_model.physics.friction import FRICTION_MODELS
 from worm_model.physics.units import UNITS, normalize_unit, to_si
 
+#: the SI unit of each dimension, for messages
+_SI = {"length": "m", "inertia": "kg m^2", "resistance": "ohm", "inductance": "H", "torque_constant": "N m/A",
+       "back_emf_constant": "V s/rad", "viscous": "N m s/rad", "torque": "N m", "current": "A", "voltage": "V",
+       "angular_velocity": "rad/s", "frequency": "Hz"}
+
 FORMAT_NAME = "worm_rig_parameters"
 FORMAT_VERSION = 1
 #: relative tolerance of the check n/Z == r_w tan(lambda) / r_g
@@ -78,13 +83,41 @@ CHECKS: dict[str, tuple[Callable[[float], bool], str]] = {
 }
 
 
-def _num(dimension: str, check: str = "positive", optional: bool = False, default: float | None = None) -> Any:
-    """Field declaration of a numeric leaf: its dimension and its range check. A file may leave the leaf out
-    when it is ``optional`` (the bundled rig's value is taken then) or has a ``default`` (that value [SI], so
-    the files written before the leaf existed still load)."""
+#: physically plausible SI values per dimension, for an electric drive on a worm gear from a bench rig to an
+#: industrial one: a value outside is a unit slip or a typo (K_t = 1e-12 N m/A, a 1 MV supply), refused
+#: with the range. A field may narrow it (``plausible=``); dimensionless fields have their own.
+PLAUSIBLE: dict[str, tuple[float, float]] = {
+    "length": (1e-4, 2.0),  # [m] a pitch radius from 0.1 mm to 2 m
+    "inertia": (1e-10, 1e3),  # [kg m^2]
+    "resistance": (1e-3, 1e3),  # [ohm] a winding
+    "inductance": (1e-7, 10.0),  # [H]
+    "torque_constant": (1e-4, 50.0),  # [N m/A]
+    "back_emf_constant": (1e-4, 50.0),  # [V s/rad]
+    "viscous": (0.0, 10.0),  # [N m s/rad]
+    "torque": (0.0, 1e3),  # [N m] a drag torque
+    "current": (0.0, 1e4),  # [A]
+    "voltage": (0.1, 1e3),  # [V]
+    "angular_velocity": (0.0, 1e4),  # [rad/s] a noise level
+    "frequency": (1.0, 1e7),  # [Hz] a sample rate
+}
+#: K_t [N m/A] and K_e [V s/rad] of one DC motor are the same number in SI; a rig file may differ this much
+#: (rounding, two data-sheet values), not by the factor a unit slip makes (V/krpm taken for V s/rad: 105)
+MOTOR_CONSTANT_RATIO = 1.5
+#: the supply may exceed the drive motor's rated voltage this many times, no more (PWM drives a 24 V motor
+#: from up to ~48 V)
+SUPPLY_OVER_MOTOR = 2.5
+
+
+def _num(dimension: str, check: str = "positive", plausible: tuple[float, float] | None = None, *,
+         optional: bool = False, default: float | None = None) -> Any:
+    """Field declaration of a numeric leaf: its dimension, its range check and its plausible SI range. A file
+    may leave the leaf out when it is ``optional`` (the bundled rig's value is taken then) or has a ``default``
+    (that value [SI], so the files written before the leaf existed still load)."""
+    metadata = {"dimension": dimension, "check": check, "plausible": plausible or PLAUSIBLE.get(dimension),
+                "optional": optional}
     if default is None:
-        return field(metadata={"dimension": dimension, "check": check, "optional": optional})
-    return field(default=default, metadata={"dimension": dimension, "check": check, "default": default})
+        return field(metadata=metadata)
+    return field(default=default, metadata={**metadata, "default": default})
 
 
 def _text() -> Any:
@@ -99,12 +132,12 @@ def _section(cls: type) -> Any:
 class Gearbox:
     """Worm gear set (SI).  ``gear_inertia`` is gear + output shaft, NOT the load motors."""
 
-    worm_starts: int = _num("dimensionless", "count")
-    gear_teeth: int = _num("dimensionless", "count")
+    worm_starts: int = _num("dimensionless", "count", (1, 20))
+    gear_teeth: int = _num("dimensionless", "count", (1, 1000))
     worm_pitch_radius: float = _num("length")  # r_w [m]
     gear_pitch_radius: float = _num("length")  # r_g [m]
-    lead_angle: float = _num("angle", "angle")  # lambda [rad]
-    normal_pressure_angle: float = _num("angle", "angle")  # phi_n [rad]
+    lead_angle: float = _num("angle", "angle", (math.radians(0.5), math.radians(45)))  # lambda [rad]
+    normal_pressure_angle: float = _num("angle", "angle", (math.radians(5), math.radians(40)))  # phi_n [rad]
     hand: int = _num("dimensionless", "hand")  # +1 right-hand, -1 left-hand
     worm_inertia: float = _num("inertia")  # J_w [kg m^2]
     gear_inertia: float = _num("inertia")  # J_g [kg m^2]
@@ -143,10 +176,10 @@ class Friction:
     """
 
     model: str = _text()  # "agma", "constant" or "stribeck"
-    mu_constant: float = _num("dimensionless", "nonnegative")  # "constant"; the kinetic mu of "stribeck"
-    scale: float = _num("dimensionless")  # multiplies the AGMA curve and the Stribeck law
-    stribeck_rise: float = _num("dimensionless", "nonnegative", default=0.0)  # mu_s of "stribeck"
-    stribeck_speed: float = _num("velocity", "positive", default=0.01)  # V_st [m/s] of "stribeck"
+    mu_constant: float = _num("dimensionless", "nonnegative", (0.0, 1.0))  # "constant"; the kinetic mu of "stribeck"
+    scale: float = _num("dimensionless", "positive", (0.01, 100.0))  # multiplies the AGMA curve and the Stribeck law
+    stribeck_rise: float = _num("dimensionless", "nonnegative", (0.0, 1.0), default=0.0)  # mu_s of "stribeck"
+    stribeck_speed: float = _num("velocity", "positive", (1e-6, 10.0), default=0.01)  # V_st [m/s] of "stribeck"
 
 
 @dataclass(frozen=True)
@@ -182,8 +215,8 @@ class Sensors:
     current_lsb: float = _num("current")  # ADC resolution of the Hall current channel [A]
     tacho_noise_std: float = _num("angular_velocity", "nonnegative")  # [rad/s]
     tacho_ripple: float = _num("dimensionless", "fraction")  # relative ripple amplitude
-    encoder_pulses_per_rev: int = _num("dimensionless", "count")  # per channel
-    encoder_decoding: int = _num("dimensionless", "count")  # 1, 2 or 4 (quadrature)
+    encoder_pulses_per_rev: int = _num("dimensionless", "count", (1, 1e7))  # per channel
+    encoder_decoding: int = _num("dimensionless", "count", (1, 4))  # 1, 2 or 4 (quadrature)
     sample_rate_hz: float = _num("frequency")  # [Hz]
     tacho_drive_lsb: float = _num("angular_velocity", optional=True)  # ADC resolution, drive tacho [rad/s]
     tacho_load_lsb: float = _num("angular_velocity", optional=True)  # ADC resolution, each load tacho [rad/s]
@@ -218,7 +251,7 @@ class Rig:
     friction: Friction = _section(Friction)
     drive_motor: Motor = _section(Motor)
     load_motor: Motor = _section(Motor)
-    load_motor_count: int = _num("dimensionless", "count")
+    load_motor_count: int = _num("dimensionless", "count", (1, 16))
     supply_voltage: float = _num("voltage")  # [V]
     sensors: Sensors = _section(Sensors)
     source: str = field(default="", metadata={"kind": "origin"})  # file it came from
@@ -314,6 +347,14 @@ def _checked(f: dataclasses.Field[Any], value: float, origin: str, where: str, s
     predicate, message = CHECKS[f.metadata["check"]]
     if not predicate(result):
         raise ParameterError(origin, where, f"value {shown}: {message}")
+    plausible = f.metadata.get("plausible")
+    if plausible is not None and not plausible[0] <= result <= plausible[1]:
+        low, high = plausible
+        si = {"angle": "rad", "dimensionless": ""}.get(f.metadata["dimension"], _SI.get(f.metadata["dimension"], ""))
+        span = (f"{math.degrees(low):g} .. {math.degrees(high):g} deg" if f.metadata["dimension"] == "angle"
+                else f"{low:g} .. {high:g}{' ' + si if si else ''}")
+        raise ParameterError(origin, where, f"value {shown} = {result:g}{' ' + si if si else ''} (SI) is not a "
+                                            f"plausible {where.rsplit('.', 1)[-1]}: expected {span} (a unit slip?)")
     return result
 
 
@@ -367,11 +408,27 @@ def _build(cls: type, node: Any, origin: str, prefix: str, leaves: bool) -> Any:
 
 
 def check_rig(rig: Rig, origin: str) -> None:
-    """Cross-field checks: friction model known; n/Z consistent with r_w tan(lambda)/r_g within 5 %.
+    """Cross-field checks: friction model known; n/Z consistent with r_w tan(lambda)/r_g within 5 %; each
+    motor's K_t and K_e the same number in SI within MOTOR_CONSTANT_RATIO; a supply the drive motor is
+    rated for (at most SUPPLY_OVER_MOTOR x its max_voltage).
 
     Raises:
         ParameterError: naming the fields and both values.
     """
+    for section in ("drive_motor", "load_motor"):
+        motor: Motor = getattr(rig, section)
+        ratio = motor.torque_constant / motor.back_emf_constant
+        if not 1 / MOTOR_CONSTANT_RATIO <= ratio <= MOTOR_CONSTANT_RATIO:
+            raise ParameterError(
+                origin, f"{section}.torque_constant vs {section}.back_emf_constant",
+                f"K_t = {motor.torque_constant:g} N m/A but K_e = {motor.back_emf_constant:g} V s/rad: in SI they "
+                f"are the same constant of a DC motor, these differ {max(ratio, 1 / ratio):.3g}-fold (one of them "
+                "in another unit?)")
+    if rig.supply_voltage > SUPPLY_OVER_MOTOR * rig.drive_motor.max_voltage:
+        raise ParameterError(
+            origin, "supply_voltage", f"{rig.supply_voltage:g} V is {rig.supply_voltage / rig.drive_motor.max_voltage:.3g}"
+            f" x the drive motor's max_voltage {rig.drive_motor.max_voltage:g} V: not a supply that motor runs on "
+            "(a unit slip?)")
     if rig.friction.model not in FRICTION_MODELS:
         raise ParameterError(
             origin, "friction.model", f"unknown model {rig.friction.model!r} (known: {', '.join(FRICTION_MODELS)})"

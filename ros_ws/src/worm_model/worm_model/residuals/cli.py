@@ -24,10 +24,9 @@ import numpy as np
 
 from worm_model.physics.parameters import ParameterError, default_rig_path, load_rig
 from worm_model.cli.errors import run_tool
-from worm_model.cli.options import Parser, existing_file, integer, number
-from worm_model.files.writing import atomic_dir, check_output
-from worm_model.physics.envelope import Envelope
-from worm_model.rig_data.schema import RigDataError, check_envelope
+from worm_model.cli.options import Parser, existing_file, integer, number, output_path
+from worm_model.files.writing import Output, atomic_dir, check_output
+from worm_model.rig_data.schema import RigDataError
 
 from worm_model.residuals.analysis import Problem, Settings, analyse, extended_effects, make_split
 from worm_model.residuals.data import load_data
@@ -39,6 +38,8 @@ from worm_model.residuals.model import ALPHA_TIME_CONSTANT, prepare_signals
 from worm_model.cli.progress import Progress
 from worm_model.residuals.report import build_report, console_summary, windowed_rms, write_json, write_plots
 
+#: what residuals writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
+OUTPUT = Output("residuals", names=("report.json", "extended_rig.yaml", "*.png"))
 MIN_SAMPLES = 200  # per set: fewer cannot rank the 14 candidates (effects.EFFECTS)
 
 
@@ -67,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("data", help="measured data: a CSV file in the worm_rig_data schema, or a rosbag2 directory "
                                 "(converted with worm_rig_driver's bag exporter, which must be installed)")
-    p.add_argument("--out", required=True,
+    p.add_argument("--out", required=True, type=output_path,
                    help="output directory (created; an existing one is replaced only with --force): report.json, "
                         "extended_rig.yaml, PNG plots")
     p.add_argument("--force", action="store_true", help="replace an existing --out directory")
@@ -135,12 +136,11 @@ def _main(argv: list[str] | None) -> int:
         resolve_parameters(rig, free, "--free" if args.free is not None else str(args.params or default_rig_path()))
         resolve_parameters(rig, settings.refit, "--refit")
         progress.stage("reading data", 1)
-        data = load_data(args.data, epos_settings(args, rig))
+        data = load_data(args.data, rig, epos_settings(args, rig))  # its units checked against the rig
         for note in data.notes:
             print(f"residuals: note: {note}")
-        check_envelope(data, Envelope.of(rig))
         progress.update_to(1)
-        check_output(args.out, args.force, folder=True)
+        check_output(args.out, args.force, folder=True, inputs=[args.data, args.params], output=OUTPUT)
     finally:
         progress.close()
     signals = prepare_signals(rig, data, settings.alpha_time_constant, settings.reference_temperature)
@@ -152,7 +152,7 @@ def _main(argv: list[str] | None) -> int:
                   f"{settings.min_speed} rad/s (need {MIN_SAMPLES}); record longer or lower --block / --min-speed",
                   file=sys.stderr)
             return 2
-    with atomic_dir(args.out, args.force) as folder:
+    with atomic_dir(args.out, args.force, inputs=[args.data, args.params], output=OUTPUT) as folder:
         return _analyse(args, rig, free, data, signals, split, settings, progress, folder, Path(args.out))
 
 

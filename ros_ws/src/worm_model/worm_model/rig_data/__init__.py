@@ -7,6 +7,7 @@
                    dirty rows reported and refused or skipped; one steady point per file
 ``epos_options``   the load options (``--load-torque``, ``--load-mass`` ...) of the tools
                    that read EPOS exports
+``plausibility``   rig data and calibration points against the rig: sample rate, units, angle
 ``bags``           RigSample bags <-> MeasuredData (``bag export`` / ``bag import``)
 ``samples``        the rig's sample streams as recorded (one per message or batched), in order
 =================  ==============================================================
