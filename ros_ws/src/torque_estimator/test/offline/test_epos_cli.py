@@ -67,7 +67,7 @@ def test_estimate_reads_exports_with_the_load_and_refuses_dirty_rows(tmp_path: P
     assert f"estimate: note: skipped: {folder / 'n1.csv'}: line 15: " in out
     assert "estimate: the log has one load, 0.0188 N m: errors in % of it" in out
     assert "method=extended_model" in out.splitlines()[-1] and (tmp_path / "est.csv").stat().st_size > 0
-    assert estimate_main([*argv[:-7], "--load-mass", "0.096", "--quiet"]) == 2
+    assert estimate_main([*argv[:-7], "--load-mass", "0.096", "--quiet", "--force"]) == 2
     assert "--pulley-radius: a hanging load needs both" in capsys.readouterr().err
 
 

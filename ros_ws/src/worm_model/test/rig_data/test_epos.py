@@ -15,8 +15,7 @@ import worm_model
 from worm_model.rig_data.epos import (DirtyRowsError, EposSettings, epos_files, hanging_load, is_epos_export,
                                       read_epos, read_epos_folder, steady_point, to_measured)
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import RigDataError, check_envelope
-from worm_model.physics.envelope import Envelope
+from worm_model.rig_data.schema import RigDataError
 from worm_model.physics.parameters import load_rig
 
 DRIVE = Path(worm_model.__file__).resolve().parent / "data" / "tro2021" / "driveNo3"
@@ -125,9 +124,8 @@ def test_as_rig_data_one_run_per_file_si_units_and_the_given_load() -> None:
 def test_the_envelope_check_names_the_file_of_the_run(tmp_path: Path) -> None:
     (tmp_path / "a.csv").write_text(_good())
     (tmp_path / "b.csv").write_text(_good().replace(";-1", ";-20000", 8))  # -200000 rpm: the motor cannot
-    data = read_rig_data(tmp_path, epos=EposSettings(load_torque=LOAD, nominal_current=NOMINAL_CURRENT))
-    with pytest.raises(RigDataError) as err:
-        check_envelope(data, Envelope.of(load_rig(RIG)))
+    with pytest.raises(RigDataError) as err:  # the one reader checks the magnitudes against the rig
+        read_rig_data(tmp_path, rig=load_rig(RIG), epos=EposSettings(load_torque=LOAD, nominal_current=NOMINAL_CURRENT))
     assert str(err.value).startswith(f"{tmp_path / 'b.csv'}: line 11, column 'omega_worm': ")
 
 
