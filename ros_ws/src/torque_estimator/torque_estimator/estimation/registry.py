@@ -72,13 +72,16 @@ MOMENTUM_OPTIONS: tuple[Option, ...] = (
 @dataclass(frozen=True)
 class Method:
     """One estimator: its factory ``(database, **options) -> TorqueEstimator``, the options it reads
-    (estimator_node declares them for this method only), whether it needs a calibration database, and
-    whether it reads a model file (``model_file``: extended_model inverts it, the observer runs it)."""
+    (estimator_node declares them for this method only), whether it needs a calibration database,
+    whether it reads a model file (``model_file``: extended_model inverts it, the observer runs it), and
+    whether it reads the drive voltage (the observer: without it every sample is INVALID_INPUT; the others
+    never read it, so an input without a voltage serves them)."""
 
     factory: Callable[..., TorqueEstimator]
     options: tuple[Option, ...]
     needs_calibration: bool
     reads_model_file: bool
+    reads_voltage: bool = False
 
 
 #: Estimator name -> Method. "observer" and "momentum" are streaming estimators (base.StreamingEstimator):
@@ -87,7 +90,7 @@ class Method:
 METHODS: dict[str, Method] = {
     "knn": Method(KnnEstimator, KNN_OPTIONS + MAP_OPTIONS, needs_calibration=True, reads_model_file=False),
     "extended_model": Method(ExtendedModelEstimator, MAP_OPTIONS, needs_calibration=False, reads_model_file=True),
-    "observer": Method(ObserverEstimator, (), needs_calibration=False, reads_model_file=True),
+    "observer": Method(ObserverEstimator, (), needs_calibration=False, reads_model_file=True, reads_voltage=True),
     "momentum": Method(MomentumEstimator, MOMENTUM_OPTIONS, needs_calibration=False, reads_model_file=True),
 }
 

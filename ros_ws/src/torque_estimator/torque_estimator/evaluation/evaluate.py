@@ -20,6 +20,10 @@ each
 and the observer's steady noise against the best any estimator can do from these
 sensors at its bandwidth (observer.steady_state_bound, a Cramér-Rao-type bound)
     noise: method=observer std=<x> bound=<x> N m ratio=<x>
+and the momentum observer's (current and speed only) noise on a constant load against its predicted
+steady noise, and the least noise any linear estimator that reaches 90 % of a step 5 samples after it
+has on these sensors (momentum.linear_noise_bound: why it detects steps instead)
+    noise: method=momentum std=<x> predicted=<x> N m ratio=<x> linear_5_sample_floor=<x> N m
 and the fast road (evaluation.identified): on the simulated rig with every default effect
 on and the rig file off (mu x1.3, K_t x1.05, drags x2), one `identify` run against the
 k-NN grid calibrated on that rig, the extended model and the observer with the identified
@@ -55,12 +59,16 @@ from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
 from torque_estimator.evaluation.held_out import format_table, measure_held_out, score, sweep_grid_density, sweep_k, sweep_noise
 from torque_estimator.estimation.knn import WEIGHTINGS
 from torque_estimator.estimation.observer import steady_state_bound
-from torque_estimator.evaluation.transient import STEP_SPEED, transient_figures
+from torque_estimator.estimation.momentum import linear_noise_bound
+from torque_estimator.estimation.momentum import predicted_noise as momentum_noise
+from torque_estimator.evaluation.transient import STEP_SPEED, ensemble_noise, transient_figures
 from torque_estimator.evaluation.identified import evaluate_lines as identified_lines
 from torque_estimator.evaluation import real_drive
 
 #: seeds of the step experiment (the ramp and the reversal take a third)
 TRANSIENT_SEEDS = 12
+#: samples after a load step by which the momentum observer is asked to have 90 % of it (5 ms at 1 kHz)
+MOMENTUM_STEP_SAMPLES = 5
 from torque_estimator.evaluation.plots import held_out_deviation, sweeps
 from worm_model.cli.progress import ProgressBar
 
@@ -233,8 +241,21 @@ def side_by_side(args, rig, grid, db) -> None:
                 bound = steady_state_bound(rig, STEP_SPEED, 0.0)
                 lines.append(f"noise: method=observer std={figures.steady_std:.2e} bound={bound:.2e} N m "
                              f"ratio={figures.steady_std / bound:.2f}")
+            if method == "momentum":
+                lines.append(momentum_noise_line(rig, estimator, args.seed))
             bar.update_to(i + 1)
     print("\n".join(lines))
+
+
+def momentum_noise_line(rig, estimator, seed: int) -> str:
+    """The momentum observer's noise on a constant load (across seeds) against its predicted steady noise at its
+    bandwidth, and the noise floor of any linear estimator that follows a step in MOMENTUM_STEP_SAMPLES samples
+    (momentum.linear_noise_bound: why it detects steps instead)."""
+    std = ensemble_noise(rig, "momentum", estimator, seeds=TRANSIENT_SEEDS, seed=seed)
+    predicted = momentum_noise(rig, STEP_SPEED, 0.0, estimator.bandwidth)
+    floor = linear_noise_bound(rig, STEP_SPEED, 0.0, MOMENTUM_STEP_SAMPLES)
+    return (f"noise: method=momentum std={std:.2e} predicted={predicted:.2e} N m ratio={std / predicted:.2f} "
+            f"linear_{MOMENTUM_STEP_SAMPLES}_sample_floor={floor:.2e} N m")
 
 
 def run_sweeps(args, rig, grid, db, options) -> list:

@@ -50,7 +50,8 @@ def linearised(rig: Rig, omega: float, tau_d: float, period: float, noise: Noise
     phi = step.transition(slope)[np.ix_(keep, keep)]
     g = step.current_gain(rig.drive_motor.torque_constant)[keep]
     q = np.outer(g, g) * noise.current_var
-    q[-1, -1] += load_variance(bandwidth, noise.tacho_var, inertia, slope, rig.gearbox.ratio, period)
+    q[-1, -1] += load_variance(bandwidth, noise, rig.drive_motor.torque_constant, inertia, slope,
+                                      rig.gearbox.ratio, period)
     if with_encoder:
         h, r = np.eye(2, 3), np.diag([noise.theta_var, noise.tacho_var])
     else:

@@ -27,7 +27,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from typing import TYPE_CHECKING
+
 import numpy as np
+
+if TYPE_CHECKING:
+    from torque_estimator.estimation.observer.noise import NoiseFigures
 
 #: Index of each state in MomentumObserver.x.
 THETA, OMEGA, TAU, RIPPLE_SIN, RIPPLE_COS = range(5)
@@ -82,22 +87,32 @@ class Period:
         return g
 
 
-def load_variance(bandwidth: float, tacho_var: float, inertia: float, slope: float, ratio: float,
-                  period: float) -> float:
-    """Variance [(N m)²] of τ_d's random walk over one period that makes the steady filter's bandwidth
-    ``bandwidth`` [Hz] (the momentum observer's ``bandwidth`` option).
+def load_variance(bandwidth: float, noise: "NoiseFigures", torque_constant: float, inertia: float, slope: float,
+                  ratio: float, period: float) -> float:
+    """Variance [(N m)²] of τ_d's random walk over one period that puts the steady filter's slowest pole at
+    λ = 2π·``bandwidth`` [Hz] (the momentum observer's ``bandwidth`` option).
 
-    For the momentum p = J_eff ω measured with white noise of spectral density R = J_eff²·σ_t²·T
-    (σ_t² = ``tacho_var`` [(rad/s)²] per sample) and a worm-side disturbance that walks with intensity
-    q [(N m)²/s], the steady Kalman filter of (p, disturbance) is a 2nd-order Butterworth low-pass of the
-    disturbance with ω₀ = (q/R)^(1/4); so q = (2π·bandwidth)⁴·R. On the gear side τ_d = disturbance / slope:
-    the variance per period is q·T/slope², with |slope| floored at a tenth of the frictionless mesh's
-    (the ratio i) so a flank that barely carries the load (K_− near 0 at the self-locking limit) does not
-    let τ_d run.
+    The continuous filter of the momentum p = J_eff ω and the worm-side disturbance d (ṗ = K_t i − d, the
+    current's noise a torque noise of intensity Q = K_t² σ_i² T; ḋ a random walk of intensity q; p measured
+    by the tacho with R = J_eff² σ_t² T) has the error poles s² + B s + ω₀² with ω₀² = √(q/R) and
+    B = √(c + 2ω₀²), c = Q/R = (K_t σ_i / J_eff σ_t)² (solving its Riccati equation by hand). Without the
+    current's noise it is the Butterworth ω₀ = (q/R)^(1/4); with it (c = 2.2e4 s⁻² on the bundled rig) a
+    small q gives two real poles, the slow one far below ω₀. So:
+
+    * λ² <= c/2: the poles λ and √(c − λ²) >= λ, for q = λ²(c − λ²)·R;
+    * above: ω₀ = λ (q = λ⁴ R), damping >= 1/√2.
+
+    On the gear side τ_d = d / slope: the variance per period is q·T / slope², with |slope| floored at a tenth
+    of the frictionless mesh's (the ratio i) so a flank that barely carries the load (K_− near 0 at the
+    self-locking limit) does not let τ_d run. The encoder, when there is one, adds information the
+    relation leaves out: the filter is then somewhat faster.
     """
-    w0 = 2.0 * math.pi * bandwidth
+    lam = 2.0 * math.pi * bandwidth
+    r = inertia * inertia * noise.tacho_var * period
+    c = (torque_constant * torque_constant * noise.current_var) / (inertia * inertia * noise.tacho_var)
+    q = lam * lam * (c - lam * lam) * r if lam * lam <= 0.5 * c else lam ** 4 * r
     floor = 0.1 * ratio
-    return w0 ** 4 * inertia * inertia * tacho_var * period * period / max(slope * slope, floor * floor)
+    return q * period / max(slope * slope, floor * floor)
 
 
 __all__ = ["N_STATES", "OMEGA", "Period", "RIPPLE_COS", "RIPPLE_SIN", "TAU", "THETA", "load_variance"]
