@@ -81,8 +81,12 @@ from torque_estimator.estimation.observer.static_map import StaticLoadMap
 #: and reversal errors of 0.33, 0.57, 0.92, 1.40 % of the range; the step detector's 4 ms to 90 % of a step
 #: is the same at each.
 DEFAULT_BANDWIDTH = 0.5
-#: [samples] the step detector is off after a period where the model does not hold (module docstring)
-HOLD_OFF = 10
+#: [s] the step detector is off this long (at least a sample) after a period where the model does not hold
+#: (module docstring)
+HOLD_OFF = 0.010
+#: the worm counts as standing when its filtered speed is within this many σ of the filter's own speed
+#: uncertainty of 0 and the measured speed within this many σ of the tacho's noise
+STILL_SIGMAS = 2.0
 #: a current step larger than this many σ of the current's noise (through the interpolation factor f) is a
 #: period the step detector does not trust
 SLEW_SIGMAS = 3.0
@@ -135,12 +139,15 @@ class MomentumObserver:
                          if self.load.false_alarm > 0 else None)
         self.interpolation = interpolation_error(rig, self.period)  # f of the module docstring
         self._slew_limit = SLEW_SIGMAS * math.sqrt(self.noise.current_var)
+        self._hold_samples = max(1, math.ceil(HOLD_OFF / self.period - 1e-9))
+        self._still = STILL_SIGMAS * math.sqrt(self.noise.tacho_var)
         self._r_encoder = np.diag([self.noise.theta_var, self.noise.tacho_var])
         self.x = np.zeros(N_STATES)  # the filtered state of the last sample
         self.P = np.eye(N_STATES)
         self.current = 0.0  # [A] the last valid current
         self.initialised = False
         self.hold_off = 0  # samples the step detector stays off
+        self.still = False  # the worm stood through the last period (standing)
         self._at_x: tuple | None = None  # StaticLoadMap.mesh at the filtered state, while it is x
         self._phi_prev: np.ndarray | None = None  # the last period's transition (None: no step onset in it)
         self.p_reference = math.inf  # τ_d variance before the last step (TRANSIENT)
@@ -154,19 +161,35 @@ class MomentumObserver:
         inertia = inertia_at_flank_factor(self.rig.gearbox, mesh[3], *self._inertia)
         return Period.of(inertia, self._viscous, self.period)
 
-    def _predict(self, current: float) -> np.ndarray:
+    def standing(self, omega: float | None) -> bool:
+        """Whether the worm stands (module docstring): the filtered speed within STILL_SIGMAS of its own
+        uncertainty of 0, and the measured speed ``omega`` [rad/s] (None: not measured) within STILL_SIGMAS of
+        the tacho's noise of 0."""
+        spread = STILL_SIGMAS * math.sqrt(max(float(self.P[OMEGA, OMEGA]), 0.0))
+        return abs(float(self.x[OMEGA])) <= spread and (omega is None or abs(omega) <= self._still)
+
+    def _predict(self, current: float, omega: float | None = None) -> np.ndarray:
         """Move the filtered state over one period with the mean of the last and this current [A] (the current's
         noise, and the interpolation's error for the step between them, as process noise); returns the
-        period's transition."""
+        period's transition. A standing worm (``omega`` [rad/s] the speed measured at the period's end, None:
+        none) stays: static friction holds it whatever the load, which the period then says nothing of."""
         x = self.x.tolist()
         mesh = self._at_x or self.map.mesh(x[OMEGA], x[TAU])
         t_dist, slope = mesh[0], mesh[1]
         step = self._period(mesh)
-        theta, omega = step.mean(x[THETA], x[OMEGA], self._kt * 0.5 * (self.current + current) - t_dist)
-        phi = step.transition(slope)
-        g = step.current_gain(self._kt)
+        self.still = self.standing(omega)
+        if self.still:
+            phi = np.eye(N_STATES)
+            phi[OMEGA, OMEGA] = phi[THETA, OMEGA] = 0.0
+            theta, omega, g = x[THETA], 0.0, np.zeros(N_STATES)
+        else:
+            theta, omega = step.mean(x[THETA], x[OMEGA], self._kt * 0.5 * (self.current + current) - t_dist)
+            phi = step.transition(slope)
+            g = step.current_gain(self._kt)
         slew = self.interpolation * (current - self.current)
         P = phi @ self.P @ phi.T + np.outer(g, g) * (self.noise.current_var + slew * slew)
+        if self.still:  # it may start at any moment: its speed as uncertain as the tacho says
+            P[OMEGA, OMEGA] += self.noise.tacho_var
         P[TAU, TAU] += load_variance(self.bandwidth, self.noise, self._kt, step.inertia, slope,
                                      self.rig.gearbox.ratio, self.period)
         self.x = np.array([theta, omega, x[TAU], x[RIPPLE_SIN], x[RIPPLE_COS]])
@@ -181,7 +204,7 @@ class MomentumObserver:
         sample's current over the delay), with the ripple when the encoder phases it; the encoder's angle."""
         x = self.x.tolist()
         mesh = self.map.mesh(x[OMEGA], x[TAU])
-        j, d = self._period(mesh).inertia, self.tacho_delay
+        j, d = self._period(mesh).inertia, 0.0 if self.still else self.tacho_delay
         w = x[OMEGA] + d * (self._kt * current - self._viscous * x[OMEGA] - mesh[0]) / j
         dw = [0.0, 1.0 - d * self._viscous / j, -d * mesh[1] / j, 0.0, 0.0]  # ∂w/∂x
         if theta is None:
@@ -199,10 +222,10 @@ class MomentumObserver:
         return np.array(nu), np.array([[1.0, 0.0, 0.0, 0.0, 0.0], tacho]), self._r_encoder
 
     def _model_holds(self, current_before: float, current: float, omega_before: float, omega_after: float) -> bool:
-        """Whether the last period is one the step detector can trust (module docstring): no reversal, no jump of
-        the current beyond SLEW_SIGMAS of its noise."""
+        """Whether the last period is one the step detector can trust (module docstring): no reversal, the worm
+        not standing, no jump of the current beyond SLEW_SIGMAS of its noise."""
         reversal = (omega_before > 0.0) != (omega_after > 0.0)
-        return not reversal and abs(self.interpolation * (current - current_before)) <= self._slew_limit
+        return not (reversal or self.still) and abs(self.interpolation * (current - current_before)) <= self._slew_limit
 
     def _initialise(self, current: float, omega: float, theta: float | None) -> None:
         """The state from one sample: τ_d the model's quasi-static inverse (α = 0) of its current and speed."""
@@ -215,6 +238,7 @@ class MomentumObserver:
         self.current = current
         self.initialised = True
         self.hold_off = 0
+        self.still = False
         self._at_x = None
         self._phi_prev = None
         self.p_reference = math.inf
@@ -235,7 +259,7 @@ class MomentumObserver:
             self._initialise(current, omega, theta)
             return self._estimate(False, with_encoder=theta is not None)
         omega_before, current_before = float(self.x[OMEGA]), self.current
-        phi = self._predict(current)
+        phi = self._predict(current, omega)
         nu, h, R = self._measurement(current, omega, theta)
         PhT = self.P @ h.T
         s_inv = _inverse(h @ PhT + R)
@@ -248,7 +272,7 @@ class MomentumObserver:
         Pf = self.P - K @ PhT.T
         jump = None
         if not self._model_holds(current_before, current, omega_before, float(xf[OMEGA])):
-            self.hold_off = HOLD_OFF
+            self.hold_off = self._hold_samples
             if self.detector is not None:
                 self.detector.clear()
         elif self.hold_off:
