@@ -34,6 +34,9 @@ Then, unless --no-real, the model against a real worm drive's measurements (eval
 the T-RO 2021 drive's 46 steady points, their published fit beside ours, the load estimated
 cross-fitted; real_drive_torque.png), ending with
     real: drive=tro2021_worm points=<n> fit_rms_mNm=<x> tro_fit_rms_mNm=<x> load_mae_pct=<x> ...
+and the momentum observer on that drive's two start-stop runs (evaluation.start_stop: the hanging load
+estimated from current and speed during each move), one line per move
+    start_stop: file=<f> pass=<n> move=<lifting|lowering> rpm=<x> mean_mNm=<x> error_pct=<x> ...
 
 Errors are |estimated - true| in % of the calibrated torque range (max - min
 of the database's τ_d). The last line printed is
@@ -63,7 +66,7 @@ from torque_estimator.estimation.momentum import linear_noise_bound
 from torque_estimator.estimation.momentum import predicted_noise as momentum_noise
 from torque_estimator.evaluation.transient import STEP_SPEED, ensemble_noise, transient_figures
 from torque_estimator.evaluation.identified import evaluate_lines as identified_lines
-from torque_estimator.evaluation import real_drive
+from torque_estimator.evaluation import real_drive, start_stop
 
 #: seeds of the step experiment (the ramp and the reversal take a third)
 TRANSIENT_SEEDS = 12
@@ -136,8 +139,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="sensor noise factors (x the rig's current and speed noise), comma-separated "
                             "(default 0,0.5,1,2,4)")
     p.add_argument("--no-real", action="store_true",
-                   help="skip the real worm drive (the T-RO 2021 measurements, ~1 min): its table, real_drive_torque.png "
-                        "and its `real:` line")
+                   help="skip the real worm drive (the T-RO 2021 measurements, ~1 min): its table, real_drive_torque.png, "
+                        "its `real:` line and the momentum observer's `start_stop:` lines")
     p.add_argument("--no-residuals", action="store_true", help="skip the residuals tool's case matrix")
     p.add_argument("--residual-cases", choices=("full", "small"), default="full",
                    help="the residuals tool's case matrix: full (every effect alone and in pairs, each with the "
@@ -213,6 +216,8 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
             study = real_drive.run_study(progress=bar.update_to)
         print("\nA real worm drive (the T-RO 2021 measurements, evaluation.real_drive)")
         print("\n".join(real_drive.lines(study)))
+        print("\nThe momentum observer on the same drive's start-stop runs (current and speed only, evaluation.start_stop)")
+        print("\n".join(m.line() for m in start_stop.run()))
         pngs.append(real_drive.plot(study, out / "real_drive_torque.png"))
     if not args.no_residuals:  # the residuals tool's case matrix (issue 15); ends with its `residuals:` line
         cases = full_matrix() if args.residual_cases == "full" else small_matrix()
