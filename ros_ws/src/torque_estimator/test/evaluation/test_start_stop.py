@@ -30,8 +30,8 @@ def close(printed: str, value: float) -> bool:
 
 
 def test_the_table(moves) -> None:
-    rows = re.findall(r"^\| (\d+) rpm \| (lowering|lifting)([^|]*)\| (-?[\d.]+) \| ([^|]+) \| (-?[\d.]+) / (-?[\d.]+) \|$",
-                      page(), re.M)
+    rows = re.findall(r"^\| (\d+) rpm \| (lowering|lifting)([^|]*)\| (-?[\d.]+) \| ([^|]+) \| "
+                      r"(-?[\d.]+) / (-?[\d.]+) \|$", page(), re.M)
     assert len(rows) == 6
     for rpm, move, which, estimate, error, measured, asked in rows:
         passed = 2 if "again" in which else 1

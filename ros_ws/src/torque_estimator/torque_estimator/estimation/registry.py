@@ -123,4 +123,5 @@ def make_estimator(name: str, database: CalibrationDatabase | None, **options: A
     return row.factory(database, **options)
 
 
-__all__ = ["ESTIMATORS", "KNN_OPTIONS", "MAP_OPTIONS", "METHODS", "MOMENTUM_OPTIONS", "Method", "Option", "make_estimator", "method"]
+__all__ = ["ESTIMATORS", "KNN_OPTIONS", "MAP_OPTIONS", "METHODS", "MOMENTUM_OPTIONS", "Method", "Option",
+           "make_estimator", "method"]

@@ -139,8 +139,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="sensor noise factors (x the rig's current and speed noise), comma-separated "
                             "(default 0,0.5,1,2,4)")
     p.add_argument("--no-real", action="store_true",
-                   help="skip the real worm drive (the T-RO 2021 measurements, ~1 min): its table, real_drive_torque.png, "
-                        "its `real:` line and the momentum observer's `start_stop:` lines")
+                   help="skip the real worm drive (the T-RO 2021 measurements, ~1 min): its table, "
+                        "real_drive_torque.png, its `real:` line and the momentum observer's `start_stop:` lines")
     p.add_argument("--no-residuals", action="store_true", help="skip the residuals tool's case matrix")
     p.add_argument("--residual-cases", choices=("full", "small"), default="full",
                    help="the residuals tool's case matrix: full (every effect alone and in pairs, each with the "
@@ -216,7 +216,8 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
             study = real_drive.run_study(progress=bar.update_to)
         print("\nA real worm drive (the T-RO 2021 measurements, evaluation.real_drive)")
         print("\n".join(real_drive.lines(study)))
-        print("\nThe momentum observer on the same drive's start-stop runs (current and speed only, evaluation.start_stop)")
+        print("\nThe momentum observer on the same drive's start-stop runs (current and speed only, "
+              "evaluation.start_stop)")
         print("\n".join(m.line() for m in start_stop.run()))
         pngs.append(real_drive.plot(study, out / "real_drive_torque.png"))
     if not args.no_residuals:  # the residuals tool's case matrix (issue 15); ends with its `residuals:` line

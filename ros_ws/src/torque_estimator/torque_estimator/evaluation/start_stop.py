@@ -1,4 +1,4 @@
-"""start_stop: the momentum observer on the only real transient data there is, the T-RO 2021 worm drive's start-stop runs.
+"""start_stop: the momentum observer on the only real transient data there is, the T-RO 2021 drive's start-stop runs.
 
     python -m torque_estimator.evaluation.start_stop      (make evaluate prints its lines after the real drive's)
 
