@@ -6,7 +6,7 @@ Fed current, speed and encoder angle only (NaN for the voltage), as from a drive
 Prints, as `<metric>: <value> <unit>` lines (what `make bench` passes on, --metrics-only):
 
 * ``momentum_update_cpu``: the median CPU time (time.process_time) of one update on a steady 8 V, 0.1 N m run
-  of the simulated rig (what a node pays per 1 ms sample);
+  of the simulated rig (what a node pays per 1 ms sample; observer_bench.update_cpu_us);
 * ``momentum_step90`` / ``momentum_overshoot`` / ``momentum_ramp_err`` / ``momentum_reversal_err``: make evaluate's
   transient experiments (evaluation.transient, 12 seeds, no calibration); ``momentum_step90_no_encoder``: the same
   step fed no encoder angle;
@@ -21,40 +21,18 @@ its step figures and the 17 held-out points streamed without and with a calibrat
 from __future__ import annotations
 
 import argparse
-import math
-import statistics
-import time
 
 import numpy as np
+from observer_bench import update_cpu_us  # bench/, beside this script
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.momentum import MomentumEstimator, linear_noise_bound, predicted_noise
 from torque_estimator.evaluation.held_out import held_out_setpoints
 from torque_estimator.evaluation.observer_study import held_out_streaming, perturbed_rig
 from torque_estimator.evaluation.transient import STEP_SPEED, ensemble_noise, transient_figures
-from worm_model.physics.parameters import Rig, load_rig
-from worm_rig_driver.sim.simulated_rig import SimulatedRig
+from worm_model.physics.parameters import load_rig
 
 RANGE = 0.495  # [N m] the paper grid's calibrated range
-
-
-def update_cpu_us(rig: Rig, samples: int = 3000, repeats: int = 3) -> float:
-    """Median CPU time [us] of one MomentumObserver update over ``repeats`` fresh streams fed the same ``samples``
-    measurements (8 V, 0.1 N m, seed 0; the voltage NaN), each call timed on its own."""
-    sim = SimulatedRig(rig, n=1, seed=0)
-    sim.command(voltage_drive=8.0, load_torque=0.1)
-    inputs = []
-    for _ in range(samples):
-        m = sim.sample()
-        inputs.append((math.nan, float(m.current_drive[0]), float(m.omega_worm[0]), float(m.theta_worm[0])))
-    clock, per_update = time.process_time, []
-    for _ in range(repeats):
-        update = MomentumEstimator(None, rig=rig).stream(1.0 / rig.sensors.sample_rate_hz).update
-        for sample in inputs:
-            start = clock()
-            update(*sample)
-            per_update.append(clock() - start)
-    return 1e6 * statistics.median(per_update)
 
 
 class _WithoutEncoder:
@@ -74,8 +52,8 @@ def main() -> int:
     parser.add_argument("--metrics-only", action="store_true", help="only the metric lines (make bench)")
     args = parser.parse_args()
     rig = load_rig(None)
-    print(f"momentum_update_cpu: {update_cpu_us(rig):.1f} us", flush=True)
     estimator = MomentumEstimator(None, rig=rig)
+    print(f"momentum_update_cpu: {update_cpu_us(rig, estimator=estimator, voltage=False):.1f} us", flush=True)
     f = transient_figures(rig, "momentum", estimator, RANGE)
     print(f"momentum_step90: {f.step90_ms:g} ms\nmomentum_overshoot: {f.overshoot_pct:.1f} %\n"
           f"momentum_ramp_err: {f.ramp_err_pct:.2f} %\nmomentum_reversal_err: {f.reversal_err_pct:.2f} %", flush=True)

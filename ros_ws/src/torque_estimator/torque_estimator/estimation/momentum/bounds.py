@@ -29,6 +29,7 @@ from worm_model.physics.dynamics import inertia_at_flank_factor
 from worm_model.physics.parameters import Rig
 
 from torque_estimator.estimation.momentum.discrete import OMEGA, TAU, THETA, Period, load_variance
+from torque_estimator.estimation.observer.bounds import step_information
 from torque_estimator.estimation.observer.noise import NoiseFigures
 from torque_estimator.estimation.observer.static_map import StaticLoadMap
 
@@ -104,17 +105,10 @@ def jump_bound(rig: Rig, omega: float, tau_d: float, samples: int, *, period: fl
     the current an input).
     """
     period, noise = _defaults(rig, period, noise)
-    phi, g, q, h, r = linearised(rig, omega, tau_d, period, noise, bandwidth, with_encoder)
+    phi, _g, _q, h, r = linearised(rig, omega, tau_d, period, noise, bandwidth, with_encoder)
     _phi, k, _pf, prior = steady_filter(rig, omega, tau_d, period, noise, bandwidth, with_encoder)
     s_inv = np.linalg.inv(h @ prior @ h.T + r)
-    err = phi[:, -1].copy()  # prior error one period after a unit step
-    info, out = 0.0, []
-    for _ in range(samples):
-        sig = h @ err
-        info += float(sig @ s_inv @ sig)
-        out.append(1.0 / math.sqrt(info))
-        err = phi @ (err - k @ sig)
-    return np.array(out)
+    return step_information(phi, h, k, s_inv, phi[:, -1], samples)  # phi[:, -1]: the error a unit step leaves
 
 
 def linear_noise_bound(rig: Rig, omega: float, tau_d: float, samples: int, fraction: float = 0.9, *,

@@ -71,7 +71,7 @@ from torque_estimator.estimation.momentum.bounds import steady_variance
 from torque_estimator.estimation.momentum.discrete import (N_STATES, OMEGA, RIPPLE_COS, RIPPLE_SIN, TAU, THETA,
                                                            Period, load_variance)
 from torque_estimator.estimation.observer.glr import StepDetector
-from torque_estimator.estimation.observer.kalman import MAX_SKIP, RESTART_NIS, STANDSTILL, ObserverEstimate
+from torque_estimator.estimation.observer.kalman import MAX_SKIP, RESTART_NIS, ObserverEstimate, judged
 from torque_estimator.estimation.observer.noise import LoadProcess, NoiseFigures
 from torque_estimator.estimation.observer.static_map import StaticLoadMap
 
@@ -290,25 +290,13 @@ class MomentumObserver:
     def _estimate(self, jump: bool, extra_flags: int = 0, with_encoder: bool = True) -> ObserverEstimate:
         """The estimate at the filtered state, with its flags (module docstring)."""
         omega, tau = float(self.x[OMEGA]), float(self.x[TAU])
-        variance = float(self.P[TAU, TAU])
-        u = math.sqrt(max(variance, 0.0))
         self._at_x = mesh = self._at_x or self.map.mesh(omega, tau)
-        t_dist, mu = mesh[0], mesh[4]
-        flags = extra_flags
-        if abs(omega) > STANDSTILL and mu > self.map.self_locking_mu:
-            driving, coast, _f, _c = self.map.invert(omega, t_dist)
-            branches = [float(b) for b in (driving, coast) if math.isfinite(float(b))]
-            if len(branches) == 2:
-                flags |= EstimateFlags.AMBIGUOUS
-                u = max(u, max(abs(b - tau) for b in branches))
-        if abs(tau) - 2.0 * u > self.torque_limit or abs(omega) > self.speed_limit:
-            flags |= EstimateFlags.OUT_OF_CALIBRATION
         if self.p_reference == math.inf:
             self.p_reference = steady_variance(self.rig, omega, tau, self.bandwidth, period=self.period,
                                                noise=self.noise, with_encoder=with_encoder)
-        if variance > 2.0 * self.p_reference:
-            flags |= EstimateFlags.TRANSIENT
-        return ObserverEstimate(tau, u, int(flags), omega, self.current, t_dist, jump)
+        flags, u = judged(self.map, omega, tau, float(self.P[TAU, TAU]), mesh, (self.torque_limit, self.speed_limit),
+                          self.p_reference, extra_flags)
+        return ObserverEstimate(tau, u, flags, omega, self.current, mesh[0], jump)
 
     def _invalid(self) -> ObserverEstimate:
         bad = int(EstimateFlags.INVALID_INPUT)
