@@ -2,8 +2,9 @@
 and computes it, so a page and the product cannot drift apart.
 
 - README and docs/estimators.md: the calibration (544 points, 0.495 N m), the estimators side by side (make
-  evaluate's transient and held-out figures), the observer's noise against its bound, the step-size bound, the
-  feedforward table (controller_bench) and what the text derives from it, the observer with a calibration;
+  evaluate's transient and held-out figures), the observer's noise against its bound, the momentum observer's
+  section (its noise floor for a linear estimator, noise, step times, streamed held-out points), the step-size
+  bound, the feedforward table (controller_bench) and what the text derives from it, the observer with a calibration;
 - docs/new-drive.md: the rig time of each road, the extended model's table angles;
 - docs/paper-figures.md, new-drive.md, residuals.md, estimators.md: the settings and rig values they state.
 
@@ -24,8 +25,11 @@ from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simula
 from torque_estimator.control.rig_feedforward import FEEDFORWARD_FALSE_ALARM, feedforward_estimator
 from torque_estimator.demo.run_analysis import load_step_responses
 from torque_estimator.estimation.observer import ObserverEstimator, jump_bound, steady_state_bound
+from torque_estimator.estimation.momentum import DEFAULT_BANDWIDTH as MOMENTUM_DEFAULT_BANDWIDTH
+from torque_estimator.estimation.momentum import linear_noise_bound
 from torque_estimator.estimation.registry import make_estimator
 from torque_estimator.evaluation.closed_loop import run_scenario
+from torque_estimator.evaluation.evaluate import momentum_noise_line
 from torque_estimator.evaluation.held_out import held_out_setpoints, measure_held_out, score
 from torque_estimator.evaluation.observer_study import held_out_streaming, perturbed_rig
 from torque_estimator.evaluation.scenario import DEMO_SCENARIO
@@ -94,7 +98,7 @@ def test_transient_table_and_noise(database) -> None:
     """docs/estimators.md's side-by-side table (make evaluate's `transient:` lines and held-out figures), the
     observer's noise against its bound, and the README's 3 ms."""
     rows = table(page("estimators.md"), "| method | step: 90 % after |")
-    assert [row[0] for row in rows] == ["knn", "extended_model", "observer"]
+    assert [row[0] for row in rows] == ["knn", "extended_model", "observer", "momentum"]
     measured = measure_held_out(RIG, GRID, 17, 1)
     for method, *cells in rows:
         step90, overshoot, ramp, reversal = (figures(cell)[0] for cell in cells[:4])
@@ -117,6 +121,40 @@ def test_transient_table_and_noise(database) -> None:
             assert same(f.steady_std / steady_state_bound(RIG, STEP_SPEED, 0.0), ratio)
             assert int(stated(page("README.md"), r"which follows a load step in (\d+) ms")[0]) == f.step90_ms
             assert int(stated(page("estimators.md"), r"so a step keeps its (\d+) ms")[0]) == f.step90_ms
+
+
+def test_the_momentum_observer(database) -> None:
+    """docs/estimators.md's momentum section: the linear estimators' noise floor, the default bandwidth, the noise
+    against the prediction (make evaluate's `noise: method=momentum` line, with the calibration), the step times
+    with and without the encoder, the held-out points streamed without a calibration."""
+    text = page("estimators.md")
+    floor, floor_pct, blind = stated(text, r"noise of at least ([\d.]+) N·m \(([\d.]+) % of the range; ([\d.]+) N·m")
+    assert same(linear_noise_bound(RIG, STEP_SPEED, 0.0, 5), floor)
+    assert same(100 * linear_noise_bound(RIG, STEP_SPEED, 0.0, 5) / database.torque_range, floor_pct)
+    assert same(linear_noise_bound(RIG, STEP_SPEED, 0.0, 5, with_encoder=False), blind)
+    assert float(stated(text, r"`bandwidth`, default ([\d.]+) Hz")[0]) == MOMENTUM_DEFAULT_BANDWIDTH
+    estimator = make_estimator("momentum", database)
+    line = momentum_noise_line(RIG, estimator, 0)
+    std, predicted = (float(v) for v in re.search(r"std=(\S+) predicted=(\S+)", line).groups())
+    written_std, written_predicted = stated(text, r"constant load is ([\d.e-]+) N·m against the ([\d.e-]+) its")
+    assert same(std, written_std) and same(predicted, written_predicted)
+    assert std < linear_noise_bound(RIG, STEP_SPEED, 0.0, 5) / 20  # "a twentieth of that floor"
+    with_encoder, without = stated(text, r"0.2 N·m step after (\d+) ms \((\d+) ms without the encoder angle\)")
+    plain = make_estimator("momentum", None)
+    assert transient_figures(RIG, "momentum", plain, database.torque_range).step90_ms == int(with_encoder)
+
+    class Blind:  # the same streams fed no encoder angle
+        def stream(self, period):
+            inner = plain.stream(period)
+            return type("S", (), {"update": lambda _s, v, i, w, th=None: inner.update(v, i, w, None),
+                                  "skip": lambda _s, n: inner.skip(n)})()
+
+    assert transient_figures(RIG, "momentum", Blind(), database.torque_range).step90_ms == int(without)
+    mean, worst = stated(text, r"stream is off by ([\d.]+) % on average and ([\d.]+) % at most without a calibration")
+    speeds, torques = held_out_setpoints(GRID, 17, 1)
+    est, truth = held_out_streaming(RIG, speeds, torques, estimator=plain)
+    error = 100 * np.abs(est - truth) / database.torque_range
+    assert same(error.mean(), mean) and same(error.max(), worst)
 
 
 def test_the_step_size_bound() -> None:

@@ -8,9 +8,11 @@
                     a stream fed every sample)
 ``observer``        the shipped estimator: a Kalman filter on the rig's model with a load-step detector
                     (a folder: its own map)
+``momentum``        the momentum observer: the load from current and speed only, no voltage (a folder: its
+                    own map)
 ``knn``             the paper's k-NN map over a calibration
 ``extended_model``  inverts the identified model's quasi-static current
 ``database``        the calibration database the maps read, and its file format
 ``quasi_static``    the inertia's share taken out of the current (LiveEstimator's compensation)
-``calibration_bias``  the model's steady error read off a calibration (added by the observer)
+``calibration_bias``  the model's steady error read off a calibration (added by the observer and momentum)
 """

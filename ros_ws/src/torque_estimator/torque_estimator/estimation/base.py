@@ -13,7 +13,8 @@ protocol LiveEstimator (live.py) tests for:
 * :class:`StreamingEstimator`: it follows the rig sample by sample itself
   (``stream(sample_period)`` gives an :class:`EstimateStream`, fed voltage,
   current, speed and encoder angle per sample), instead of LiveEstimator's
-  filters in front of ``estimate`` (the observer);
+  filters in front of ``estimate`` (the observer; the momentum observer, which
+  leaves the voltage unread);
 * :class:`AngleEstimator`: ``estimate`` also takes the worm angle and removes
   a ripple periodic in it when ``uses_angle`` is True (extended_model with
   periodic effects).

@@ -37,8 +37,9 @@ A disturbance observer in front of a quasi-static map. Per sample (ω_w [rad/s],
 Streaming estimators (base.StreamingEstimator: ``stream(sample_period)`` gives an
 EstimateStream, e.g. the model-based observer of estimation/observer/) replace steps 1-3:
 every sample goes to the stream as it is, with the applied drive voltage and the encoder
-angle (``update``'s ``voltage`` and ``theta``; a missing voltage is an invalid input), and
-its estimate is returned.
+angle (``update``'s ``voltage`` and ``theta``; a missing voltage is an invalid input to the
+observer, and not read by the momentum observer of estimation/momentum/), and its estimate is
+returned.
 
 A NaN/inf input gives an INVALID_INPUT estimate and leaves every state as it
 was. Given each sample's seq, it also follows the stream's continuity: lost

@@ -15,6 +15,7 @@ from torque_estimator.estimation.base import TorqueEstimator
 from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.extended_model import ExtendedModelEstimator
 from torque_estimator.estimation.knn import WEIGHTINGS, KnnEstimator
+from torque_estimator.estimation.momentum import DEFAULT_BANDWIDTH, DEFAULT_FALSE_ALARM, MomentumEstimator
 from torque_estimator.estimation.observer import ObserverEstimator
 
 
@@ -57,25 +58,40 @@ KNN_OPTIONS: tuple[Option, ...] = (
     Option("weighting", "inverse_distance", "k-NN weighting of the neighbours (knn).", choices=tuple(WEIGHTINGS)),
 )
 
+#: The momentum observer's own options (MomentumEstimator).
+MOMENTUM_OPTIONS: tuple[Option, ...] = (
+    Option("bandwidth", DEFAULT_BANDWIDTH,
+           "Bandwidth [Hz] of the load estimate between detected load steps (momentum): higher follows a slow "
+           "load change sooner and is noisier.", low=0.01, high=200.0),
+    Option("false_alarm", DEFAULT_FALSE_ALARM,
+           "False-alarm probability per sample of the load-step detector (momentum); 0: no step detection, the "
+           "residual alone at its bandwidth.", low=0.0, high=0.01),
+)
+
 
 @dataclass(frozen=True)
 class Method:
     """One estimator: its factory ``(database, **options) -> TorqueEstimator``, the options it reads
-    (estimator_node declares them for this method only), whether it needs a calibration database, and
-    whether it reads a model file (``model_file``: extended_model inverts it, the observer runs it)."""
+    (estimator_node declares them for this method only), whether it needs a calibration database,
+    whether it reads a model file (``model_file``: extended_model inverts it, the observer runs it), and
+    whether it reads the drive voltage (the observer: without it every sample is INVALID_INPUT; the others
+    never read it, so an input without a voltage serves them)."""
 
     factory: Callable[..., TorqueEstimator]
     options: tuple[Option, ...]
     needs_calibration: bool
     reads_model_file: bool
+    reads_voltage: bool = False
 
 
-#: Estimator name -> Method. "observer" is a streaming estimator (base.StreamingEstimator): LiveEstimator feeds
-#: its stream voltage and encoder angle per sample instead of running its own filters, so it reads no MAP_OPTIONS.
+#: Estimator name -> Method. "observer" and "momentum" are streaming estimators (base.StreamingEstimator):
+#: LiveEstimator feeds their streams every sample as it is instead of running its own filters, so they read no
+#: MAP_OPTIONS. The observer reads the voltage too; the momentum observer only current, speed and encoder angle.
 METHODS: dict[str, Method] = {
     "knn": Method(KnnEstimator, KNN_OPTIONS + MAP_OPTIONS, needs_calibration=True, reads_model_file=False),
     "extended_model": Method(ExtendedModelEstimator, MAP_OPTIONS, needs_calibration=False, reads_model_file=True),
-    "observer": Method(ObserverEstimator, (), needs_calibration=False, reads_model_file=True),
+    "observer": Method(ObserverEstimator, (), needs_calibration=False, reads_model_file=True, reads_voltage=True),
+    "momentum": Method(MomentumEstimator, MOMENTUM_OPTIONS, needs_calibration=False, reads_model_file=True),
 }
 
 #: Estimator name -> factory (evaluate, the benchmarks and the tests iterate over it).
@@ -107,4 +123,5 @@ def make_estimator(name: str, database: CalibrationDatabase | None, **options: A
     return row.factory(database, **options)
 
 
-__all__ = ["ESTIMATORS", "KNN_OPTIONS", "MAP_OPTIONS", "METHODS", "Method", "Option", "make_estimator", "method"]
+__all__ = ["ESTIMATORS", "KNN_OPTIONS", "MAP_OPTIONS", "METHODS", "MOMENTUM_OPTIONS", "Method", "Option",
+           "make_estimator", "method"]

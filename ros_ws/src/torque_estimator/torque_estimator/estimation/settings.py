@@ -38,15 +38,17 @@ from torque_estimator.estimation.registry import MAP_OPTIONS, METHODS, Option, m
 #: estimator_node's parameters for the settings themselves, declared whatever the method.
 SETTINGS_OPTIONS: tuple[Option, ...] = (
     Option("method", "knn", "Estimator: knn (the paper's k-NN map over a calibration), extended_model (inverts the "
-           "identified model), observer (Kalman filter on the model, Eqs 28-30).", choices=tuple(METHODS)),
+           "identified model), observer (Kalman filter on the model, Eqs 28-30, fed the voltage too), momentum "
+           "(momentum observer on the model: current and speed only, no voltage).", choices=tuple(METHODS)),
     Option("rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig."),
     Option("calibration_file", "",
-           "Calibration database (JSON written by `calibrate`); knn needs one; the observer and extended_model can "
-           "do without one (their ranges then come from the rig file), and with one the observer adds the model's "
-           "error measured at its points."),
+           "Calibration database (JSON written by `calibrate`); knn needs one; the observer, momentum and "
+           "extended_model can do without one (their ranges then come from the rig file), and with one the observer "
+           "and momentum add the model's error measured at its points."),
     Option("model_file", "",
            "Extended model parameter file (rig + effects, written by `identify` or `residuals`): inverted by the "
-           "extended_model estimator, its identified parameters are the observer's model, and its identification: "
+           "extended_model estimator, its identified parameters are the observer's and momentum's model, and its "
+           "identification: "
            "ranges replace a calibration's; empty = rig_file (or the bundled rig) with no effects, the paper's "
            "model."),
 )

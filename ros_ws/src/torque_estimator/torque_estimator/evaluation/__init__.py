@@ -6,7 +6,8 @@ reversal streamed as estimator_node runs them), ``identified`` (one ``identify``
 k-NN grid), ``observer_study`` (the observer's steady noise and its model errors),
 ``residual_cases`` (the residuals tool's case matrix), ``real_drive`` (the model against a real
 worm drive's measurements, the T-RO 2021 data: their published fit beside ours, the load
-estimated cross-fitted), ``steady_fit`` (our model fitted to steady points, and the residual
+estimated cross-fitted), ``start_stop`` (the momentum observer on that drive's start-stop runs, the only real
+transient data), ``steady_fit`` (our model fitted to steady points, and the residual
 selection of what it lacks), ``tro2021_model`` (the T-RO paper's model with their parameters,
 the reference), ``closed_loop`` (the speed loop with
 feedforward in one process, at the rig's, the firmware's and the graph's timing; the controller

@@ -20,6 +20,10 @@ each
 and the observer's steady noise against the best any estimator can do from these
 sensors at its bandwidth (observer.steady_state_bound, a Cramér-Rao-type bound)
     noise: method=observer std=<x> bound=<x> N m ratio=<x>
+and the momentum observer's (current and speed only) noise on a constant load against its predicted
+steady noise, and the least noise any linear estimator that reaches 90 % of a step 5 samples after it
+has on these sensors (momentum.linear_noise_bound: why it detects steps instead)
+    noise: method=momentum std=<x> predicted=<x> N m ratio=<x> linear_5_sample_floor=<x> N m
 and the fast road (evaluation.identified): on the simulated rig with every default effect
 on and the rig file off (mu x1.3, K_t x1.05, drags x2), one `identify` run against the
 k-NN grid calibrated on that rig, the extended model and the observer with the identified
@@ -30,6 +34,9 @@ Then, unless --no-real, the model against a real worm drive's measurements (eval
 the T-RO 2021 drive's 46 steady points, their published fit beside ours, the load estimated
 cross-fitted; real_drive_torque.png), ending with
     real: drive=tro2021_worm points=<n> fit_rms_mNm=<x> tro_fit_rms_mNm=<x> load_mae_pct=<x> ...
+and the momentum observer on that drive's two start-stop runs (evaluation.start_stop: the hanging load
+estimated from current and speed during each move), one line per move
+    start_stop: file=<f> pass=<n> move=<lifting|lowering> rpm=<x> mean_mNm=<x> error_pct=<x> ...
 
 Errors are |estimated - true| in % of the calibrated torque range (max - min
 of the database's τ_d). The last line printed is
@@ -55,14 +62,18 @@ from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
 from torque_estimator.evaluation.held_out import format_table, measure_held_out, score, sweep_grid_density, sweep_k, sweep_noise
 from torque_estimator.estimation.knn import WEIGHTINGS
 from torque_estimator.estimation.observer import steady_state_bound
-from torque_estimator.evaluation.transient import STEP_SPEED, transient_figures
+from torque_estimator.estimation.momentum import linear_noise_bound
+from torque_estimator.estimation.momentum import predicted_noise as momentum_noise
+from torque_estimator.evaluation.transient import STEP_SPEED, ensemble_noise, transient_figures
 from torque_estimator.evaluation.identified import evaluate_lines as identified_lines
-from torque_estimator.evaluation import real_drive
+from torque_estimator.evaluation import real_drive, start_stop
 
 #: what evaluate writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
 OUTPUT = Output("evaluate", names=("*.png",))
 #: seeds of the step experiment (the ramp and the reversal take a third)
 TRANSIENT_SEEDS = 12
+#: samples after a load step by which the momentum observer is asked to have 90 % of it (5 ms at 1 kHz)
+MOMENTUM_STEP_SAMPLES = 5
 from torque_estimator.evaluation.plots import held_out_deviation, sweeps
 from worm_model.cli.progress import ProgressBar
 
@@ -130,8 +141,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="sensor noise factors (x the rig's current and speed noise), comma-separated "
                             "(default 0,0.5,1,2,4)")
     p.add_argument("--no-real", action="store_true",
-                   help="skip the real worm drive (the T-RO 2021 measurements, ~1 min): its table, real_drive_torque.png "
-                        "and its `real:` line")
+                   help="skip the real worm drive (the T-RO 2021 measurements, ~1 min): its table, "
+                        "real_drive_torque.png, its `real:` line and the momentum observer's `start_stop:` lines")
     p.add_argument("--no-residuals", action="store_true", help="skip the residuals tool's case matrix")
     p.add_argument("--residual-cases", choices=("full", "small"), default="full",
                    help="the residuals tool's case matrix: full (two rigs, both friction models; every effect alone "
@@ -206,6 +217,9 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
             study = real_drive.run_study(progress=bar.update_to)
         print("\nA real worm drive (the T-RO 2021 measurements, evaluation.real_drive)")
         print("\n".join(real_drive.lines(study)))
+        print("\nThe momentum observer on the same drive's start-stop runs (current and speed only, "
+              "evaluation.start_stop)")
+        print("\n".join(m.line() for m in start_stop.run()))
         pngs.append(real_drive.plot(study, out / "real_drive_torque.png"))
     if not args.no_residuals:  # the residuals tool's case matrix (issue 15); ends with its `residuals:` line
         cases = full_matrix() if args.residual_cases == "full" else small_matrix()
@@ -234,8 +248,21 @@ def side_by_side(args, rig, grid, db) -> None:
                 bound = steady_state_bound(rig, STEP_SPEED, 0.0)
                 lines.append(f"noise: method=observer std={figures.steady_std:.2e} bound={bound:.2e} N m "
                              f"ratio={figures.steady_std / bound:.2f}")
+            if method == "momentum":
+                lines.append(momentum_noise_line(rig, estimator, args.seed))
             bar.update_to(i + 1)
     print("\n".join(lines))
+
+
+def momentum_noise_line(rig, estimator, seed: int) -> str:
+    """The momentum observer's noise on a constant load (across seeds) against its predicted steady noise at its
+    bandwidth, and the noise floor of any linear estimator that follows a step in MOMENTUM_STEP_SAMPLES samples
+    (momentum.linear_noise_bound: why it detects steps instead)."""
+    std = ensemble_noise(rig, "momentum", estimator, seeds=TRANSIENT_SEEDS, seed=seed)
+    predicted = momentum_noise(rig, STEP_SPEED, 0.0, estimator.bandwidth)
+    floor = linear_noise_bound(rig, STEP_SPEED, 0.0, MOMENTUM_STEP_SAMPLES)
+    return (f"noise: method=momentum std={std:.2e} predicted={predicted:.2e} N m ratio={std / predicted:.2f} "
+            f"linear_{MOMENTUM_STEP_SAMPLES}_sample_floor={floor:.2e} N m")
 
 
 def run_sweeps(args, rig, grid, db, options) -> list:

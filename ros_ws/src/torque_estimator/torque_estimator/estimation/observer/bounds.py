@@ -128,15 +128,22 @@ def jump_bound(rig: Rig, omega: float, tau_d: float, samples: int, *, period: fl
     period, noise, q = _defaults(rig, period, noise, load)
     phi, K, _pf, prior = steady_filter(rig, omega, tau_d, period, noise, q)
     s_inv = np.linalg.inv(H @ prior @ H.T + noise.measurement_covariance(omega))
-    err = phi @ np.array([0, 0, 0, 1.0])
-    info, out = 0.0, []
+    return step_information(phi, H, K, s_inv, phi @ np.array([0, 0, 0, 1.0]), samples)
+
+
+def step_information(phi: np.ndarray, h: np.ndarray, k: np.ndarray, s_inv: np.ndarray, first: np.ndarray,
+                     samples: int) -> np.ndarray:
+    """1/√C_n [N m] for n = 1..``samples``: the Cramér–Rao bound on a unit load step's size from the steady filter's
+    innovations (transition Φ, measurement matrix H, gain K, innovation covariance S⁻¹), ``first`` the prior state
+    error one period after the step; C_n = Σ g_j' S⁻¹ g_j over the signatures g_j = H e_j it leaves."""
+    err, info, out = first.copy(), 0.0, []
     for _ in range(samples):
-        g = H @ err
+        g = h @ err
         info += float(g @ s_inv @ g)
         out.append(1.0 / math.sqrt(info))
-        err = phi @ (err - K @ g)
+        err = phi @ (err - k @ g)
     return np.array(out)
 
 
 __all__ = ["equivalent_window", "jump_bound", "linearised", "predicted_noise", "steady_filter",
-           "steady_state_bound"]
+           "steady_state_bound", "step_information"]

@@ -86,11 +86,16 @@ class ObserverEstimator:
     def stream(self, sample_period: float | None = None) -> EstimateStream:
         """A fresh streaming observer (LoadObserver) with this estimator's model and limits, corrected for
         the model file's sensor errors and the calibration's bias when there are any (streams)."""
-        stream: EstimateStream = LoadObserver(self.rig, sample_period, load=self.load,
-                                                 torque_limit=self.torque_limit, speed_limit=self.speed_limit)
+        stream = self._filter(sample_period)
         if self.correction != SensorCorrection():
             stream = CorrectedStream(stream, self.correction)
         return stream if self.bias is None else BiasedStream(stream, self.bias)
+
+    def _filter(self, sample_period: float | None) -> EstimateStream:
+        """The bare streaming filter :meth:`stream` wraps (a subclass with another filter overrides this:
+        the momentum observer, estimation/momentum/)."""
+        return LoadObserver(self.rig, sample_period, load=self.load, torque_limit=self.torque_limit,
+                            speed_limit=self.speed_limit)
 
     def estimate(self, omega_worm: ArrayLike, current_drive: ArrayLike) -> TorqueEstimates:
         """Quasi-static τ_d [N m] from ω [rad/s] and the inertia-free current i [A]; never raises."""

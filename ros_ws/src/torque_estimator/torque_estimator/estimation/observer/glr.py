@@ -34,21 +34,25 @@ class StepDetector:
     """The GLR test of the module docstring over the last ``window`` onsets, at threshold h (``threshold``).
 
     The filter calls :meth:`test` once per measurement update with the transition of the period just
-    predicted over; :meth:`clear` forgets every onset (after a jump, a gap or a restart).
+    predicted over; :meth:`clear` forgets every onset (after a jump, a gap or a restart). ``states``
+    and ``load``: the filter's state count and the index of τ_d in it (LoadObserver's by default; the
+    momentum observer, estimation/momentum/, has its own layout).
     """
 
-    def __init__(self, threshold: float, window: int) -> None:
+    def __init__(self, threshold: float, window: int, states: int = N_STATES, load: int = TAU) -> None:
         self.threshold = threshold
         self.window = int(window)
+        self.states = int(states)
+        self.load = int(load)
         self.clear()
 
     def clear(self) -> None:
-        self._sig = np.empty((0, N_STATES))
+        self._sig = np.empty((0, self.states))
         self._d = np.empty(0)
         self._c = np.empty(0)
 
     def test(self, phi: np.ndarray, h: np.ndarray, nu: np.ndarray, s_inv: np.ndarray, K: np.ndarray) -> Jump | None:
-        """One measurement update: ``phi`` the period's transition (7×7), ``h`` the measurement Jacobian,
+        """One measurement update: ``phi`` the period's transition (states × states), ``h`` the measurement Jacobian,
         ``nu`` the innovations, ``s_inv`` their covariance's inverse, ``K`` the gain. Returns the jump when
         one is declared (and forgets the onsets), else None (the onsets carried into the next period)."""
         if self.window < 1:
@@ -57,9 +61,9 @@ class StepDetector:
         # (a unit jump of τ_d during the last period): its prior error is phi's τ_d column.
         # The oldest onset leaves the window; oldest first, as argmax breaks ties by the first.
         keep = min(len(self._d), self.window - 1)
-        sig = np.empty((keep + 1, N_STATES))
+        sig = np.empty((keep + 1, self.states))
         np.matmul(self._sig[len(self._sig) - keep:], phi.T, out=sig[:keep])
-        sig[keep] = phi[:, TAU]
+        sig[keep] = phi[:, self.load]
         g = sig @ h.T  # innovation signatures (onsets, measurements)
         gs = g @ s_inv
         d = gs @ nu  # the newest onset starts from 0

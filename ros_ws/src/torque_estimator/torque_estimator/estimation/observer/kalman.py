@@ -150,6 +150,24 @@ def interval_measurement(mean: float, var: float, low: float, high: float, unifo
     return mean + sd * shift * (var + r) / var, r
 
 
+def judged(smap: StaticLoadMap, omega: float, tau: float, variance: float, mesh: tuple, limits: tuple[float, float],
+           p_reference: float, flags: int = 0) -> tuple[int, float]:
+    """(flags, 1σ [N m]) of an estimate τ_d [N m] of ``variance`` [(N m)²] at ω [rad/s] (the module docstring's
+    flags; mesh: StaticLoadMap.mesh there): AMBIGUOUS in the self-locking V, the uncertainty then reaching the
+    other arm; OUT_OF_CALIBRATION beyond the (torque [N m], speed [rad/s]) ``limits``; TRANSIENT while the
+    variance is above twice ``p_reference``. ``flags``: bits already set. The momentum observer's too."""
+    u = math.sqrt(max(variance, 0.0))
+    spread = smap.ambiguity(omega, tau, mesh[0], mesh[4], STANDSTILL)
+    if spread is not None:
+        flags |= EstimateFlags.AMBIGUOUS
+        u = max(u, spread)
+    if abs(tau) - 2.0 * u > limits[0] or abs(omega) > limits[1]:
+        flags |= EstimateFlags.OUT_OF_CALIBRATION
+    if variance > 2.0 * p_reference:
+        flags |= EstimateFlags.TRANSIENT
+    return int(flags), u
+
+
 class LoadObserver:
     """Streaming τ_d observer (module docstring); one :meth:`update` per rig sample.
 
@@ -358,24 +376,14 @@ class LoadObserver:
 
     def _estimate(self, jump: bool, extra_flags: int, mesh: tuple | None = None) -> ObserverEstimate:
         """The estimate at the filtered state; mesh: StaticLoadMap.mesh there if the caller has it."""
-        x, P = self.x, self.P
+        x = self.x
         omega, tau = float(x[OMEGA]), float(x[TAU])
-        u = math.sqrt(max(float(P[TAU, TAU]), 0.0))
-        t_dist, _slope, _flank, _factor, mu = self.map.mesh(omega, tau) if mesh is None else mesh
-        flags = extra_flags
-        if abs(omega) > STANDSTILL and mu > self.map.self_locking_mu:
-            driving, coast, _f, _c = self.map.invert(omega, t_dist)
-            branches = [float(b) for b in (driving, coast) if math.isfinite(float(b))]
-            if len(branches) == 2:
-                flags |= EstimateFlags.AMBIGUOUS
-                u = max(u, max(abs(b - tau) for b in branches))
-        if abs(tau) - 2.0 * u > self.torque_limit or abs(omega) > self.speed_limit:
-            flags |= EstimateFlags.OUT_OF_CALIBRATION
+        mesh = self.map.mesh(omega, tau) if mesh is None else mesh
         if self.p_reference == math.inf:
             self.p_reference = self.steady_variance(omega, tau)
-        if float(P[TAU, TAU]) > 2.0 * self.p_reference:
-            flags |= EstimateFlags.TRANSIENT
-        return ObserverEstimate(tau, u, int(flags), omega, float(x[CURRENT]), t_dist, jump)
+        flags, u = judged(self.map, omega, tau, float(self.P[TAU, TAU]), mesh, (self.torque_limit, self.speed_limit),
+                          self.p_reference, extra_flags)
+        return ObserverEstimate(tau, u, flags, omega, float(x[CURRENT]), mesh[0], jump)
 
     def skip(self, samples: int) -> None:
         """``samples`` rig samples were lost: predict over them with the last voltage, no
@@ -416,4 +424,5 @@ class LoadObserver:
         return float(steady_filter(self.rig, omega, tau_d, self.period, noise, self.q)[2][3, 3])
 
 
-__all__ = ["MAX_SKIP", "RESTART_NIS", "STANDSTILL", "LoadObserver", "ObserverEstimate", "interval_measurement"]
+__all__ = ["MAX_SKIP", "RESTART_NIS", "STANDSTILL", "LoadObserver", "ObserverEstimate", "interval_measurement",
+           "judged"]

@@ -21,6 +21,8 @@ No ROS; numpy.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -79,6 +81,16 @@ class StaticLoadMap:
     def worm_torque(self, omega: float, tau_d: float) -> tuple[float, float, int]:
         """(T_dist [N m], ∂T_dist/∂τ_d [1], flank s) at one (ω, τ_d)."""
         return self.mesh(omega, tau_d)[:3]
+
+    def ambiguity(self, omega: float, tau_d: float, t_dist: float, mu: float, standstill: float) -> float | None:
+        """In the self-locking V (a worm moving faster than ``standstill`` [rad/s] with μ above the self-locking
+        limit, and both flanks explaining T_dist [N m] at ω): how far [N m] the other flank's load is from τ_d; None
+        where the load is not ambiguous (the observers' AMBIGUOUS flag, their uncertainty reaching the other arm)."""
+        if abs(omega) <= standstill or mu <= self.self_locking_mu:
+            return None
+        driving, coast, _flags, _chosen = self.invert(omega, t_dist)
+        branches = [float(b) for b in (driving, coast) if math.isfinite(float(b))]
+        return max(abs(b - tau_d) for b in branches) if len(branches) == 2 else None
 
     def invert(self, omega: ArrayLike, t_dist: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """τ_d explaining a worm-side disturbance T_dist [N m] at ω [rad/s], per flank.
