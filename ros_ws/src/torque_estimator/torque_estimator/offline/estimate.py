@@ -53,7 +53,7 @@ from worm_model.rig_data.schema import MeasuredData, RigDataError, csv_header
 from torque_estimator.calibration.operating_points import SteadyStateCriterion
 from torque_estimator.estimation.database import CalibrationError
 from torque_estimator.estimation.live import LiveEstimator
-from torque_estimator.estimation.registry import ESTIMATORS
+from torque_estimator.estimation.registry import ESTIMATORS, METHODS
 from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.offline.replay import ReplayError, node_parameters
 from worm_model.cli.progress import ProgressBar
@@ -238,8 +238,9 @@ def _main(argv: list[str] | None) -> int:
         return fail("log", str(err))
     for note in data.notes:
         print(f"{PROG}: note: {note}")
-    if args.method == "observer" and (data.voltage_drive is None or not np.isfinite(data.voltage_drive).any()):
-        return fail("log", f"{args.log}: the observer needs the voltage_drive column")
+    if METHODS[args.method].reads_voltage and (data.voltage_drive is None or not np.isfinite(data.voltage_drive).any()):
+        return fail("log", f"{args.log}: the {args.method} method needs the voltage_drive column (momentum, knn and "
+                           "extended_model do without)")
     estimator, model_file, rig_file = built.estimator, settings.model_file, settings.rig_file
     start = time.monotonic()
     with ProgressBar(len(data), "samples", enabled=not args.quiet) as bar:
