@@ -94,7 +94,8 @@ class EstimatorNode(Node):
                 f"{self.settings.calibration_file}" if built.database is not None else
                 f"{self.method} estimator without a calibration (ranges from the rig file)")
         except (CalibrationError, ParameterError) as err:
-            if self.calibration_file or model_file or rig_file:  # a file the user named cannot be used: stop (exit 2)
+            if self.settings.calibration_file or self.settings.model_file or self.settings.rig_file:
+                # a file the user named cannot be used: stop (exit 2)
                 raise
             self.problem = str(err)
             self.get_logger().error(f"no estimates: {err}")
