@@ -326,17 +326,19 @@ def _say(level: str) -> str:
     return "" if level == "OK" else f"  [{level}]"
 
 
-def assess_trend(records: list[CheckRecord], settings: HealthSettings, rig: Rig) -> list[Assessment | None]:
+def assess_trend(records: list[CheckRecord], settings: HealthSettings, rig: Rig,
+                 fixed: Baseline | None = None) -> list[Assessment | None]:
     """Every check of a trend assessed in order, as health_check did when each was added (each record's
-    ``level`` and ``findings`` are set); None for the baseline checks."""
-    n = settings.limits.baseline_checks
+    ``level`` and ``findings`` are set); None for the baseline checks. ``fixed``: compare every check with this
+    baseline (e.g. :func:`baseline_from_rig`) instead of the trend's first checks."""
+    n = 0 if fixed is not None else settings.limits.baseline_checks
     out: list[Assessment | None] = []
     for i, record in enumerate(records):
         if i < n:
             record.level, record.findings = "OK", [f"baseline check {i + 1} of {n}"]
             out.append(None)
             continue
-        baseline = baseline_of(records[:i], settings, rig)
+        baseline = fixed if fixed is not None else baseline_of(records[:i], settings, rig)
         result = assess(record, baseline, records[n:i], settings, rig)
         record.level, record.findings = result.level, result.lines
         out.append(result)
