@@ -20,7 +20,14 @@ each
 and the observer's steady noise against the best any estimator can do from these
 sensors at its bandwidth (observer.steady_state_bound, a Cramér-Rao-type bound)
     noise: method=observer std=<x> bound=<x> N m ratio=<x>
-and the fast road (evaluation.identified): on the simulated rig with every default effect
+and the gearbox's health (health.study): detection of a 10 % and a 5 % rise of mu with the oil
+temperature measured and estimated, false alarms over 1000 healthy checks, the live monitor on a
+lubricant loss and a cold start, the real drive's check (health.real_drive), as lines
+    health: change=mu+10% detected_in_checks=<n> ... temperature=measured
+    health: false_alarms=<n> of <m> temperature=measured
+    health: live lubricant_loss=mu+30% warn_after_s=<x> ...
+and health_trend.png (a simulated gearbox's life with its alarm bands); then the fast road
+(evaluation.identified): on the simulated rig with every default effect
 on and the rig file off (mu x1.3, K_t x1.05, drags x2), one `identify` run against the
 k-NN grid calibrated on that rig, the extended model and the observer with the identified
 parameters, on the same held-out points, ending with
@@ -56,7 +63,7 @@ from torque_estimator.evaluation.identified import evaluate_lines as identified_
 #: seeds of the step experiment (the ramp and the reversal take a third)
 TRANSIENT_SEEDS = 12
 from torque_estimator.evaluation.plots import held_out_deviation, sweeps
-from worm_model.cli.progress import ProgressBar
+from worm_model.cli.progress import Progress, ProgressBar
 
 
 def _number_list(kind: Callable[[str], float], minimum: float, what: str) -> Callable[[str], list[Any]]:
@@ -122,6 +129,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="sensor noise factors (x the rig's current and speed noise), comma-separated "
                             "(default 0,0.5,1,2,4)")
     p.add_argument("--no-residuals", action="store_true", help="skip the residuals tool's case matrix")
+    p.add_argument("--no-health", action="store_true",
+                   help="skip the gearbox health study (~1800 simulated checks, the live scenarios: ~10 min)")
     p.add_argument("--residual-cases", choices=("full", "small"), default="full",
                    help="the residuals tool's case matrix: full (every effect alone and in pairs, each with the "
                         "declared values nominal, high and low; clean data; out-of-vocabulary effects: 75 cases, "
@@ -191,6 +200,18 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
         side_by_side(args, rig, grid, db)
         # issue 18: identify from one short run vs the k-NN grid, on the simulated rig with every effect on
         print("\n".join(identified_lines(rig, args.points, args.seed + 1, args.k, args.weighting)))
+    if not args.no_health:  # the gearbox's health: checks, trend, live monitor (health.study)
+        from torque_estimator.health.study import evaluate_lines as health_lines  # noqa: PLC0415
+
+        with Progress(enabled=not args.quiet) as progress:
+            def on_progress(label: str, done: int, total: int) -> None:
+                if progress.name != label:
+                    progress.stage(label, total)
+                progress.update_to(done)
+
+            lines = health_lines(rig, args.seed, out=out, progress=on_progress)
+        print("\n".join(lines))
+        pngs.append(out / "health_trend.png")
     if not args.no_residuals:  # the residuals tool's case matrix (issue 15); ends with its `residuals:` line
         cases = full_matrix() if args.residual_cases == "full" else small_matrix()
         with ProgressBar(len(cases), "residuals cases", enabled=not args.quiet) as bar:

@@ -39,7 +39,7 @@ from worm_model.cli.errors import InputError, run_tool
 from worm_model.cli.options import Parser, existing_file, number
 from worm_model.cli.progress import ProgressBar
 from worm_model.files.writing import check_output
-from worm_model.health.assess import Z95, assess_trend, baseline_from_rig
+from worm_model.health.assess import Z95, assess_trend, baseline_from_rig, baseline_of
 from worm_model.health.blocks import blocks_from_data
 from worm_model.health.fit import FitError, Temperature, fit_points
 from worm_model.health.model import NAMES, UNITS, HealthParameters
@@ -173,7 +173,8 @@ def _main(argv: list[str] | None) -> int:
     if args.plot is not None:
         from worm_model.health.plots import trend_figure  # noqa: PLC0415 (matplotlib only when asked)
 
-        trend_figure(args.plot, trend.records, assessments, settings.limits, f"Gearbox health: {trend.gearbox}")
+        baseline = fixed or baseline_of(trend.records, settings, rig)
+        trend_figure(args.plot, trend.records, assessments, settings, rig, baseline, f"Gearbox health: {trend.gearbox}")
     mu = "n/a (baseline)" if result is None else f"{result.mu_change.value:+.1%} +- {Z95 * result.mu_change.sigma:.1%}"
     tr = "n/a" if result is None or result.trend_change is None else \
         f"{result.trend_change.value:+.1%} +- {Z95 * result.trend_change.sigma:.1%}"
@@ -241,7 +242,7 @@ def _summary(fit, record: CheckRecord, result, settings: HealthSettings, count: 
     if result is None:
         lines.append(f"baseline: check {count} of {n}; alarms start with check {n + 1}")
     else:
-        lines += [f"{'[' + f.level + ']' if f.level != 'OK' else '    '} {f.text}" for f in result.findings]
+        lines += [f"  {f.text}" for f in result.findings]
     return lines
 
 

@@ -112,9 +112,11 @@ def run_lives(rig: Rig, lives: list[Life], seed: int, settings: HealthSettings =
             estimate = ThermalEstimate.start(settings.thermal)
             estimate.settle(life.power[j] * (1.0 + life.heat_error), life.duration[j])
             guessed = Temperature(estimate.temperature, estimate.sigma, "estimated")
+            cache: dict = {}  # the two records share their points, so their refits (assess.watched_fit)
             for mode, temperature in (("measured", sensor), ("estimated", guessed)):
-                life.records[mode].append(CheckRecord.from_fit(fit, temperature, f"check {j}", None, "simulator",
-                                                               points))
+                record = CheckRecord.from_fit(fit, temperature, f"check {j}", None, "simulator", points)
+                record.cache = cache
+                life.records[mode].append(record)
             k += 1
 
 
@@ -145,6 +147,8 @@ class StudyResult:
 
     detected: dict[tuple[float, str], list[int | None]]  # (rise, mode) -> checks to detection per gearbox
     false_alarms: dict[str, tuple[int, int]]  # mode -> (alarms, healthy checks assessed)
+    sigma: dict[str, float] = field(default_factory=dict)  # mode -> median sigma of a healthy check's mu change
+    example: list[CheckRecord] | None = None  # a gearbox with the largest rise, oil measured (for the plot)
 
     def lines(self) -> list[str]:
         out = []
@@ -156,6 +160,10 @@ class StudyResult:
                        f"median={median:g} missed={missed} of {len(found)} temperature={mode}")
         for mode, (alarms, total) in self.false_alarms.items():
             out.append(f"health: false_alarms={alarms} of {total} temperature={mode}")
+        if self.sigma:
+            cost = self.sigma.get("estimated", math.nan) / self.sigma.get("measured", math.nan)
+            out.append(f"health: sigma_mu_change_pct measured={100 * self.sigma.get('measured', math.nan):.2f} "
+                       f"estimated={100 * self.sigma.get('estimated', math.nan):.2f} cost_without_sensor={cost:.2f}x")
         return out
 
 
@@ -175,13 +183,17 @@ def run_study(rig: Rig, *, gearboxes: int = 50, baseline: int = 5, healthy: int 
         changed[rise] = draw_lives(detect_gearboxes, len(rises), seed + 1 + j, rises, settings)
     every = healthy_lives + [life for lives in changed.values() for life in lives]
     run_lives(rig, every, seed, settings, progress)
-    false_alarms = {}
+    false_alarms, sigma = {}, {}
     for mode in MODES:
-        found = [levels(life, mode, rig, settings) for life in healthy_lives]
-        false_alarms[mode] = (sum(level != "OK" for f in found for level in f), sum(len(f) for f in found))
+        found = [assess_trend(life.records[mode], settings, rig) for life in healthy_lives]
+        assessed = [a for f in found for a in f if a is not None]
+        false_alarms[mode] = (sum(a.level != "OK" for a in assessed), len(assessed))
+        sigma[mode] = float(np.median([a.mu_change.sigma for a in assessed])) if assessed else math.nan
     detected = {(rise, mode): [detection_checks(life, mode, rig, settings) for life in lives]
                 for rise, lives in changed.items() for mode in MODES}
-    return StudyResult(detected, false_alarms)
+    top = max(changed) if changed else None
+    example = changed[top][0].records["measured"] if top is not None else None
+    return StudyResult(detected, false_alarms, sigma, example)
 
 
 __all__ = ["GEARBOX_EFFECTS", "Life", "MODES", "StudyResult", "TRUE_MU_PER_KELVIN", "detection_checks",
@@ -228,11 +240,12 @@ class LiveTrace:
         return math.nan
 
 
-def live_run(rig: Rig, reference, timeline, *, effects, seed: int = 0, measured: bool = True,
-             settings: HealthSettings = HealthSettings(), thermal=None,
-             progress: Callable[[int, int], None] | None = None) -> LiveTrace:
-    """The timeline on one simulated rig (scalar path, its own PI), every sample into a worm_model.health.live
-    LiveHealth; the oil temperature is given with the samples when ``measured``."""
+def live_run(rig: Rig, reference, timeline, *, effects, seed: int = 0, settings: HealthSettings = HealthSettings(),
+             thermal: HealthSettings | None = None,
+             progress: Callable[[int, int], None] | None = None) -> dict[str, LiveTrace]:
+    """The timeline on one simulated rig (scalar path, its own PI), every sample into two live monitors
+    (worm_model.health.live.LiveHealth) side by side: "measured" is given the oil temperature with the samples,
+    "estimated" is not (its thermal model, ``thermal``'s settings if given, estimates it from a cold start)."""
     from worm_model.health.live import LiveHealth
     from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, PiLoop
     from worm_rig_driver.sim.simulated_rig import SimulatedRig
@@ -241,10 +254,11 @@ def live_run(rig: Rig, reference, timeline, *, effects, seed: int = 0, measured:
     sim = SimulatedRig(rig, n=1, seed=seed, effects=effects)
     oil = next((e for e in sim.plant.fx.effects if e.name == "oil_temperature"), None)
     loop = PiLoop(rig, DEFAULT_GAINS, rig.supply_voltage)
-    monitor = LiveHealth(rig, reference, settings, sim.sample_period, thermal)
+    monitors = {"measured": LiveHealth(rig, reference, settings, sim.sample_period),
+                "estimated": LiveHealth(rig, reference, thermal or settings, sim.sample_period)}
     _index, speeds, loads = sampled(timeline, sim.sample_period)
     batch = 5
-    rows: list[tuple] = []
+    rows: dict[str, list[tuple]] = {name: [] for name in monitors}
     buf = {name: [] for name in ("w", "i", "d", "tw", "tg", "temp")}
     every = int(round(10.0 / sim.sample_period))
     for k in range(len(speeds)):
@@ -259,14 +273,108 @@ def live_run(rig: Rig, reference, timeline, *, effects, seed: int = 0, measured:
         buf["temp"].append(float(oil.temperature[0]) if oil is not None else math.nan)
         sim.command(voltage_drive=loop.update(sim.sample_period, float(speeds[k]), w))
         if len(buf["w"]) == batch:
-            if monitor.add(buf["w"], buf["i"], buf["d"], buf["tw"], buf["tg"], buf["temp"] if measured else None):
-                st = monitor.status
-                rows.append((st.time, st.level, st.mu_change.value, st.mu_change.sigma, st.oil_temperature.value,
-                             buf["temp"][-1]))
+            for name, monitor in monitors.items():
+                given = buf["temp"] if name == "measured" else None
+                if monitor.add(buf["w"], buf["i"], buf["d"], buf["tw"], buf["tg"], given):
+                    st = monitor.status
+                    rows[name].append((st.time, st.level, st.mu_change.value, st.mu_change.sigma,
+                                       st.oil_temperature.value, buf["temp"][-1]))
             for v in buf.values():
                 v.clear()
         if progress is not None and (k + 1) % every == 0:
             progress(k + 1, len(speeds))
-    table = list(zip(*rows)) if rows else [[]] * 6
-    return LiveTrace(np.array(table[0]), list(table[1]), np.array(table[2]), np.array(table[3]), np.array(table[4]),
-                     np.array(table[5]))
+    out = {}
+    for name, table in rows.items():
+        cols = list(zip(*table)) if table else [[]] * 6
+        out[name] = LiveTrace(np.array(cols[0]), list(cols[1]), np.array(cols[2]), np.array(cols[3]),
+                              np.array(cols[4]), np.array(cols[5]))
+    return out
+
+
+# --- the live scenarios and make evaluate's lines ---------------------------------------------------------
+
+#: rig time of the lubricant loss in its scenario [s], and the scenario's length
+LUBRICANT_AT, LUBRICANT_RUN = 30.0, 60.0
+#: the cold start: oil from 15 degC, the housing's R_th that brings it to ~45 degC in 20 min of the work
+#: (operation(); ~1.5 W of heat: a small box this warm is shielded from the air; the scenario's assumption)
+COLD_START, COLD_RUN, COLD_R_TH = 15.0, 1200.0, 20.0
+
+
+def live_reference(rig: Rig, seed: int, settings: HealthSettings):
+    """A gearbox's trend of baseline checks (simulated side by side) and the live reference it gives."""
+    from worm_model.health.assess import baseline_of
+    from worm_model.health.live import LiveReference
+
+    lives = draw_lives(1, settings.limits.baseline_checks + 1, seed, settings=settings)
+    run_lives(rig, lives, seed, settings)
+    records = lives[0].records["measured"]
+    assess_trend(records, settings, rig)
+    return LiveReference.from_check(records[-1], baseline_of(records, settings, rig))
+
+
+def _with(effects: dict, **changes: dict) -> dict:
+    out = {name: dict(values) for name, values in effects.items()}
+    for name, values in changes.items():
+        out[name] = {**out.get(name, {}), **values}
+    return out
+
+
+def live_scenarios(rig: Rig, seed: int = 0, settings: HealthSettings = HealthSettings(),
+                   progress: Callable[[int, int], None] | None = None) -> dict[str, dict[str, LiveTrace]]:
+    """The two live scenarios (module docstring of LiveHealth's targets): "lubricant" (mu +30 % at
+    :data:`LUBRICANT_AT` s of the rig at work, oil at 40 degC) and "cold" (a cold start, oil 15 -> ~45 degC over
+    20 min); each with the oil measured and estimated (the estimate's thermal model as identified once with a probe:
+    R_th and tau within 10 % of the housing's)."""
+    reference = live_reference(rig, seed + 7, settings)
+    lubricant = _with(GEARBOX_EFFECTS, oil_temperature={"initial": 40.0},
+                      lubricant_loss={"rise": 0.3, "at": LUBRICANT_AT})
+    cold = _with(GEARBOX_EFFECTS, oil_temperature={"initial": COLD_START, "thermal_resistance": COLD_R_TH})
+    thermal = replace(settings, thermal=replace(settings.thermal, thermal_resistance=0.9 * COLD_R_TH,
+                                                time_constant=1.1 * 900.0))
+    return {"lubricant": live_run(rig, reference, operation(rig, LUBRICANT_RUN), effects=lubricant, seed=seed,
+                                  settings=settings, thermal=thermal),
+            "cold": live_run(rig, reference, operation(rig, COLD_RUN), effects=cold, seed=seed + 1,
+                             settings=settings, thermal=thermal, progress=progress)}
+
+
+def live_lines(traces: dict[str, dict[str, LiveTrace]]) -> list[str]:
+    out = []
+    for mode, trace in traces["lubricant"].items():
+        early = trace.first("WARN") < LUBRICANT_AT
+        after = trace.first("WARN", LUBRICANT_AT) - LUBRICANT_AT
+        out.append(f"health: live lubricant_loss=mu+30% warn_after_s={after:.2f} false_before={int(early)} "
+                   f"temperature={mode}")
+    for mode, trace in traces["cold"].items():
+        raised = sum(1 for a, b in zip(["OK"] + trace.level[:-1], trace.level) if a == "OK" and b != "OK")
+        z = trace.mu_change / trace.mu_sigma
+        error = np.nanmax(np.abs(trace.temperature - trace.true_temperature))
+        out.append(f"health: live cold_start oil={trace.true_temperature[0]:.0f}->{trace.true_temperature[-1]:.0f}degC "
+                   f"over_s={trace.time[-1]:.0f} warnings={raised} max_z={np.nanmax(z):.2f} "
+                   f"temperature_error_max_K={error:.1f} temperature={mode}")
+    return out
+
+
+def evaluate_lines(rig: Rig, seed: int = 0, settings: HealthSettings = HealthSettings(), out=None,
+                   progress: Callable[[str, int, int], None] | None = None) -> list[str]:
+    """``make evaluate``'s health lines: the study (:func:`run_study`), the live scenarios, the real drive's
+    check; with ``out`` (a folder) also health_trend.png, a gearbox's life with a 10 % rise."""
+    study = run_study(rig, seed=seed, settings=settings,
+                      progress=None if progress is None else (lambda d, t: progress("health checks", d, t)))
+    lines = study.lines()
+    traces = live_scenarios(rig, seed, settings,
+                            None if progress is None else (lambda d, t: progress("health live", d, t)))
+    lines += live_lines(traces)
+    from torque_estimator.health.real_drive import real_drive_line
+
+    lines.append(real_drive_line(settings))
+    if out is not None and study.example is not None:
+        from worm_model.health.assess import baseline_of
+        from worm_model.health.plots import trend_figure
+
+        records = study.example
+        assessments = assess_trend(records, settings, rig)
+        n = settings.limits.baseline_checks
+        trend_figure(out / "health_trend.png", records, assessments, settings, rig,
+                     baseline_of(records[:n], settings, rig),
+                     "A simulated gearbox: mu +10 % after check 9 (oil measured)")
+    return lines

@@ -52,6 +52,9 @@ from worm_model.physics.parameters import Rig
 
 #: [s] memory of the ripple's estimate
 RIPPLE_MEMORY = 30.0
+#: [N m] the model's own error at a point when the rig file is the reference (assumption: an identified rig
+#: file's, ~0.1 mN m; a rig file as declared is far worse: run a check first)
+RIG_FILE_FLOOR = 1e-4
 #: relative step of mu's scale for the sensitivity phi
 _STEP = 1e-3
 
@@ -93,8 +96,8 @@ class LiveReference:
         prior = settings.temperature
         top = rig.max_load_torque
         return cls(HealthParameters.from_rig(rig), TemperatureLaw(prior.reference, prior.mu_per_kelvin, prior.sigma),
-                   5e-4, {"forward": [0.0, math.inf], "backward": [0.0, math.inf]}, [-top, top], prior.reference,
-                   "rig file")
+                   RIG_FILE_FLOOR, {"forward": [0.0, math.inf], "backward": [0.0, math.inf]}, [-top, top],
+                   prior.reference, "rig file")
 
 
 @dataclass

@@ -18,22 +18,27 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from worm_model.health.assess import Z95, Assessment  # noqa: E402
+from worm_model.health.assess import Z95, Assessment, Baseline, mu_change  # noqa: E402
 from worm_model.health.record import CheckRecord  # noqa: E402
-from worm_model.health.settings import Limits  # noqa: E402
+from worm_model.health.settings import HealthSettings  # noqa: E402
+from worm_model.physics.parameters import Rig  # noqa: E402
 
 COLOURS = {"OK": "tab:green", "WARN": "tab:orange", "ERROR": "tab:red"}
 
 
-def trend_figure(path: Path, records: list[CheckRecord], assessments: list[Assessment | None], limits: Limits,
+def trend_figure(path: Path, records: list[CheckRecord], assessments: list[Assessment | None],
+                 settings: HealthSettings, rig: Rig, baseline: Baseline | None = None,
                  title: str = "Gearbox health: the trend of its checks") -> Path:
-    """Write the trend PNG (module docstring) for records assessed in order (assess.assess_trend)."""
+    """Write the trend PNG (module docstring) for records assessed in order (assess.assess_trend); the baseline
+    checks (no assessment) are drawn grey against ``baseline`` (the trend's, assess.baseline_of) if given."""
+    limits = settings.limits
     hours = np.array([r.hours for r in records])
     by_hours = len(records) > 0 and bool(np.all(np.isfinite(hours)))
     x = hours if by_hours else np.arange(1, len(records) + 1, dtype=float)
     fig, (top, middle, bottom) = plt.subplots(3, 1, figsize=(9, 8.5), sharex=True,
                                               gridspec_kw={"height_ratios": [3, 1.6, 1.4]})
-    lo, hi = (x.min() - 1, x.max() + 1) if len(x) else (0, 1)
+    pad = 0.04 * (x.max() - x.min()) + (0.0 if by_hours else 0.5) if len(x) else 1.0
+    lo, hi = (x.min() - pad, x.max() + pad) if len(x) else (0, 1)
     top.axhspan(100 * limits.check_warn, 100 * limits.check_error, color="tab:orange", alpha=0.12,
                 label=f"WARN (one check, > {limits.check_warn:.0%})")
     top.axhspan(100 * limits.check_error, max(100 * limits.check_error * 1.6, 30), color="tab:red", alpha=0.12,
@@ -43,8 +48,13 @@ def trend_figure(path: Path, records: list[CheckRecord], assessments: list[Asses
     top.axhline(0.0, color="black", lw=0.6)
     base = [i for i, a in enumerate(assessments) if a is None]
     if base:
-        top.axvspan(x[base[0]] - 0.5 * (1 if not by_hours else 0), x[base[-1]] + 0.5 * (1 if not by_hours else 0),
-                    color="grey", alpha=0.1, label="baseline checks")
+        half = 0.5 if not by_hours else 0.5 * pad
+        top.axvspan(x[base[0]] - half, x[base[-1]] + half, color="grey", alpha=0.1, label="baseline checks")
+        if baseline is not None:
+            changes = [mu_change(records[i], baseline, rig, settings) for i in base]
+            top.errorbar([x[i] for i in base], [100 * c[0] for c in changes],
+                         yerr=[100 * Z95 * math.sqrt(c[1]) for c in changes], fmt="o", ms=4, color="grey",
+                         ecolor="lightgrey", elinewidth=1, capsize=2)
     done = [(i, a) for i, a in enumerate(assessments) if a is not None]
     if done:
         xi = np.array([x[i] for i, _ in done])
