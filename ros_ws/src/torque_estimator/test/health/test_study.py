@@ -39,7 +39,8 @@ def test_each_check_runs_at_its_own_oil_temperature_and_load() -> None:
     assert all(t.source == "measured" for t in measured)
     assert all(r.temperature.source == "estimated" for r in life.records["estimated"])
     spans = [r.loads[1] - r.loads[0] for r in life.records["measured"]]
-    np.testing.assert_allclose(spans, 1.8 * RIG.max_load_torque * life.load_scale, rtol=0.02)
+    gain = 1.0 + GEARBOX_EFFECTS["sensor_gain"].get("load_current", 0.02)  # (the load sensors read 2 % high)
+    np.testing.assert_allclose(spans, 1.8 * RIG.max_load_torque * life.load_scale * gain, rtol=0.005)
 
 
 def test_the_live_monitor_warns_of_a_lubricant_loss_within_2_s() -> None:

@@ -26,7 +26,8 @@ lubricant loss and a cold start, the real drive's check (health.real_drive), as 
     health: change=mu+10% detected_in_checks=<n> ... temperature=measured
     health: false_alarms=<n> of <m> temperature=measured
     health: live lubricant_loss=mu+30% warn_after_s=<x> ...
-and health_trend.png (a simulated gearbox's life with its alarm bands); then the fast road
+and health_trend.png (a simulated gearbox's life with its alarm bands), health_live.png (the live
+monitor on the two scenarios); then the fast road
 (evaluation.identified): on the simulated rig with every default effect
 on and the rig file off (mu x1.3, K_t x1.05, drags x2), one `identify` run against the
 k-NN grid calibrated on that rig, the extended model and the observer with the identified
@@ -211,7 +212,7 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
 
             lines = health_lines(rig, args.seed, out=out, progress=on_progress)
         print("\n".join(lines))
-        pngs.append(out / "health_trend.png")
+        pngs += [out / "health_trend.png", out / "health_live.png"]
     if not args.no_residuals:  # the residuals tool's case matrix (issue 15); ends with its `residuals:` line
         cases = full_matrix() if args.residual_cases == "full" else small_matrix()
         with ProgressBar(len(cases), "residuals cases", enabled=not args.quiet) as bar:

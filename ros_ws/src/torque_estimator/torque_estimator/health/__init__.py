@@ -8,6 +8,8 @@ Map (dependencies point up this list; rclpy only in the ``*_node`` modules):
 ``simulated``     checks on the vectorised simulated rig, many side by side
 ``study``         ``make evaluate``'s health lines: detection and false alarms on
                   simulated lives, and the live monitor on simulated operation
+``real_drive``    the check on the real T-RO 2021 drive's data, half its speeds
+                  against the other half (skipped while those data are not here)
 ``check_node``    the oil temperature a live check hears on the graph
 ``health_check``  the ``health_check`` CLI (live over the graph, or ``--from`` a log)
 ``monitor_node``  ``health_monitor``: the live monitor on /rig/samples, its

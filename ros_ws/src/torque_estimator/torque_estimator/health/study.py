@@ -28,7 +28,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from worm_model.health.assess import assess_trend
+from worm_model.health.assess import Z95, assess_trend
 from worm_model.health.blocks import Blocks
 from worm_model.health.fit import FitError, Temperature, fit_points
 from worm_model.health.model import HealthParameters
@@ -149,6 +149,8 @@ class StudyResult:
     false_alarms: dict[str, tuple[int, int]]  # mode -> (alarms, healthy checks assessed)
     sigma: dict[str, float] = field(default_factory=dict)  # mode -> median sigma of a healthy check's mu change
     example: list[CheckRecord] | None = None  # a gearbox with the largest rise, oil measured (for the plot)
+    example_rise: float = 0.0
+    example_first: int = 0  # index of its first changed check
 
     def lines(self) -> list[str]:
         out = []
@@ -193,7 +195,8 @@ def run_study(rig: Rig, *, gearboxes: int = 50, baseline: int = 5, healthy: int 
                 for rise, lives in changed.items() for mode in MODES}
     top = max(changed) if changed else None
     example = changed[top][0].records["measured"] if top is not None else None
-    return StudyResult(detected, false_alarms, sigma, example)
+    first = int(np.argmax(changed[top][0].rise > 0)) if top is not None else 0
+    return StudyResult(detected, false_alarms, sigma, example, top or 0.0, first)
 
 
 __all__ = ["GEARBOX_EFFECTS", "Life", "MODES", "StudyResult", "TRUE_MU_PER_KELVIN", "detection_checks",
@@ -346,10 +349,10 @@ def live_lines(traces: dict[str, dict[str, LiveTrace]]) -> list[str]:
                    f"temperature={mode}")
     for mode, trace in traces["cold"].items():
         raised = sum(1 for a, b in zip(["OK"] + trace.level[:-1], trace.level) if a == "OK" and b != "OK")
-        z = trace.mu_change / trace.mu_sigma
+        sure = trace.mu_change - Z95 * trace.mu_sigma  # the reading's 95 % lower bound
         error = np.nanmax(np.abs(trace.temperature - trace.true_temperature))
         out.append(f"health: live cold_start oil={trace.true_temperature[0]:.0f}->{trace.true_temperature[-1]:.0f}degC "
-                   f"over_s={trace.time[-1]:.0f} warnings={raised} max_z={np.nanmax(z):.2f} "
+                   f"over_s={trace.time[-1]:.0f} warnings={raised} largest_sure_rise_pct={100 * np.nanmax(sure):.1f} "
                    f"temperature_error_max_K={error:.1f} temperature={mode}")
     return out
 
@@ -376,5 +379,13 @@ def evaluate_lines(rig: Rig, seed: int = 0, settings: HealthSettings = HealthSet
         n = settings.limits.baseline_checks
         trend_figure(out / "health_trend.png", records, assessments, settings, rig,
                      baseline_of(records[:n], settings, rig),
-                     "A simulated gearbox: mu +10 % after check 9 (oil measured)")
+                     f"A simulated gearbox: mu +{max(study.example_rise, 0):.0%} from check "
+                     f"{study.example_first + 1} (oil measured)")
+    if out is not None:
+        from worm_model.health.plots import live_figure
+
+        live_figure(out / "health_live.png",
+                    [(f"lubricant loss: mu +30 % at {LUBRICANT_AT:g} s", traces["lubricant"]),
+                     (f"cold start: oil {COLD_START:g} -> 45 degC over {COLD_RUN / 60:g} min", traces["cold"])],
+                    settings.limits, "The live monitor at the paper's rig (load known), oil measured and estimated")
     return lines

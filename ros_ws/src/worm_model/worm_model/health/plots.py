@@ -1,4 +1,4 @@
-"""The trend over a gearbox's life, with its alarm bands (matplotlib, no display needed).
+"""The trend over a gearbox's life with its alarm bands, and the live monitor's window (matplotlib, no display).
 
 Top: each check's mu scale against the baseline at the reference temperature (Delta, with its 95 %
 interval), the trend's running mean, and the bands: WARN from ``limits.check_warn``, ERROR from
@@ -102,4 +102,60 @@ def _change(assessment: Assessment, quantity: str) -> float:
     return next((f.change for f in assessment.findings if f.quantity == quantity), math.nan)
 
 
-__all__ = ["trend_figure"]
+
+
+def live_figure(path: Path, panels: list[tuple[str, dict]], limits, title: str = "The live monitor") -> Path:
+    """The live monitor's window over rig time, one column per scenario: mu's reading with its 95 % interval
+    and the WARN / ERROR limits (top), the level (middle), the oil temperature it used and the true one (bottom).
+
+    Args:
+        panels: (title, {mode: trace}) per column; a trace has time, level, mu_change, mu_sigma, temperature,
+            true_temperature arrays (torque_estimator.health.study.LiveTrace); modes "measured" and "estimated".
+        limits: settings.Limits (live_warn, live_error).
+    """
+    fig, axes = plt.subplots(3, len(panels), figsize=(6.2 * len(panels), 8), sharex="col", squeeze=False,
+                             gridspec_kw={"height_ratios": [3, 0.8, 1.6]})
+    colours = {"measured": "tab:blue", "estimated": "tab:purple"}
+    for col, (name, traces) in enumerate(panels):
+        top, mid, bottom = axes[:, col]
+        top.axhspan(100 * limits.live_warn, 100 * limits.live_error, color="tab:orange", alpha=0.12, label="WARN")
+        top.axhspan(100 * limits.live_error, 100 * max(limits.live_error * 1.5, 0.6), color="tab:red", alpha=0.12,
+                    label="ERROR")
+        top.axhline(0.0, color="black", lw=0.6)
+        for j, (mode, tr) in enumerate(traces.items()):
+            c = colours.get(mode, f"C{j}")
+            t = np.asarray(tr.time)
+            m, s = 100 * np.asarray(tr.mu_change), 100 * Z95 * np.asarray(tr.mu_sigma)
+            step = max(1, len(t) // 4000)
+            top.fill_between(t[::step], (m - s)[::step], (m + s)[::step], color=c, alpha=0.15, lw=0)
+            top.plot(t[::step], m[::step], color=c, lw=0.8, label=f"mu reading, oil {mode}")
+            level = np.array([ORDER_LEVEL[x] for x in tr.level])
+            mid.step(t[::step], level[::step] + 0.06 * j, where="post", color=c, lw=1.2, label=mode)
+            bottom.plot(t[::step], np.asarray(tr.temperature)[::step], color=c, lw=1, label=f"oil used ({mode})")
+            if j == 0:
+                bottom.plot(t[::step], np.asarray(tr.true_temperature)[::step], color="black", lw=0.8, ls="--",
+                            label="oil, true")
+        top.set_ylim(-40, 100 * max(limits.live_error * 1.5, 0.6))
+        top.set_ylabel("friction as mu vs reference [%]")
+        top.set_title(name)
+        top.legend(fontsize=7, loc="upper left")
+        mid.set_yticks([0, 1, 2], ["OK", "WARN", "ERROR"])
+        mid.set_ylim(-0.3, 2.4)
+        mid.legend(fontsize=7, loc="upper left")
+        bottom.set_ylabel("oil [degC]")
+        bottom.set_xlabel("rig time [s]")
+        bottom.legend(fontsize=7, loc="lower right")
+        for ax in (top, mid, bottom):
+            ax.grid(alpha=0.3)
+    fig.suptitle(title)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+ORDER_LEVEL = {"OK": 0, "WARN": 1, "ERROR": 2}
+
+
+__all__ = ["live_figure", "trend_figure"]
