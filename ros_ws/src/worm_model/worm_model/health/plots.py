@@ -106,7 +106,9 @@ def _change(assessment: Assessment, quantity: str) -> float:
 
 def live_figure(path: Path, panels: list[tuple[str, dict]], limits, title: str = "The live monitor") -> Path:
     """The live monitor's window over rig time, one column per scenario: mu's reading with its 95 % interval
-    and the WARN / ERROR limits (top), the level (middle), the oil temperature it used and the true one (bottom).
+    (the reading drawn where that interval is narrower than the WARN limit: at light loads the window
+    cannot judge mu) and the WARN / ERROR limits (top), the level (middle), the oil temperature it used and
+    the true one (bottom).
 
     Args:
         panels: (title, {mode: trace}) per column; a trace has time, level, mu_change, mu_sigma, temperature,
@@ -127,8 +129,10 @@ def live_figure(path: Path, panels: list[tuple[str, dict]], limits, title: str =
             t = np.asarray(tr.time)
             m, s = 100 * np.asarray(tr.mu_change), 100 * Z95 * np.asarray(tr.mu_sigma)
             step = max(1, len(t) // 4000)
-            top.fill_between(t[::step], (m - s)[::step], (m + s)[::step], color=c, alpha=0.15, lw=0)
-            top.plot(t[::step], m[::step], color=c, lw=0.8, label=f"mu reading, oil {mode}")
+            # drawn where the window can judge (its 95 % interval narrower than the WARN limit); the band everywhere
+            judged = np.where(s < 100 * limits.live_warn, m, np.nan)
+            top.fill_between(t[::step], (m - s)[::step], (m + s)[::step], color=c, alpha=0.12, lw=0)
+            top.plot(t[::step], judged[::step], color=c, lw=0.8, label=f"mu reading, oil {mode}")
             level = np.array([ORDER_LEVEL[x] for x in tr.level])
             mid.step(t[::step], level[::step] + 0.06 * j, where="post", color=c, lw=1.2, label=mode)
             bottom.plot(t[::step], np.asarray(tr.temperature)[::step], color=c, lw=1, label=f"oil used ({mode})")

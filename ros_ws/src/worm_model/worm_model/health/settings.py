@@ -118,6 +118,7 @@ class Live:
     window: float = 1.5  # [s] of rig time
     block_time: float = 0.05  # [s]
     min_blocks: int = 6  # blocks in the window before a level is given
+    settle: float = 0.3  # [s] left out after a change of speed or load (the speed loop's current settling)
     margin: float = 0.1  # [1] how far beyond the checked speeds and loads (relative to their span) a block may lie
     publish_period: float = 0.2  # [s]
 
