@@ -87,6 +87,10 @@ def test_bad_input_is_one_line_and_exit_2(runs, tmp_path, capsys) -> None:
     assert "no_such.csv" in _bad(["--trend", str(trend), "--from", str(tmp_path / "no_such.csv")], capsys)
     assert "--loads" in _bad(["--trend", str(trend), "--loads", "0.5,2"], capsys)
     assert "--record" in _bad(["--trend", str(trend), "--from", str(new), "--record", str(tmp_path / "r.csv")], capsys)
+    picture = tmp_path / "mine.png"
+    picture.write_bytes(b"a user's picture")
+    assert "--plot" in _bad(["--trend", str(trend), "--from", str(new), "--plot", str(picture)], capsys)
+    assert picture.read_bytes() == b"a user's picture"
     damaged = tmp_path / "damaged.jsonl"
     damaged.write_text('{"format": "worm_gearbox_health_trend", "version": 1, "gearbox": "g"}\n{"date": 3}\n')
     assert "damaged.jsonl: line 2" in _bad(["--trend", str(damaged), "--from", str(new)], capsys)

@@ -104,7 +104,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="what the check is compared with: the trend's first checks (default; the settings' "
                         "baseline_checks of them) or the rig file's values (to within 10 %%)")
     p.add_argument("--plot", type=Path, default=None,
-                   help="also write the trend with its alarm bands as a PNG here (replaced if it exists)")
+                   help="also write the trend with its alarm bands as a PNG here (an existing file only with --force)")
+    p.add_argument("--force", action="store_true", help="let --plot and --record replace existing files")
     p.add_argument("--dry-run", action="store_true", help="check and print, but do not append to the trend")
     live = p.add_argument_group("live rig (without --from)")
     live.add_argument("--speeds", type=_speeds, default=SPEEDS,
@@ -139,6 +140,8 @@ def _main(argv: list[str] | None) -> int:
     trend = read_trend(args.trend) if args.trend.exists() else Trend(rig.name, source=str(args.trend))
     if not args.trend.exists():
         check_output(args.trend, option="--trend")
+    if args.plot is not None:
+        check_output(args.plot, args.force, option="--plot")
     now = dt.datetime.now(dt.timezone.utc).replace(microsecond=0)
     if args.source is not None:
         data = read_rig_data(args.source)
@@ -150,7 +153,7 @@ def _main(argv: list[str] | None) -> int:
             raise InputError("--speeds/--loads", f"the run would take {total_duration(timeline):.0f} s of rig time; "
                              f"a check is meant to take ~{MAX_DURATION:g} s: use fewer speeds or loads")
         record_path = args.record or args.trend.with_name(f"{args.trend.stem}_{now:%Y%m%dT%H%M%S}.csv")
-        check_output(record_path, option="--record")
+        check_output(record_path, args.force, option="--record")
         data, graph_temperature = _record_live(args, rig, timeline)
         write_rig_csv(record_path, data)
         source = f"{record_path.name} (live rig, {total_duration(timeline):.1f} s reference run)"
@@ -171,16 +174,24 @@ def _main(argv: list[str] | None) -> int:
     if not args.dry_run:
         write_trend(args.trend, trend)
     if args.plot is not None:
-        from worm_model.health.plots import trend_figure  # noqa: PLC0415 (matplotlib only when asked)
-
         baseline = fixed or baseline_of(trend.records, settings, rig)
-        trend_figure(args.plot, trend.records, assessments, settings, rig, baseline, f"Gearbox health: {trend.gearbox}")
+        _write_plot(args.plot, trend.records, assessments, settings, rig, baseline, f"Gearbox health: {trend.gearbox}")
     mu = "n/a (baseline)" if result is None else f"{result.mu_change.value:+.1%} +- {Z95 * result.mu_change.sigma:.1%}"
     tr = "n/a" if result is None or result.trend_change is None else \
         f"{result.trend_change.value:+.1%} +- {Z95 * result.trend_change.sigma:.1%}"
     print(f"{PROG}: level={record.level} mu_change={mu} trend={tr} oil={temperature.value:.1f} degC "
           f"({temperature.source}) -> {args.trend}{' (dry run: not written)' if args.dry_run else ''}")
     return 0
+
+
+def _write_plot(path: Path, *args) -> None:
+    """The trend figure, written beside ``path`` and moved over it at the end (never half a PNG)."""
+    from worm_model.files.writing import atomic_file  # noqa: PLC0415
+    from worm_model.health.plots import trend_figure  # noqa: PLC0415 (matplotlib only when asked)
+
+    with atomic_file(path, force=True) as tmp:
+        trend_figure(tmp.with_suffix(".png"), *args)
+        tmp.with_suffix(".png").replace(tmp)
 
 
 def _record_live(args, rig, timeline) -> tuple[MeasuredData, tuple | None]:
