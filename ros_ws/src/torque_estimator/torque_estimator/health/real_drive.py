@@ -13,7 +13,9 @@ points are split into two halves (alternate speeds in each direction); each half
 check (worm_model.health.fit, the rig file's values as the priors' centres), and the second is
 compared with the first on mu's scale (both at the lab's temperature, unrecorded: the same for
 both) and the drive-side drag: a drive that did not change between two runs must show no change,
-within the intervals one load allows.
+within the intervals one load allows. One load tells the mesh's friction from the drags only through
+lifting against lowering, and the gear side's drag not at all from the load (both add to the mesh
+load): mu's scale is barely identified (the line says so), the drive-side drag is.
 """
 from __future__ import annotations
 
@@ -48,11 +50,14 @@ class RealCheck:
     mu_sigma: float
     drag_change: float  # [N m] drive-side drag at the halves' mean speed
     drag_sigma: float
+    torque: float  # [N m] the drive's mean |torque| over the points (the scale of the drag's interval)
+    mu_identified: bool  # both halves' fits decided mu's scale (a single load hardly does)
 
     def line(self) -> str:
         return (f"health: real=tro2021 points={self.points[0]}+{self.points[1]} mu_change={self.mu_change:+.1%} "
-                f"+- {Z95 * self.mu_sigma:.1%} drive_drag_change_mNm={1e3 * self.drag_change:+.3f} "
-                f"+- {1e3 * Z95 * self.drag_sigma:.3f} change={'yes' if self.changed else 'none'}")
+                f"+- {Z95 * self.mu_sigma:.1%} mu_identified={'yes' if self.mu_identified else 'no'} "
+                f"drive_drag_change_mNm={1e3 * self.drag_change:+.3f} +- {1e3 * Z95 * self.drag_sigma:.3f} "
+                f"change={'yes' if self.changed else 'none'}")
 
     @property
     def changed(self) -> bool:
@@ -108,7 +113,8 @@ def real_drive_check(settings: HealthSettings = HealthSettings()) -> RealCheck:
                       math.sqrt(max(g @ f.covariance @ g, 0.0) * max(1.0, f.chi2_red))))
     mu_sigma = math.hypot(a.interval("mu_scale") / s_a, b.interval("mu_scale") / s_b) * s_b / s_a
     return RealCheck((a.points, b.points), s_b / s_a - 1.0, mu_sigma, drags[1][0] - drags[0][0],
-                     math.hypot(drags[0][1], drags[1][1]))
+                     math.hypot(drags[0][1], drags[1][1]), float(np.mean(np.abs(torque))),
+                     a.identified["mu_scale"] and b.identified["mu_scale"])
 
 
 def _field(point, name: str) -> float:
