@@ -45,7 +45,8 @@ def test_each_check_runs_at_its_own_oil_temperature_and_load() -> None:
 
 def test_the_live_monitor_warns_of_a_lubricant_loss_within_2_s() -> None:
     reference = live_reference(RIG, 13, __import__("worm_model.health.settings", fromlist=["x"]).HealthSettings())
-    effects = _with(GEARBOX_EFFECTS, oil_temperature={"initial": 40.0}, lubricant_loss={"rise": 0.3, "at": LUBRICANT_AT})
+    effects = _with(GEARBOX_EFFECTS, oil_temperature={"initial": 40.0},
+                    lubricant_loss={"rise": 0.3, "at": LUBRICANT_AT})
     traces = live_run(RIG, reference, operation(RIG, LUBRICANT_AT + 10.0), effects=effects, seed=13)
     for mode, trace in traces.items():
         assert math.isnan(trace.first("WARN")) or trace.first("WARN") > LUBRICANT_AT, mode
@@ -77,5 +78,5 @@ def test_the_study_meets_the_figures_docs_health_states() -> None:
         assert not lub.first("WARN") < LUBRICANT_AT
         cold = traces["cold"][mode]
         assert all(level == "OK" for level in cold.level), lines
-        assert cold.true_temperature[0] == pytest.approx(15.0, abs=0.01) and cold.true_temperature[-1] == pytest.approx(45.0,
-                                                                                                              abs=1.0)
+        assert cold.true_temperature[0] == pytest.approx(15.0, abs=0.01)
+        assert cold.true_temperature[-1] == pytest.approx(45.0, abs=1.0)

@@ -59,7 +59,8 @@ def test_steady_points_are_the_held_segments_without_their_settling() -> None:
     assert np.all(points.duration == pytest.approx(0.8 - rules.settle * 0.05))
     # the standard error: the white noise over sqrt(samples), times loop_noise
     expected = rules.loop_noise * RIG.drive_motor.torque_constant * 0.02 / np.sqrt(700)
-    np.testing.assert_allclose(points.torque_sigma, expected, rtol=0.12)  # (the estimate of a sigma from 700 samples: sd 2.7 %)
+    # (the estimate of a sigma from 700 samples has a relative sd of 2.7 %)
+    np.testing.assert_allclose(points.torque_sigma, expected, rtol=0.12)
 
 
 def test_transients_and_slow_speeds_make_no_point() -> None:

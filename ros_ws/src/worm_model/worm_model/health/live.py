@@ -230,8 +230,9 @@ class LiveHealth:
             heat = 0.0
             if math.isfinite(omega) and math.isfinite(load) and abs(omega) > 1e-3:
                 worm, gear = drag_power(rig, ref.parameters, omega)
+                shares = self.settings.thermal
                 heat = float(mesh_loss(rig, ref.parameters, omega, load, factor)) \
-                    + self.settings.thermal.drive_drag_heat * float(worm) + self.settings.thermal.gear_drag_heat * float(gear)
+                    + shares.drive_drag_heat * float(worm) + shares.gear_drag_heat * float(gear)
             self.thermal.step(duration, heat)
             temperature = Estimate(self.thermal.temperature, self.thermal.sigma)
             source = "estimated"

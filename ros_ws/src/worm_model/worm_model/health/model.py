@@ -161,7 +161,7 @@ def mesh_torque(rig: Rig, p: HealthParameters, omega_worm: ArrayLike, tau_load: 
 
 def input_torque(rig: Rig, p: HealthParameters, omega_worm: ArrayLike, tau_load: ArrayLike,
                  temperature_factor: ArrayLike = 1.0) -> FloatArray:
-    """K_t i [N m] the drive motor makes at steady speed omega_worm [rad/s] against tau_load [N m] (module docstring)."""
+    """K_t i [N m] the drive motor makes at steady speed omega_worm [rad/s] against tau_load [N m] (module doc)."""
     w = np.asarray(omega_worm, dtype=float)
     mesh, _ = mesh_torque(rig, p, w, tau_load, temperature_factor)
     return mesh + p.drive_coulomb * np.sign(w) + p.drive_viscous * w + p.torque_offset

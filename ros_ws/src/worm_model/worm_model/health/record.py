@@ -16,9 +16,9 @@ version 1 (current). Line 1 is the header ``{"format": "worm_gearbox_health_tren
      "steady_points": {"omega": [...], "tau_load": [...], "torque": [...], ...}}
 
 ``steady_points`` is the evidence: the run's steady points (worm_model.health.points.Points, SI), so
-that a later baseline can fit the check again. ``hours`` is null where unknown, ``backlash`` null without a gear encoder. The file is rewritten
-whole and atomically on every append (it is small: a line per check), so a crash leaves the old
-file or the new one. Every problem reading it raises :class:`TrendError` naming the file and the
+that a later baseline can fit the check again. ``hours`` is null where unknown, ``backlash`` null
+without a gear encoder. The file is rewritten whole and atomically on every append (it is small: a
+line per check), so a crash leaves the old file or the new one. Every problem reading it raises :class:`TrendError` naming the file and the
 line (``trend.jsonl: line 4: parameters.mu_scale: expected a finite number``).
 """
 from __future__ import annotations
@@ -155,7 +155,8 @@ class CheckRecord:
         loads = doc.get("loads")
         loads = [_number(v, "loads") for v in loads] if isinstance(loads, list) and len(loads) == 2 else []
         findings = doc.get("findings", [])
-        return cls(steady_points=_points(doc.get("steady_points")), date=date, hours=_number(doc.get("hours"), "hours", allow_none=True),
+        return cls(steady_points=_points(doc.get("steady_points")), date=date,
+                   hours=_number(doc.get("hours"), "hours", allow_none=True),
                    source=str(doc.get("source", "")), temperature=temperature, parameters=params, sigma=sigma,
                    covariance=cov, identified={name: bool(identified.get(name, False)) for name in NAMES},
                    runout=_number(doc.get("runout", 0.0), "runout"),

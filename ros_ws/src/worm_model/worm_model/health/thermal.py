@@ -75,7 +75,8 @@ class ThermalEstimate:
         """Its standard uncertainty [K] (module docstring)."""
         s = self.settings
         if math.isnan(self.initial_sigma):  # cold start: the hall's error throughout, the night's decaying
-            return math.sqrt(s.ambient_sigma ** 2 + (s.initial_sigma * self.decay) ** 2 + (s.power_sigma * self.rise) ** 2)
+            return math.sqrt(s.ambient_sigma ** 2 + (s.initial_sigma * self.decay) ** 2
+                             + (s.power_sigma * self.rise) ** 2)
         return math.sqrt((self.initial_sigma * self.decay) ** 2 + (s.ambient_sigma * (1.0 - self.decay)) ** 2
                          + (s.power_sigma * self.rise) ** 2)
 
