@@ -25,7 +25,7 @@ test: setup
 # README's commands, Foxglove decoding our bags. Left out: the tests that never touch ROS (residual analysis on
 # the simulator, the README's computed figures, static import/dependency checks). CI's run on the second
 # distribution (.ci/run: make test-system ROS_DISTRO=jazzy).
-NOT_SYSTEM := tests/test_residuals_cases.py tests/test_residuals_sim.py tests/test_readme_figures.py \
+NOT_SYSTEM := tests/test_residuals_cases.py tests/test_residuals_sim.py tests/test_readme_figures.py tests/test_docs.py \
               tests/test_layout.py tests/test_package_deps.py
 SYSTEM_TESTS := $(filter-out $(NOT_SYSTEM),$(sort $(wildcard tests/test_*.py)))
 test-system: setup

@@ -7,7 +7,7 @@ Prints to stdout, in this order:
   sim_realtime_factor: <x>               simulated s per wall s, one SimulatedRig (n=1) stepped in a loop
                                          (batch mode: as fast as it goes, no pacing; best of 3 runs), on
                                          the path SimulatedRig picks for n=1 as the live sim_node does:
-                                         the scalar one (issue 13)
+                                         the scalar one
   sim_vectorised_n1_realtime_factor: <x> the same on the vectorised path (scalar=False), for comparison
   sim_effects_realtime_factor: <x>       sim_realtime_factor with every effect plug-in on (config/effects_all.yaml;
                                          every effect has float hooks, so also the scalar path)

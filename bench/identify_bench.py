@@ -1,4 +1,4 @@
-"""Rig time of the two roads to an estimator (issue 18): the paper's grid held live vs one identification run.
+"""Rig time of the two roads to an estimator: the paper's grid held live vs one identification run.
 
 Prints:
   calibration_rig_time: <s> s        a live calibration of the 17 x 16 x 2 grid: per point, the rig time until its

@@ -16,12 +16,14 @@ controller_bench (firmware timing, seed 1) with feedforward off / observer / ide
 from __future__ import annotations
 
 import argparse
+import math
 import statistics
 import time
 
 import numpy as np
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
+from torque_estimator.estimation.base import StreamingEstimator
 from torque_estimator.evaluation.closed_loop import run_scenario
 from torque_estimator.evaluation.held_out import held_out_setpoints
 from torque_estimator.estimation.observer import ObserverEstimator, equivalent_window, jump_bound, predicted_noise, \
@@ -35,19 +37,22 @@ from worm_rig_driver.sim.simulated_rig import SimulatedRig
 RANGE = 0.495
 
 
-def update_cpu_us(rig: Rig, samples: int = 3000, repeats: int = 3) -> float:
-    """Median CPU time [us] of one LoadObserver.update over ``repeats`` fresh observers fed the same
-    ``samples`` measurements (8 V, 0.1 N m, seed 0), each call timed on its own."""
+def update_cpu_us(rig: Rig, samples: int = 3000, repeats: int = 3, estimator: StreamingEstimator | None = None,
+                  voltage: bool = True) -> float:
+    """Median CPU time [us] of one update of ``estimator``'s stream (None: the observer, LoadObserver) over
+    ``repeats`` fresh streams fed the same ``samples`` measurements (8 V, 0.1 N m, seed 0; ``voltage`` False:
+    NaN for the voltage), each call timed on its own."""
     sim = SimulatedRig(rig, n=1, seed=0)
     sim.command(voltage_drive=8.0, load_torque=0.1)
     inputs = []
     for _ in range(samples):
         m = sim.sample()
-        inputs.append((float(m.voltage_drive[0]), float(m.current_drive[0]), float(m.omega_worm[0]),
-                       float(m.theta_worm[0])))
+        inputs.append((float(m.voltage_drive[0]) if voltage else math.nan, float(m.current_drive[0]),
+                       float(m.omega_worm[0]), float(m.theta_worm[0])))
     clock, per_update = time.process_time, []
+    estimator = estimator or ObserverEstimator(None, rig=rig)
     for _ in range(repeats):
-        update = ObserverEstimator(None, rig=rig).stream(1.0 / rig.sensors.sample_rate_hz).update
+        update = estimator.stream(1.0 / rig.sensors.sample_rate_hz).update
         for sample in inputs:
             start = clock()
             update(*sample)

@@ -21,6 +21,10 @@ GRAPH_METRICS = tuple(f"graph_{name}{suffix}: nan {unit}".rstrip() for suffix in
 SERIAL_METRICS = ("decoder_throughput: nan frames/s", "driver_cpu_at_1khz: nan %", "driver_reconnect_time: nan s")
 RECORDER_METRICS = ("recorder_published: nan count", "recorder_recorded: nan count",
                     "recorder_lost_messages: nan count")
+MOMENTUM_METRICS = tuple(f"momentum_{name}: nan {unit}" for name, unit in (
+    ("update_cpu", "us"), ("step90", "ms"), ("overshoot", "%"), ("ramp_err", "%"), ("reversal_err", "%"),
+    ("step90_no_encoder", "ms"), ("noise", "N m"), ("noise_predicted", "N m"), ("linear_floor", "N m"),
+    ("held_out_mean", "%"), ("held_out_max", "%")))
 CONTROLLER_METRICS = tuple(f"loadstep_{name}_{ff}{timing}: nan {unit}" for timing in ("_rig", "", "_graph")
                            for ff in ("ff_off", "ff_on", "ideal")
                            for name, unit in (("peak_dip", "rad/s"), ("settling_time", "s"), ("iae", "rad")))
@@ -59,6 +63,7 @@ def main() -> int:
     ok &= run("controller_bench.py", dict(os.environ), CONTROLLER_METRICS, timeout=900)  # 28 runs of 12 s
     ok &= run("observer_bench.py", dict(os.environ), ("observer_update_cpu: nan us",), timeout=120,
               args=("--cpu-only",))
+    ok &= run("momentum_bench.py", dict(os.environ), MOMENTUM_METRICS, timeout=300, args=("--metrics-only",))
     # model_node's callback in-process (rclpy node, so the graph benchmark's own ROS_DOMAIN_ID)
     ok &= run("model_node_bench.py", env, ("model_node_latency_p99: nan us",), timeout=120)
     ok &= run("health_bench.py", env, ("health_monitor_cpu_cores: nan cores",), timeout=300)  # the live health monitor

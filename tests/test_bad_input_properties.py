@@ -366,6 +366,34 @@ def test_node_help_lists_every_parameter_and_starts_nothing(node: str, work) -> 
     assert _digest(folder) == {}, "help wrote a file"
 
 
+REAL_PARAMETERS = """
+import importlib, json, sys
+import rclpy
+module, name = sys.argv[1].split(":")
+rclpy.init(args=["node", "--ros-args", *sys.argv[2:]])
+node = getattr(importlib.import_module(module), name)()
+print(json.dumps(sorted(node._parameters)))
+node.destroy_node()
+rclpy.try_shutdown()
+"""
+
+
+@pytest.mark.parametrize("node", sorted(NODES))
+def test_help_knows_every_parameter_the_node_declares(node: str, ros_env, work) -> None:
+    """What --help lists (and the check for undeclared parameters before a node starts uses) is every
+    parameter the built node has, but rclpy's own: a name declared after the first call into rcl would
+    otherwise be refused as undeclared."""
+    import json
+    from worm_model.ros.parameters import ROS_PARAMETERS, declared_parameters
+    folder = work({})
+    extra = {"driver_node": ["-p", "port:=/nonexistent/tty"], "recorder": ["-p", "output:=bag"]}.get(node, [])
+    done = subprocess.run([sys.executable, "-c", REAL_PARAMETERS, NODES[node], *extra], cwd=folder, env=ros_env,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    real = set(json.loads(done.stdout.strip().splitlines()[-1])) - ROS_PARAMETERS
+    assert real == {p.name for p in declared_parameters(_node_class(node))}
+
+
 def _bad_value(p) -> st.SearchStrategy[str]:
     if p.type in ("integer", "double") and p.range.startswith("["):
         low, high = (float(x) for x in p.range.split(";")[0].strip("[]").split(","))
@@ -408,3 +436,178 @@ def test_check_number_agrees_with_the_option_types() -> None:
         except argparse.ArgumentTypeError:
             option_ok = False
         assert file_ok == option_ok, text
+
+
+# --- one property per mechanism ----------------------------------------------------------------------------
+#
+# The tests above refuse bad values one option at a time; these hold the three policies as properties: any
+# combination of inputs, output and --force loses no byte of an input; any unit slip of a valid log is
+# refused; any YAML, however nested or aliased, ends in a result or one refusal, never a hang or a crash.
+
+#: where a careless user might point --out, relative to the working folder ``work/sub``: the inputs
+#: themselves, the folders holding them, a place inside the bag, nothing, here, above, the user's own files
+TARGETS = ("../d/run.csv", "../d", "../d/bag", "../d/bag/x", "../d/bag/bag_0.mcap", "", ".", "..",
+           "notes.txt", "mine", "new", "new.csv", "earlier")
+WRITERS = {
+    "bag export": (["export", "../d/bag"], "worm_rig_driver.recording.bag_cli"),
+    "bag import": (["import", "../d/run.csv"], "worm_rig_driver.recording.bag_cli"),
+    "estimate": (["../d/run.csv", "--method", "extended_model", "--quiet"], "torque_estimator.offline.estimate"),
+    "worm_effects": ([], "worm_rig_driver.sim.effects"),
+}
+
+
+def _writer_main(tool: str):
+    import importlib
+    return importlib.import_module(WRITERS[tool][1]).main
+
+
+def _user_folder(inputs, work) -> Path:
+    """work/: d/run.csv and d/bag/ (the inputs), sub/ (the working folder) with the user's notes.txt and
+    mine/thesis.tex."""
+    from worm_model.rig_data.bags import measured_to_bag
+    from worm_model.rig_data.schema import read_rig_csv
+    folder = work({})
+    (folder / "d").mkdir()
+    (folder / "d" / "run.csv").write_bytes(inputs["run.csv"])
+    measured_to_bag(read_rig_csv(folder / "d" / "run.csv"), folder / "d" / "bag")
+    (folder / "sub" / "mine").mkdir(parents=True)
+    (folder / "sub" / "notes.txt").write_text("my notes\n")
+    (folder / "sub" / "mine" / "thesis.tex").write_text("years of work\n")
+    return folder
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=list(HealthCheck))
+@given(tool=st.sampled_from(sorted(WRITERS)), target=st.sampled_from(TARGETS), force=st.booleans(),
+       earlier_force=st.booleans())
+def test_no_combination_of_inputs_output_and_force_loses_a_byte(tool, target, force, earlier_force, inputs,
+                                                                 work) -> None:
+    """Whatever --out (or --template) names and whether --force is given, every input and every file the user
+    made is byte for byte what it was; the run either writes its output or is refused in one line (exit 2);
+    no temporary file is left. "earlier" is the tool's own output of a first run: --force may replace it."""
+    folder = _user_folder(inputs, work)
+    sub, main = folder / "sub", _writer_main(tool)
+    option = "--template" if tool == "worm_effects" else "--out"
+    base = WRITERS[tool][0]
+    if target == "earlier":
+        code, _out, err = run_main(main, [*base, option, "earlier"], sub)
+        assert code == 0, err
+    before = _digest(folder)
+    argv = [*base, option, target, *(["--force"] if force else [])]
+    code, _out, err = run_main(main, argv, sub)
+    after = _digest(folder)
+    output = (sub / target).resolve()
+    for name, digest in before.items():
+        path = (folder / name).resolve()
+        if code == 0 and target == "earlier" and (path == output or output in path.parents):
+            continue  # the tool's own earlier output, replaced with --force: the one thing that may change
+        assert after.get(name) == digest, f"{name} changed or vanished: {tool} {argv}: {err}"
+    assert "Traceback" not in err and code in (0, 2), (code, err)
+    if code == 2:
+        lines = [line for line in err.splitlines() if line.strip()]
+        assert len(lines) == 1 and lines[0].count(":") >= 2, lines
+    else:
+        assert target not in ("", ".", "..") and (force or target != "earlier" or not earlier_force), argv
+    assert not [n for n in after if n.rsplit("/", 1)[-1].endswith(".tmp")], sorted(after)
+
+
+#: the unit slips a log gets: column -> (factor range [low, high] of detectable slips, what is named)
+SLIPS = {  # (the angle check names theta_worm when t or the speed is off by a factor the envelope allows)
+    "t": ((1.5, 1e9), ("t", "theta_worm")),  # ms, us, ns, or any step the angle cannot follow
+    "current_drive": ((200.0, 1e6), ("current_drive",)),  # mA and beyond: past the stall current
+    "omega_worm": ((1.5, 1e4), ("omega_worm", "theta_worm")),  # rpm, deg/s
+    "theta_worm": ((1.5, 1e6), ("theta_worm",)),  # degrees, encoder counts
+    "voltage_drive": ((5.0, 1e6), ("voltage_drive",)),  # mV
+}
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+@given(column=st.sampled_from(sorted(SLIPS)), exponent=st.floats(0.0, 1.0), smaller=st.booleans())
+def test_every_unit_slip_of_a_valid_log_is_refused(column, exponent, smaller, tmp_path_factory) -> None:
+    """A valid 1 kHz log with one column scaled by a factor a unit slip makes (log-uniform over the column's
+    detectable range; for t and the angles also the inverse) is refused by the one rig-data reader, naming
+    the column; the log itself passes."""
+    import numpy as np
+
+    from worm_model.rig_data.reader import read_rig_data
+    from worm_model.rig_data.schema import MeasuredData, RigDataError, write_rig_csv
+
+    (low, high), named = SLIPS[column]
+    factor = low * (high / low) ** exponent
+    if smaller and column in ("t", "theta_worm", "omega_worm"):
+        factor = 1.0 / factor
+    n = 2000
+    t = np.arange(n) * 1e-3
+    omega = 150.0 + 0.5 * np.sin(7 * t)
+    columns = {"t": t, "current_drive": np.full(n, 0.2), "omega_worm": omega, "theta_worm": np.cumsum(omega) * 1e-3,
+               "tau_load": np.full(n, 0.1), "voltage_drive": np.full(n, 12.0)}
+    folder = tmp_path_factory.mktemp("slip")
+    write_rig_csv(folder / "good.csv", MeasuredData(**columns))
+    read_rig_data(folder / "good.csv")
+    columns[column] = columns[column] * factor
+    write_rig_csv(folder / "slip.csv", MeasuredData(**columns))
+    with pytest.raises(RigDataError) as info:
+        read_rig_data(folder / "slip.csv")
+    assert any(f"column '{name}'" in str(info.value) for name in named), (column, factor, str(info.value))
+
+
+def _yaml_texts() -> st.SearchStrategy[str]:
+    """YAML a careless user or a corrupted file makes: random structures, deep nesting of random kinds, alias
+    chains of random depth and fan-out, anchors and merge keys, the bundled rig with a subtree replaced."""
+    import yaml
+
+    from worm_model.physics.parameters import default_rig_path
+    scalars = st.one_of(st.none(), st.booleans(), st.integers(), st.floats(allow_nan=True), st.text(max_size=8))
+    trees = st.recursive(scalars, lambda inner: st.one_of(st.lists(inner, max_size=4),
+                                                          st.dictionaries(st.text(max_size=6), inner, max_size=4)),
+                         max_leaves=30)
+    plain = trees.map(lambda tree: yaml.safe_dump(tree))
+
+    def nested(depth: int, kind: str) -> str:
+        opening, closing = {"flow list": ("[", "]"), "flow map": ("{a: ", "}")}.get(kind, ("", ""))
+        if kind == "block":
+            return "".join("  " * k + "k:\n" for k in range(depth)) + "  " * depth + "v\n"
+        return "a: " + opening * depth + "1" + closing * depth + "\n"
+
+    deep = st.builds(nested, st.integers(1, 3000), st.sampled_from(["flow list", "flow map", "block"]))
+
+    def chain(levels: int, fan_out: int, merge: bool) -> str:
+        lines = ["l0: &l0 {a: 1, b: 2}" if merge else "l0: &l0 [x]"]
+        for k in range(1, levels):
+            lines.append(f"l{k}: &l{k} " + ("{<<: *l%d, c%d: 1}" % (k - 1, k) if merge else
+                                             f"[{', '.join([f'*l{k - 1}'] * fan_out)}]"))
+        return "\n".join(lines) + "\n"
+
+    bombs = st.builds(chain, st.integers(1, 30), st.integers(1, 12), st.booleans())
+    rig = default_rig_path().read_text(encoding="utf-8")
+    spliced = st.builds(lambda key, text: rig.replace(f"\n{key}:", f"\n{key}: {text}\nold_{key}:", 1),
+                        st.sampled_from(["gearbox", "friction", "sensors", "load_motor"]),
+                        st.one_of(deep, bombs, plain).map(lambda t: "\n  " + t.replace("\n", "\n  ")))
+    return st.one_of(plain, deep, bombs, spliced, st.binary(max_size=64).map(lambda b: b.decode("latin-1")))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=list(HealthCheck))
+@given(text=_yaml_texts(), reader=st.sampled_from(["rig", "effects", "graph", "parameters"]))
+def test_no_yaml_hangs_or_crashes_a_reader(text, reader, work) -> None:
+    """Every YAML reader ends in a value or one refusal (the project's ValueError with the file named), never
+    in a RecursionError, a MemoryError or an expansion that does not end; the tools alike (one line, exit 2)."""
+    from torque_estimator.graph.run_graph import main as run_graph
+    from worm_model.calc.worm_calc import main as worm_calc
+    from worm_model.files.reading import load_parameter_file
+    from worm_model.physics.parameters import load_rig
+    from worm_rig_driver.sim.effects import load_effects, main as worm_effects
+
+    folder = work({"f.yaml": text.encode("utf-8", errors="surrogateescape")})
+    load = {"rig": load_rig, "effects": load_effects, "graph": load_parameter_file,
+            "parameters": load_parameter_file}[reader]
+    try:
+        load(folder / "f.yaml")
+    except ValueError as err:
+        assert "f.yaml" in str(err), str(err)
+    tool = {"rig": ("worm_calc", worm_calc, ["--rig", "f.yaml", "--mu", "0.05"]),
+            "effects": ("worm_effects", worm_effects, ["--check", "f.yaml"]),
+            "graph": ("run_graph", run_graph, ["f.yaml", "--set", "estimator_node.k=abc"]),
+            "parameters": ("run_graph", run_graph, ["f.yaml", "--set", "nosuch_node.k=1"])}[reader]
+    before = _digest(folder)
+    code, _out, err = run_main(tool[1], tool[2], folder)
+    if code != 0:
+        assert_refused(tool[0], code, err, before, folder)

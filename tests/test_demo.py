@@ -41,12 +41,11 @@ def test_demo_runs_end_to_end(tmp_path: Path) -> None:
         r"feedforward (off|on)\s+4\s+([\d.]+) rad/s\s+([\d.]+) rad", summary)}
     assert set(steps) == {"off", "on"}, summary
     (dip_off, iae_off), (dip_on, iae_on) = steps["off"], steps["on"]
-    # what the README says of the load steps, with the feedforward at the rig and the rig in its own process
-    # (graph.runner.rig_computer): it cuts the IAE to 0.32-0.35 of it and the worst dip to 0.52-0.57 of it
-    # (issue 14: by >= 40 %), read on the true speed at every sample (/sim/truth_samples); seven runs, three
-    # with a CPU hog on one core; the off dip 4.82-5.10 rad/s, its IAE 2.31-2.36 rad. (Through the graph's
-    # batches, before the rig fed forward itself: 0.53-0.68; with the four nodes in one process the graph fell
-    # behind the rig in every run, the dip to 0.78 of it once.)
+    # what the README says of the load steps (about two thirds off the IAE, close to half off the worst dip),
+    # with the feedforward at the rig and the rig in its own process (graph.runner.rig_computer), read on the
+    # true speed at every sample (/sim/truth_samples): over seven runs, three with a CPU hog on one core, the
+    # IAE fell to 0.32-0.35 of it and the worst dip to 0.52-0.57 of it; the off dip 4.82-5.10 rad/s, its IAE
+    # 2.31-2.36 rad.
     assert 4.0 < dip_off < 5.5 and 2.0 < iae_off < 2.8, steps
     assert iae_on < 0.4 * iae_off, steps
     assert dip_on < 0.6 * dip_off, steps

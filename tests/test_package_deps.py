@@ -46,9 +46,13 @@ def imported_modules(root: Path) -> dict[str, set[Path]]:
     return found
 
 
+#: modules of the test trees themselves (worm_model/test/fixtures, on sys.path through its conftest.py)
+TEST_FIXTURES = ("fixtures",)
+
+
 def third_party(found: dict[str, set[Path]], package: str) -> dict[str, set[Path]]:
     return {m: files for m, files in found.items()
-            if m not in sys.stdlib_module_names and m not in ("__future__", "setuptools", package)}
+            if m not in sys.stdlib_module_names and m not in ("__future__", "setuptools", package, *TEST_FIXTURES)}
 
 
 def manifest(package: str) -> tuple[set[str], set[str], str]:

@@ -1,9 +1,9 @@
-"""The README's command lines, run as a user runs them: every `ros2 run` line of "Using it on a ROS 2 install"
-through the installed executable (where `ros2 run` finds it), every `ros2 topic pub` line with exactly the QoS
-the CLI publishes with by default (reliable, volatile, depth 10).
+"""The documented command lines, run as a user runs them: every `ros2 run` line of docs/running.md's "The nodes,
+one by one or as a graph" through the installed executable (where `ros2 run` finds it), every `ros2 topic pub`
+line with exactly the QoS the CLI publishes with by default (reliable, volatile, depth 10).
 
-The lines are read from the README itself; a line this test does not know how to run fails it, so a command
-added to the README comes with its test. (`calibrate --live [--resume]` is run by test_calibrate_live_dds.)
+The lines are read from the page itself; a line this test does not know how to run fails it, so a command
+added to the page comes with its test. (`calibrate --live [--resume]` is run by test_calibrate_live_dds.)
 """
 from __future__ import annotations
 
@@ -30,10 +30,14 @@ TOPIC_PUB_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliabilit
 START_TIMEOUT = 45.0  # [s]
 
 
-def readme_commands() -> list[str]:
-    """The `ros2 ...` lines of the README's "Using it on a ROS 2 install" code block, comments dropped."""
-    text = (REPO / "README.md").read_text(encoding="utf-8")
-    section = text[text.index("## Using it on a ROS 2 install"):text.index("### Packages and topics")]
+PAGE = REPO / "docs" / "running.md"
+SECTION = ("## The nodes, one by one or as a graph", "## Choosing the estimator")
+
+
+def documented_commands() -> list[str]:
+    """The `ros2 ...` lines of the code block of docs/running.md's section SECTION, comments dropped."""
+    text = PAGE.read_text(encoding="utf-8")
+    section = text[text.index(SECTION[0]):text.index(SECTION[1])]
     lines = []
     for block in re.findall(r"```\n(.*?)```", section, flags=re.S):
         for line in block.splitlines():
@@ -67,8 +71,8 @@ def topic_pub(node, line: str):
     return node.create_publisher(msg_type, topic, TOPIC_PUB_QOS), msg
 
 
-def test_every_command_of_the_readme(ros_env: dict[str, str], tmp_path: Path) -> None:
-    lines = readme_commands()
+def test_every_documented_command(ros_env: dict[str, str], tmp_path: Path) -> None:
+    lines = documented_commands()
     nodes = [line for line in lines if re.match(r"ros2 run \S+ \S+_node ", line)]
     pubs = [line for line in lines if line.startswith("ros2 topic pub ")]
     graphs = [line for line in lines if " run_graph " in line]
@@ -78,7 +82,7 @@ def test_every_command_of_the_readme(ros_env: dict[str, str], tmp_path: Path) ->
              "bag": [line for line in lines if " bag info " in line],
              "replay": [line for line in lines if " replay " in line]}
     handled = set(nodes) | set(pubs) | set(graphs) | {line for group in known.values() for line in group}
-    assert set(lines) == handled, f"README commands with no test: {sorted(set(lines) - handled)}"
+    assert set(lines) == handled, f"documented commands with no test: {sorted(set(lines) - handled)}"
     assert len(nodes) == 4 and len(pubs) == 2 and len(graphs) == 2 and all(len(v) == 1 for v in known.values())
 
     done = subprocess.run(command(known["calibrate_out"][0], tmp_path), env=ros_env, capture_output=True, text=True,
@@ -101,7 +105,7 @@ def test_every_command_of_the_readme(ros_env: dict[str, str], tmp_path: Path) ->
                     executor.spin_once(timeout_sec=0.05)
                 return done()
 
-            assert spin_until(lambda: bool(samples), START_TIMEOUT), "the nodes of the README did not stream"
+            assert spin_until(lambda: bool(samples), START_TIMEOUT), "the documented nodes did not stream"
             recorder = subprocess.Popen(command(known["recorder"][0], tmp_path), env=ros_env,
                                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
             # the recorder has subscribed (model, estimator, this probe and it)

@@ -180,3 +180,34 @@ def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str]
                 node.destroy_node()
     finally:
         rclpy.try_shutdown()
+
+
+@pytest.mark.parametrize("method, reads", [("observer", set()), ("extended_model", {"input_filter"}),
+                                           ("knn", {"input_filter", "k"})])
+def test_estimator_node_declares_a_methods_options_only_and_names_the_others(
+        method: str, reads: set[str], ros_env: dict[str, str], capfd: pytest.CaptureFixture[str]) -> None:
+    """The map's filters and k-NN's options are parameters only for the methods that read them; one given for
+    another method (or no parameter at all) is named in a warning at start, not silently ignored."""
+    import rclpy
+
+    from torque_estimator.nodes.estimator_node import EstimatorNode
+
+    given = {"input_filter": "0.004", "k": "3", "nosuch": "1"}
+    args = ["--ros-args", "-p", f"method:={method}", *[a for n, v in given.items() for a in ("-p", f"{n}:={v}")]]
+    rclpy.init(args=args)
+    try:
+        node = EstimatorNode()
+        try:
+            assert {n for n in given if node.has_parameter(n)} == reads
+            assert node.estimator is None or method != "knn"  # knn has no calibration here: reported, no crash
+        finally:
+            node.destroy_node()
+    finally:
+        rclpy.try_shutdown()
+    err = capfd.readouterr().err
+    warned = {n for n in given if f"parameter {n} is set but" in err}
+    assert warned == set(given) - reads, err
+    assert "estimator_node has no such parameter" in err
+    if method == "observer":
+        assert "parameter input_filter is set but method observer does not read it (read by knn, extended_model only)" \
+            in err

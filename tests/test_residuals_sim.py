@@ -40,6 +40,11 @@ formula against the simulator's, the bias of steady operating points, and the an
 its phase and amplitude) or not.  At the simulator's default 2 kHz sensor filter the bias peaks at
 7 mA, under the noise: the analysis ranks pwm first but stays within 1.1 x the floor, so the naming
 case uses a 10 kHz filter (residual_cases.ALONE).  Model-only checks: worm_model/test/residuals/test_pwm.py.
+
+A catalogue rig file under the constant friction model (the last section): the simulated rig with mu a constant
+0.05 and no hidden effect, the rig file declaring mu 25 % high (and K_t 3 % high) with sources, as a user copies
+catalogue values.  `residuals` names nothing and ends at the floor; `identify --from` corrects mu and K_t; and
+`estimate` with identify's output scores within 1.5x of the same run with the rig file right.
 """
 
 from __future__ import annotations
@@ -69,6 +74,11 @@ from worm_rig_driver.sim.sensors import AdcChain
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 import torque_estimator.evaluation.residual_cases as rc
+from torque_estimator.evaluation.scenario import DEMO_SCENARIO
+from torque_estimator.identification.excitation import Ramp, default_excitation
+from torque_estimator.identification.identify import main as identify_main
+from torque_estimator.identification.simulated import record_on_simulator
+from torque_estimator.offline.estimate import main as estimate_main
 
 REPO = Path(__file__).resolve().parents[1]
 RIG = load_rig()
@@ -428,3 +438,74 @@ def test_residual_analysis_does_not_name_pwm_on_a_clean_record(noise_standard: M
     print(f"clean: found {result.found}; pwm screened: improvement {pwm.improvement:.4f}, dBIC {pwm.delta_bic:.1f}")
     assert result.found == []
     assert not pwm.note  # it was screened (not ruled out), and left out
+
+
+# --------------------------------------------------------------------------- a catalogue rig file, constant mu
+@pytest.fixture(scope="module")
+def constant_rig_logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The simulated rig under the constant friction model (mu 0.05, no hidden effect): an 85 s identification
+    record, a second log of the same plant (the demo's six segments), the rig file right, and as a user copies
+    it from a catalogue: mu 25 % high and K_t 3 % high, each with a source:."""
+    folder = tmp_path_factory.mktemp("constant")
+    plant = rc.plant_rig("nmrv030_constant")
+    write_rig_csv(folder / "record.csv", record_on_simulator(plant, default_excitation(plant), seed=4))
+    timeline = [Ramp(s.duration, s.speed, s.speed, s.load, s.load, s.label) for s in DEMO_SCENARIO]
+    write_rig_csv(folder / "log.csv", record_on_simulator(plant, timeline, seed=2))
+    return {"record": folder / "record.csv", "log": folder / "log.csv",
+            "right": rc.write_rig_file(folder / "right.yaml", "nmrv030_constant", {}),
+            "catalogue": rc.write_rig_file(folder / "catalogue.yaml", "nmrv030_constant",
+                                           rc.PERTURBATIONS["catalogue"]),
+            "mu_high": rc.write_rig_file(folder / "mu_high.yaml", "nmrv030_constant", {"mu": 1.25})}
+
+
+@pytest.mark.parametrize("perturbation", ["mu_high", "catalogue"])
+def test_constant_friction_with_mu_declared_high_names_nothing_at_the_floor(perturbation: str, tmp_path: Path) -> None:
+    """`residuals` on the case matrix's data (10 rigs x 4 s), the rig file under the constant model with mu 25 % high
+    (and K_t 3 % high) with sources: nothing named, at the floor, mu corrected (measured: found none, 1.00-1.02x the
+    floor, mu_constant within 1 % of the plant's 0.05; the correction was dead: 'friction.scale: declared 1 -> 1
+    +- 0')."""
+    off = {"mu": 1.25} if perturbation == "mu_high" else rc.PERTURBATIONS["catalogue"]
+    case = rc.Case(f"constant/{perturbation}", seed=11, rig="nmrv030_constant")
+    data = rc.simulate(case)
+    declared = load_rig(rc.write_rig_file(tmp_path / "rig.yaml", "nmrv030_constant", off))
+    settings = an.Settings()
+    signals = prepare_signals(declared, data, settings.alpha_time_constant)
+    result = an.analyse(an.Problem(declared, [], signals, data.current_drive, an.make_split(signals, settings),
+                                   settings))
+    print(_show(perturbation, result), "floor", result.noise.rms, result.final.free_values)
+    assert result.found == [] and result.unexplained is None
+    assert result.final.rms_held_out <= 1.3 * result.noise.rms
+    assert 1.0 <= round(result.final.rms_held_out / result.noise.rms, 2) <= 1.02  # docs/residuals.md: 1.00-1.02
+    assert result.final.free_values["friction.mu_constant"] == pytest.approx(0.05, rel=0.03)
+
+
+def test_identify_corrects_mu_and_kt_of_a_catalogue_rig_file_and_estimate_scores_as_with_the_right_file(
+        constant_rig_logs: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """`identify --from` the record with the catalogue file (mu 0.0625, K_t 0.05665, sources) corrects both (measured:
+    mu_constant 0.0499, K_t 0.05513 against the plant's 0.05 / 0.055); `estimate` with its output on the second log
+    scores within 1.5x of the same run with the rig file right (measured 0.52 / 2.61 % against 0.54 / 2.70 %; the
+    catalogue file itself 6.14 / 16.05 %)."""
+    logs = constant_rig_logs
+    identified = tmp_path / "identified.yaml"
+    assert identify_main(["--from", str(logs["record"]), "--params", str(logs["catalogue"]), "--out", str(identified),
+                          "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "parameter friction.mu_constant: declared 0.0625 -> " in printed, printed
+    rig = load_rig(identified)
+    assert rig.friction.model == "constant"
+    assert rig.friction.mu_constant == pytest.approx(0.05, rel=0.02)
+    assert rig.drive_motor.torque_constant == pytest.approx(0.055, rel=0.01)
+    # the figures docs/residuals.md states, to the digits it prints (the run is seeded)
+    assert (round(rig.friction.mu_constant, 4), round(rig.drive_motor.torque_constant, 5)) == (0.0499, 0.05513)
+    figures = {}
+    for label, model in (("identified", identified), ("right", logs["right"]), ("catalogue", logs["catalogue"])):
+        assert estimate_main([str(logs["log"]), "--method", "extended_model", "--model-file", str(model),
+                              "--out", str(tmp_path / f"{label}.csv"), "--quiet"]) == 0
+        last = capsys.readouterr().out.strip().splitlines()[-1]
+        figures[label] = {k: float(v) for k, v in (f.split("=") for f in last.split()[1:]) if k != "method"}
+    print(figures)
+    assert figures["identified"]["mae_pct"] <= 1.5 * figures["right"]["mae_pct"], figures
+    assert figures["identified"]["max_pct"] <= 1.5 * figures["right"]["max_pct"], figures
+    assert figures["catalogue"]["mae_pct"] > 5 * figures["right"]["mae_pct"], figures  # the file as copied is far off
+    stated = {"identified": (0.52, 2.61), "right": (0.54, 2.70), "catalogue": (6.14, 16.05)}  # docs/residuals.md
+    assert {k: (v["mae_pct"], v["max_pct"]) for k, v in figures.items()} == stated, figures

@@ -5,12 +5,14 @@ helpers beside the CLIs that talk to a live graph):
 
 ==================  ===========================================================
 ``estimation``      the estimators behind one interface (``base``: inputs, outputs,
-                    flags; ``registry``: name -> factory): ``observer`` (the shipped
-                    default: a Kalman filter on the model with a step detector),
-                    ``knn`` (the paper's k-NN map), ``extended_model`` (inverts the
-                    identified model); the calibration ``database`` they read;
-                    ``live`` (LiveEstimator: the per-sample front end every node,
-                    replay and study runs); ``quasi_static``, ``calibration_bias``
+                    flags, the streaming protocols; ``registry``: name -> factory and
+                    options): ``observer`` (a folder: the shipped default, a Kalman
+                    filter on the model with a step detector), ``knn`` (the paper's
+                    k-NN map), ``extended_model`` (inverts the identified model); the
+                    calibration ``database`` they read; ``settings`` (what every
+                    caller builds its estimator from, and the one builder); ``live``
+                    (LiveEstimator: the per-sample front end every node, replay and
+                    study runs); ``quasi_static``, ``calibration_bias``
 ``control``         what feeds the load forward: ``feedforward`` (which estimate may
                     be fed forward, and when it is too old), ``rig_feedforward`` (the
                     estimator the rig runs beside its speed PI; the PI itself is
@@ -27,8 +29,9 @@ helpers beside the CLIs that talk to a live graph):
                     against its tau_load), ``replay`` (the graph's cores over a bag)
 ``evaluation``      ``make evaluate``'s studies: ``held_out`` (Table 3), ``transient``,
                     ``identified``, ``observer_study``, ``residual_cases``,
-                    ``closed_loop``; the ``evaluate`` CLI
-``demo``            ``make demo``: ``scenario`` timelines played on the live graph
+                    ``closed_loop``, ``real_drive`` (a real drive's measurements), the
+                    ``scenario`` timelines they and the demo play; the ``evaluate`` CLI
+``demo``            ``make demo``: the demo's scenario played on the live graph
                     (``scenario_node``), ``run_analysis``, ``plots``, the ``demo`` CLI
 ``health``          watching the gearbox: the ``health_check`` CLI (a short reference
                     run against the gearbox's baseline and trend), ``health_monitor``
@@ -41,8 +44,8 @@ helpers beside the CLIs that talk to a live graph):
 ==================  ===========================================================
 
 Read first: ``estimation/base.py`` (what an estimator is), ``estimation/live.py`` (what
-estimator_node does with every sample), then ``estimation/observer.py`` (the shipped
-estimator) or ``estimation/knn.py`` (the paper's method).
+estimator_node does with every sample), then ``estimation/observer/`` (the shipped
+estimator; its map, then ``kalman.py``) or ``estimation/knn.py`` (the paper's method).
 """
 import os as _os
 

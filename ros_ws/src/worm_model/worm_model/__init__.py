@@ -16,7 +16,8 @@ outside ``ros/`` and ``nodes/``):
 ``bags``      rosbag2 bags without rclpy: reader (every layout since Foxy), writer,
               message types, sequence-gap checks, ros2-topic-echo-style YAML
 ``rig_data``  measured rig data: the ``worm_rig_data`` CSV schema and the one reader
-              of CSV files and bags (``read_rig_data``); the ``bag`` command
+              of CSV files, bags and EPOS Studio exports (``read_rig_data``); the ``bag``
+              command
 ``residuals`` closing the loop with measured data: fit, residual, effects, report
 ``health``    watching the gearbox's wear: the friction model with mu's temperature law,
               the check's fit, the trend and its baseline, the thermal estimate, the

@@ -1,4 +1,4 @@
-"""The model-based load observer (torque_estimator.estimation.observer) on the simulated rig.
+"""The model-based load observer (torque_estimator.estimation.observer/) on the simulated rig.
 
 Tolerances come from runs over several seeds (bench/observer_bench.py prints them); each
 test says what it measured. The simulator runs the rig file's parameters and, unless said,
@@ -17,7 +17,7 @@ import pytest
 
 from torque_estimator.calibration.batch import CalibrationGrid
 from torque_estimator.estimation.base import EstimateFlags
-from torque_estimator.estimation.registry import ESTIMATORS, NODE_OPTIONS, make_estimator
+from torque_estimator.estimation.registry import ESTIMATORS, METHODS, make_estimator
 from torque_estimator.evaluation.held_out import held_out_setpoints
 from torque_estimator.estimation.observer import (LoadObserver, ObserverEstimator, StaticLoadMap, jump_bound,
                                        predicted_noise, steady_state_bound)
@@ -35,7 +35,7 @@ def nominal_step():
 
 
 def test_registry() -> None:
-    assert "observer" in ESTIMATORS and NODE_OPTIONS["observer"] == ("rig_file", "model_file")
+    assert "observer" in ESTIMATORS and METHODS["observer"].options == () and METHODS["observer"].reads_model_file
     est = make_estimator("observer", None)
     assert callable(est.stream) and isinstance(est.stream(0.001), LoadObserver)
 

@@ -1,4 +1,4 @@
-"""The fast road on the simulator (issue 18): one identify run against the k-NN grid, every default effect on.
+"""The fast road on the simulator: one identify run against the k-NN grid, every default effect on.
 
 Pinned near what was measured (README, `make evaluate`): the identified extended model 0.68 % mean / 1.29 % max
 of the range with this seed (seeds 1-3: 0.68-0.89 / 1.29-2.64 %), inside the issue's 1.0 / 3 %; the observer

@@ -31,16 +31,27 @@ from pathlib import Path
 from worm_model.physics.parameters import ParameterError, load_rig
 
 from torque_estimator.calibration.batch import DEFAULT_BATCH_SIZE, CalibrationGrid, calibrate_simulated
-from torque_estimator.estimation.database import CalibrationError, save_database
+from torque_estimator.estimation.database import FORMAT, CalibrationError, save_database
 from torque_estimator.calibration.journal import CalibrationJournal, default_journal_path
 from torque_estimator.calibration.live import LiveRigError, PointByPoint, live_settings
 from torque_estimator.calibration.operating_points import SteadyStateCriterion
 from worm_model.cli.progress import ProgressBar
 from worm_model.cli.errors import InputError, run_tool
-from worm_model.cli.options import Parser, existing_file, integer, number
-from worm_model.files.writing import check_output
+from worm_model.cli.options import Parser, existing_file, integer, number, output_path
+from worm_model.files.reading import load_json
+from worm_model.files.writing import Output, check_output
 
 EXIT_INTERRUPTED = 130
+
+
+def _is_calibration(path: Path) -> bool:
+    """``path`` holds a calibration database (what --force may replace)."""
+    document = load_json(path, "calibration file")
+    return isinstance(document, dict) and document.get("format") == FORMAT
+
+
+#: what calibrate writes at --out; --force replaces only a calibration database (worm_model.files.writing)
+OUTPUT = Output("calibrate", recognise=_is_calibration)
 #: largest grid dimension and longest time per point [s] accepted (the paper's grid is 17 x 16, points take ~1 s)
 MAX_GRID = 200
 MAX_POINT_TIME = 600.0
@@ -50,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog="calibrate", description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[1:]),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", type=Path, required=True,
+    p.add_argument("--out", type=output_path, required=True,
                    help="calibration database to write (JSON); an existing file is replaced only with --force")
     p.add_argument("--force", action="store_true", help="replace an existing --out file")
     p.add_argument("--rig", type=existing_file, default=None,
@@ -115,9 +126,11 @@ def _main(argv: list[str] | None) -> int:
         raise InputError("--speed-min", f"{args.speed_min:g} rad/s must be below --speed-max {args.speed_max:g} rad/s")
     grid = CalibrationGrid.paper(rig, args.speeds, args.torques, args.speed_min, args.speed_max,
                                  args.torque_fraction)
-    check_output(args.out, args.force)
+    check_output(args.out, args.force, inputs=[args.rig, journal_path], output=OUTPUT)
     if journal_path.is_dir():
         raise InputError(f"--journal {journal_path}", "is a folder, expected a file name")
+    if not journal_path.exists():  # a new journal is an output like --out: writable, never over an input
+        check_output(journal_path, option="--journal", inputs=[args.rig, args.out])
     if args.resume and journal_path.exists():  # a journal that cannot be finished is refused before measuring
         journal = CalibrationJournal.load(journal_path, len(grid.speeds) * len(grid.torques), args.drop_bad_points)
         for dropped in journal.dropped:

@@ -10,7 +10,8 @@ very next period: the observer then takes ~43 % off (rig timing), on the same
 estimator, calibration and gains.
 
 :class:`EstimatorFeedforward` is worm_rig_driver.drive.rig_loop's RigFeedforward:
-LiveEstimator per sample (as estimator_node runs it), the controller's rule for
+LiveEstimator per sample (built as estimator_node builds it, estimation.settings, on
+the rig of the node that runs the loop), the controller's rule for
 which estimate may be used (control.feedforward.FeedforwardGate: not INVALID_INPUT
 or OUT_OF_CALIBRATION, not beyond 1.5x the load motors' torque) and τ_d reflected
 through the gearbox at the set-point (balancing_torque, as controller_node).
@@ -32,10 +33,10 @@ from worm_model.physics.steady_state import make_balancing_torque_float
 
 from torque_estimator.control.feedforward import FeedforwardGate
 from torque_estimator.estimation.base import TorqueEstimator
-from torque_estimator.estimation.database import CalibrationDatabase, load_database
+from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.estimation.observer import LoadProcess
-from torque_estimator.estimation.registry import CALIBRATION_OPTIONAL, ESTIMATORS, make_estimator
+from torque_estimator.estimation.settings import BuiltEstimator, EstimatorSettings, build_estimator
 
 #: Step detector's false-alarm rate per sample for a feedforward (module docstring).
 FEEDFORWARD_FALSE_ALARM = 1e-3
@@ -46,12 +47,13 @@ class EstimatorFeedforward:
 
     Args:
         rig: rig parameters (the gearbox the load is reflected through, the load motors' limit).
-        estimator: the τ_d estimator (a streaming one, such as the observer, is fed voltage and angle).
+        live: the per-sample estimator (LiveEstimator: a streaming one, such as the observer, is fed voltage
+            and angle).
         sample_period: [s] between samples.
     """
 
-    def __init__(self, rig: Rig, estimator: TorqueEstimator, sample_period: float) -> None:
-        self.live = LiveEstimator(rig, estimator, sample_period)
+    def __init__(self, rig: Rig, live: LiveEstimator, sample_period: float) -> None:
+        self.live = live
         self.gate = FeedforwardGate(timeout=0.0, max_load=1.5 * rig.max_load_torque)
         self.sample_period = sample_period
         self._balancing = make_balancing_torque_float(rig)
@@ -71,25 +73,25 @@ class EstimatorFeedforward:
 
 def build(method: str, calibration_file: str, rig: Rig, sample_period: float) -> EstimatorFeedforward:
     """The rig feedforward of registry estimator ``method`` over ``calibration_file`` ("" for none: the
-    observer and extended_model work from the rig file alone), for ``rig``.
+    observer and extended_model work from the rig alone), for ``rig``: the entry point worm_rig_driver calls.
 
     Raises:
-        ValueError: unknown method, a method that needs a calibration without one, or a bad calibration
-            file (CalibrationError); OSError: the file cannot be read.
+        ValueError: unknown method; CalibrationError (a ValueError): a method that needs a calibration without
+            one, or a bad calibration file.
     """
-    if method not in ESTIMATORS:
-        raise ValueError(f"unknown estimator {method!r}; known: {sorted(ESTIMATORS)}")
-    if not calibration_file and method not in CALIBRATION_OPTIONAL:
-        raise ValueError(f"estimator {method!r} needs a calibration file (feedforward_calibration)")
-    database = load_database(calibration_file, rig) if calibration_file else None
-    return EstimatorFeedforward(rig, feedforward_estimator(method, database, rig), sample_period)
+    built = _build(EstimatorSettings(method, calibration_file=calibration_file), rig, None)
+    return EstimatorFeedforward(rig, built.live(sample_period), sample_period)
 
 
 def feedforward_estimator(method: str, database: CalibrationDatabase | None, rig: Rig) -> TorqueEstimator:
     """Registry estimator ``method`` as a rig feedforward runs it: on ``rig``, the observer's step detector
     at FEEDFORWARD_FALSE_ALARM (the benchmark's rig timing uses this too)."""
-    options = {"rig": rig, "load": LoadProcess(false_alarm=FEEDFORWARD_FALSE_ALARM)} if method == "observer" else {}
-    return make_estimator(method, database, **options)
+    return _build(EstimatorSettings(method), rig, database).estimator
+
+
+def _build(settings: EstimatorSettings, rig: Rig, database: CalibrationDatabase | None) -> BuiltEstimator:
+    options = {"load": LoadProcess(false_alarm=FEEDFORWARD_FALSE_ALARM)} if settings.method == "observer" else {}
+    return build_estimator(settings, rig=rig, database=database, estimator_options=options)
 
 
 __all__ = ["FEEDFORWARD_FALSE_ALARM", "EstimatorFeedforward", "build", "feedforward_estimator"]

@@ -12,7 +12,6 @@ from __future__ import annotations
 import argparse
 import os
 import random
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -24,17 +23,21 @@ from worm_model.physics.parameters import load_rig
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import save_database
 from torque_estimator.estimation.registry import make_estimator
-from torque_estimator.graph.runner import default_graph_file
+from torque_estimator.graph.runner import GraphError, check_graph, default_graph_file, graph_nodes
 from torque_estimator.evaluation.held_out import evaluate_held_out, format_table
 from torque_estimator.demo.plots import EstimateTrace, SpeedTrace, estimate_vs_truth, load_steps, tracking
 from torque_estimator.evaluation.plots import held_out_deviation
 from worm_model.cli.progress import ProgressBar
 from worm_model.cli.errors import run_tool
-from worm_model.cli.options import Parser, existing_file, integer
-from worm_model.files.writing import check_output
+from worm_model.cli.options import Parser, existing_file, integer, output_path
+from worm_model.files.writing import Output, atomic_dir, check_output
 from torque_estimator.demo.run_analysis import analyse_run, recorded_load_steps, steady_spans
 from torque_estimator.evaluation.scenario import DEMO_SCENARIO
 from torque_estimator.demo.scenario_node import live_run
+
+
+#: what the demo writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
+OUTPUT = Output("demo", names=("calibration.json", "*.png", "bag_ff_*", "logs_ff_*"))
 
 
 def load_run(bag: Path, start_stamp: float) -> dict:
@@ -76,13 +79,13 @@ def load_run(bag: Path, start_stamp: float) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool("demo", lambda: _main(argv))
+    return run_tool("demo", lambda: _main(argv), (GraphError,))
 
 
 def _main(argv: list[str] | None) -> int:
     parser = Parser(prog="demo", description=__doc__.split("\n\n")[0],
                     formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    parser.add_argument("--out", type=Path, default=Path("out/demo"),
+    parser.add_argument("--out", type=output_path, default=Path("out/demo"),
                         help="folder for every output (an existing one is replaced only with --force)")
     parser.add_argument("--force", action="store_true", help="replace an existing --out folder")
     parser.add_argument("--graph", type=existing_file, default=None,
@@ -90,9 +93,18 @@ def _main(argv: list[str] | None) -> int:
     parser.add_argument("--seed", type=integer(0, 2**32 - 2), default=0,
                         help="seed of calibration noise and held-out draws")
     args = parser.parse_args(argv)
-    out = check_output(args.out, args.force, folder=True).resolve()
-    shutil.rmtree(out, ignore_errors=True)
-    out.mkdir(parents=True)
+    inputs = [args.graph]
+    check_output(args.out, args.force, folder=True, inputs=inputs, output=OUTPUT)
+    graph_file = args.graph or default_graph_file()
+    check_graph(graph_file, {}, graph_nodes(graph_file))  # what the live graph would refuse, before calibrating
+    # everything goes to a folder beside --out that replaces it at the end: an interrupted or failed demo
+    # leaves the earlier output (or none), never half of one
+    with atomic_dir(args.out, args.force, inputs=inputs, output=OUTPUT) as work:
+        return _demo(args, work, args.out.resolve())
+
+
+def _demo(args: argparse.Namespace, out: Path, final: Path) -> int:
+    """The demo, writing into ``out`` (the folder that becomes ``final``, the one named in messages)."""
     os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(100, 230)))
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     rig = load_rig()
@@ -105,7 +117,7 @@ def _main(argv: list[str] | None) -> int:
         db = calibrate_simulated(rig, grid, seed=args.seed, progress=lambda f: bar.update_to(round(f * n_points)))
     calibration = out / "calibration.json"
     save_database(db, calibration)
-    print(f"      {len(db)} points, torque range {db.torque_range:.3f} N m -> {calibration}")
+    print(f"      {len(db)} points, torque range {db.torque_range:.3f} N m -> {final / calibration.name}")
 
     print("[2/4] k-NN estimate on 17 held-out operating points", flush=True)
     estimator = make_estimator("knn", db)
@@ -161,7 +173,7 @@ def _main(argv: list[str] | None) -> int:
     for name, run_steps in steps.items():
         dip = max((x.peak_dip for x in run_steps), default=float("nan"))
         print(f"    {name:16s} {len(run_steps):15d} {dip:10.2f} rad/s {sum(x.iae for x in run_steps):11.3f} rad")
-    print(f"  outputs in {out}: calibration.json, bag_ff_off/, bag_ff_on/ (MCAP), "
+    print(f"  outputs in {final}: calibration.json, bag_ff_off/, bag_ff_on/ (MCAP), "
           + ", ".join(p.name for p in plots))
     print(f"  done in {time.monotonic() - t0:.0f} s")
     return 0

@@ -1,13 +1,23 @@
-"""The interface every τ_d estimator implements: its inputs, outputs and quality flags.
+"""The interface every τ_d estimator implements: its inputs, outputs and quality flags, and the streaming contract.
 
 Inputs are the drive motor's measured worm speed ω_w [rad/s] and armature
 current i [A]; the output is the load torque τ_d on the gear shaft [N·m],
 positive when it opposes positive worm rotation (the sign convention of
-:mod:`torque_estimator.calibration.database`).
+:mod:`torque_estimator.estimation.database`).
 
 Estimators are plugins: a class satisfying :class:`TorqueEstimator` plus a
-row in :data:`torque_estimator.estimation.registry.ESTIMATORS`, so the
-benchmark and the node treat them alike.
+row in :data:`torque_estimator.estimation.registry.METHODS`, so the
+benchmark and the node treat them alike. Two optional abilities, each a
+protocol LiveEstimator (live.py) tests for:
+
+* :class:`StreamingEstimator`: it follows the rig sample by sample itself
+  (``stream(sample_period)`` gives an :class:`EstimateStream`, fed voltage,
+  current, speed and encoder angle per sample), instead of LiveEstimator's
+  filters in front of ``estimate`` (the observer; the momentum observer, which
+  leaves the voltage unread);
+* :class:`AngleEstimator`: ``estimate`` also takes the worm angle and removes
+  a ripple periodic in it when ``uses_angle`` is True (extended_model with
+  periodic effects).
 """
 
 from __future__ import annotations
@@ -18,7 +28,6 @@ from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-
 
 
 class EstimateFlags(IntFlag):
@@ -51,6 +60,60 @@ class TorqueEstimates:
     flags: NDArray[np.int64]
 
 
+class SampleEstimate(Protocol):
+    """One sample's estimate, as a stream returns it: τ_d [N·m], its 1-sigma uncertainty [N·m],
+    EstimateFlags bits, and the filtered worm speed [rad/s] and drive current [A] it is at."""
+
+    @property
+    def torque(self) -> float: ...
+
+    @property
+    def uncertainty(self) -> float: ...
+
+    @property
+    def flags(self) -> int: ...
+
+    @property
+    def omega_worm(self) -> float: ...
+
+    @property
+    def current_drive(self) -> float: ...
+
+
+class EstimateStream(Protocol):
+    """A streaming estimator's state for one rig: every sample in order, one estimate each."""
+
+    def update(self, voltage: float, current: float, omega: float, theta: float | None = None) -> SampleEstimate:
+        """One sample: drive voltage applied from its tick on [V], drive current [A], worm speed [rad/s],
+        encoder angle [rad] (None: no encoder). Never raises for NaN/inf (flagged INVALID_INPUT)."""
+        ...
+
+    def skip(self, samples: int) -> None:
+        """``samples`` rig samples were lost before the next one (predict over them, or start again)."""
+        ...
+
+
+@runtime_checkable
+class StreamingEstimator(Protocol):
+    """An estimator that follows the rig itself: LiveEstimator feeds its stream every sample as it is."""
+
+    def stream(self, sample_period: float) -> EstimateStream:
+        """A fresh stream for samples ``sample_period`` [s] apart."""
+        ...
+
+
+@runtime_checkable
+class AngleEstimator(Protocol):
+    """An estimator whose ``estimate`` takes the worm angle θ [rad] too (``theta_worm=``), used when
+    ``uses_angle`` is True."""
+
+    @property
+    def uses_angle(self) -> bool: ...
+
+    def estimate(self, omega_worm: ArrayLike, current_drive: ArrayLike, theta_worm: ArrayLike | None = None
+                 ) -> TorqueEstimates: ...
+
+
 @runtime_checkable
 class TorqueEstimator(Protocol):
     """A τ_d estimator built from a calibration database."""
@@ -67,4 +130,5 @@ class TorqueEstimator(Protocol):
         ...
 
 
-__all__ = ["EstimateFlags", "TorqueEstimates", "TorqueEstimator"]
+__all__ = ["AngleEstimator", "EstimateFlags", "EstimateStream", "SampleEstimate", "StreamingEstimator", "TorqueEstimates",
+           "TorqueEstimator"]

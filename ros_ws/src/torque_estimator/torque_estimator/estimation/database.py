@@ -49,8 +49,8 @@ from numpy.typing import ArrayLike, NDArray
 from worm_model.cli.errors import InputError
 from worm_model.files.reading import load_json
 from worm_model.files.writing import write_text_atomically
-from worm_model.physics.envelope import Envelope
 from worm_model.physics.parameters import Rig
+from worm_model.rig_data.plausibility import calibration_problem
 
 FORMAT: Final = "worm_torque_calibration"
 VERSION: Final = 1
@@ -307,9 +307,10 @@ def load_database(path: str | os.PathLike[str], rig: Rig | None = None) -> Calib
         CalibrationError: the file is missing or unreadable, is not JSON (the
             message gives line and column), has the wrong format or an
             unsupported version, lacks a field, has columns of unequal length,
-            has a non-finite mean value, or (``rig`` given) a point far outside
-            what that rig can do (check_plausible); the message names the file and the
-            field (and the point index where relevant).
+            has a non-finite mean value, spans no torque range or holds one point repeated,
+            or (``rig`` given) has a point far outside what that rig can do (speeds in rpm:
+            worm_model.rig_data.plausibility.calibration_problem); the message names the file
+            and the field (and the point index where relevant).
     """
     source = Path(path)
     try:
@@ -318,25 +319,12 @@ def load_database(path: str | os.PathLike[str], rig: Rig | None = None) -> Calib
         raise CalibrationError(f"calibration file {err}") from None
     try:
         db = _from_document(doc)
-        if rig is not None:
-            check_plausible(db, rig)
+        problem = calibration_problem(db.omega_worm, db.current_drive, db.tau_load, rig)  # what every reader checks
+        if problem:
+            raise CalibrationError(problem)
     except CalibrationError as err:
         raise CalibrationError(f"calibration file {source}: {err}") from None
     return db
-
-
-def check_plausible(db: CalibrationDatabase, rig: Rig) -> None:
-    """Every point inside what ``rig`` can do (worm_model.physics.envelope.Envelope).
-
-    Raises:
-        CalibrationError: a point far outside the rig's envelope (the field and the point are named).
-    """
-    envelope = Envelope.of(rig)
-    for name in ("omega_worm", "current_drive", "tau_load"):
-        values = getattr(db, name)
-        k = envelope.first_outside(name, values)
-        if k is not None:
-            raise CalibrationError(f"field 'points.{name}' at point {k}: {envelope.problem(name, float(values[k]))}")
 
 
 __all__ = [
@@ -350,5 +338,4 @@ __all__ = [
     "save_database",
     "load_database",
     "write_text_atomically",
-    "check_plausible",
 ]

@@ -1,4 +1,4 @@
-"""Model-based τ_d estimator: invert the extended model's quasi-static current (issue 7).
+"""Model-based τ_d estimator: invert the extended model's quasi-static current.
 
 Units and signs as :mod:`torque_estimator.estimation.database`: ω_w [rad/s], i [A]
 (the inertia-compensated drive current, as LiveEstimator hands it over), τ_d [N·m]
@@ -198,6 +198,7 @@ class ExtendedModelEstimator:
         model_file: parameter file with an optional ``effects:`` section (ExtendedModel.load);
             empty/None → ``rig_file`` with no effects (the paper's model).
         rig_file: rig YAML used when ``model_file`` is empty; empty/None → bundled rig.
+        rig: a Rig instead of ``rig_file`` (no effects: the paper's model of that rig).
         model: an ExtendedModel to use instead of reading a file (tests, benches).
         speed_points, torque_points: table size per direction (≥ 2 each).
         angles: fewest worm angles averaged when the model has periodic effects (≥ 1; :func:`angle_count`).
@@ -212,12 +213,16 @@ class ExtendedModelEstimator:
     name = "extended_model"
 
     def __init__(self, database: CalibrationDatabase | None = None, model_file: str | Path | None = None,
-                 rig_file: str | Path | None = None, *, model: ExtendedModel | None = None,
+                 rig_file: str | Path | None = None, *, rig: Rig | None = None, model: ExtendedModel | None = None,
                  speed_points: int = 121, torque_points: int = 161, angles: int = ANGLES,
                  current_noise: float | None = None, ranges: tuple[float, float, float] | None = None) -> None:
         if speed_points < 2 or torque_points < 2 or angles < 1:
             raise ValueError(f"need speed_points, torque_points >= 2 and angles >= 1, got "
                              f"{speed_points}, {torque_points}, {angles}")
+        if model is None and rig is not None:
+            if model_file:
+                raise ValueError("a rig and a model_file: the model is one or the other")
+            model = ExtendedModel(rig)
         self.model = model if model is not None else load_model(model_file, rig_file)
         rig = self.model.rig
         if ranges is not None:

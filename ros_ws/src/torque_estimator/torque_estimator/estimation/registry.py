@@ -1,78 +1,127 @@
-"""The registry of τ_d estimators: name -> factory, and which node parameters each takes.
+"""The registry of τ_d estimators: name -> factory, and what each method reads besides the rig and its files.
 
-Adding an estimator is adding a row here (and its module beside this one);
-estimator_node, replay, evaluate and the benchmarks find it by name.
+Adding an estimator is adding a row to :data:`METHODS` (and its module beside this one):
+estimator_node declares the row's options as its parameters, and the node, replay,
+``estimate``, the rig feedforward, evaluate and the benchmarks find it by name
+(settings.py builds it).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any, Callable
 
-from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.base import TorqueEstimator
+from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.extended_model import ExtendedModelEstimator
-from torque_estimator.estimation.knn import KnnEstimator
+from torque_estimator.estimation.knn import WEIGHTINGS, KnnEstimator
+from torque_estimator.estimation.momentum import DEFAULT_BANDWIDTH, DEFAULT_FALSE_ALARM, MomentumEstimator
 from torque_estimator.estimation.observer import ObserverEstimator
 
 
-#: Estimator name → factory ``(database, **options) -> TorqueEstimator``.
-#: "observer" is also a streaming estimator: it has ``stream(sample_period)``, which
-#: LiveEstimator uses (fed voltage and encoder angle per sample) instead of its own filters.
-ESTIMATORS: dict[str, Callable[..., TorqueEstimator]] = {
-    "knn": KnnEstimator,
-    "extended_model": ExtendedModelEstimator,
-    "observer": ObserverEstimator,
+@dataclass(frozen=True)
+class Option:
+    """One option a method reads: estimator_node's parameter of that name, declared with this default,
+    description and range (``low``/``high`` for numbers, ``choices`` for strings)."""
+
+    name: str
+    default: Any
+    description: str
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[str, ...] | None = None
+
+
+#: LiveEstimator's matched filters, change detector and inertia compensation in front of a quasi-static map
+#: (live.py): read by the methods that are such a map, not by one that follows the rig itself (a stream).
+MAP_OPTIONS: tuple[Option, ...] = (
+    Option("input_filter", 0.003,
+           "Time constant [s] of each of the 3 low-pass stages speed and current pass alike (quasi-static maps: "
+           "knn, extended_model).", low=0.0, high=5.0),
+    Option("inertia_compensation", True,
+           "Remove the current that accelerates the rig's inertia (Eq. 28) before the quasi-static lookup (knn, "
+           "extended_model)."),
+    Option("estimate_filter", 0.05,
+           "Time constant [s] of the smoothing of the compensated current, 0: none (knn, extended_model).",
+           low=0.0, high=5.0),
+    Option("change_threshold", 4.0,
+           "Departure of the compensated current from its smoothed value, in running noise sigma, taken for a "
+           "change and followed at once, 0: never (knn, extended_model).", low=0.0, high=100.0),
+    Option("transient_acceleration", 200.0,
+           "Worm acceleration [rad/s^2] above which an estimate is flagged TRANSIENT (knn, extended_model).",
+           low=0.0, high=1e6),
+)
+
+#: The k-NN map's own options (KnnEstimator).
+KNN_OPTIONS: tuple[Option, ...] = (
+    Option("k", 4, "Neighbours averaged by the k-NN estimator (knn).", low=1, high=64),
+    Option("weighting", "inverse_distance", "k-NN weighting of the neighbours (knn).", choices=tuple(WEIGHTINGS)),
+)
+
+#: The momentum observer's own options (MomentumEstimator).
+MOMENTUM_OPTIONS: tuple[Option, ...] = (
+    Option("bandwidth", DEFAULT_BANDWIDTH,
+           "Bandwidth [Hz] of the load estimate between detected load steps (momentum): higher follows a slow "
+           "load change sooner and is noisier.", low=0.01, high=200.0),
+    Option("false_alarm", DEFAULT_FALSE_ALARM,
+           "False-alarm probability per sample of the load-step detector (momentum); 0: no step detection, the "
+           "residual alone at its bandwidth.", low=0.0, high=0.01),
+)
+
+
+@dataclass(frozen=True)
+class Method:
+    """One estimator: its factory ``(database, **options) -> TorqueEstimator``, the options it reads
+    (estimator_node declares them for this method only), whether it needs a calibration database,
+    whether it reads a model file (``model_file``: extended_model inverts it, the observer runs it), and
+    whether it reads the drive voltage (the observer: without it every sample is INVALID_INPUT; the others
+    never read it, so an input without a voltage serves them)."""
+
+    factory: Callable[..., TorqueEstimator]
+    options: tuple[Option, ...]
+    needs_calibration: bool
+    reads_model_file: bool
+    reads_voltage: bool = False
+
+
+#: Estimator name -> Method. "observer" and "momentum" are streaming estimators (base.StreamingEstimator):
+#: LiveEstimator feeds their streams every sample as it is instead of running its own filters, so they read no
+#: MAP_OPTIONS. The observer reads the voltage too; the momentum observer only current, speed and encoder angle.
+METHODS: dict[str, Method] = {
+    "knn": Method(KnnEstimator, KNN_OPTIONS + MAP_OPTIONS, needs_calibration=True, reads_model_file=False),
+    "extended_model": Method(ExtendedModelEstimator, MAP_OPTIONS, needs_calibration=False, reads_model_file=True),
+    "observer": Method(ObserverEstimator, (), needs_calibration=False, reads_model_file=True, reads_voltage=True),
+    "momentum": Method(MomentumEstimator, MOMENTUM_OPTIONS, needs_calibration=False, reads_model_file=True),
 }
 
-#: Estimator name → the estimator_node parameters passed to its factory as options.
-NODE_OPTIONS: dict[str, tuple[str, ...]] = {
-    "knn": ("k", "weighting"),
-    "extended_model": ("model_file", "rig_file"),
-    "observer": ("rig_file", "model_file"),
-}
+#: Estimator name -> factory (evaluate, the benchmarks and the tests iterate over it).
+ESTIMATORS: dict[str, Callable[..., TorqueEstimator]] = {name: m.factory for name, m in METHODS.items()}
 
 
-#: Estimators that work without a calibration database (their ranges come from the rig file, or from the
-#: ``identification:`` section of a model file written by ``identify``).
-CALIBRATION_OPTIONAL: frozenset[str] = frozenset({"observer", "extended_model"})
-
-
-def live_rig_file(method: str, rig_file: str, model_file: str) -> str:
-    """The rig file of LiveEstimator's inertia compensation (K_t, inertias): ``rig_file`` when set, else the
-    ``model_file`` of a method that takes one (its identified values), else "" (the bundled rig).
-    estimator_node, replay and ``estimate`` all use this rule."""
-    if rig_file:
-        return rig_file
-    return model_file if model_file and "model_file" in NODE_OPTIONS.get(method, ()) else ""
-
-
-def node_options(name: str, parameters: Mapping[str, Any]) -> dict[str, Any]:
-    """The options of estimator ``name`` taken from estimator_node's parameters (node and replay alike)."""
-    return {option: parameters[option] for option in NODE_OPTIONS.get(name, ())}
-
-
-def make_estimator(name: str, database: CalibrationDatabase | None, **options: Any) -> TorqueEstimator:
-    """Build the estimator registered as ``name`` over ``database`` (None: only for CALIBRATION_OPTIONAL ones).
+def method(name: str) -> Method:
+    """The registry's row of estimator ``name``.
 
     Raises:
         ValueError: no estimator of that name (the message lists the known ones).
-        TypeError, ValueError: bad options, from the estimator's constructor.
     """
     try:
-        factory = ESTIMATORS[name]
+        return METHODS[name]
     except KeyError:
-        raise ValueError(f"unknown estimator {name!r}; known: {sorted(ESTIMATORS)}") from None
-    if database is None and name not in CALIBRATION_OPTIONAL:
+        raise ValueError(f"unknown estimator {name!r}; known: {sorted(METHODS)}") from None
+
+
+def make_estimator(name: str, database: CalibrationDatabase | None, **options: Any) -> TorqueEstimator:
+    """Build the estimator registered as ``name`` over ``database`` (None: only for one that needs none).
+
+    Raises:
+        ValueError: no estimator of that name, or it needs a calibration database and got none.
+        TypeError, ValueError: bad options, from the estimator's constructor.
+    """
+    row = method(name)
+    if database is None and row.needs_calibration:
         raise ValueError(f"estimator {name!r} needs a calibration database")
-    return factory(database, **options)
+    return row.factory(database, **options)
 
 
-__all__ = [
-    "CALIBRATION_OPTIONAL",
-    "ESTIMATORS",
-    "live_rig_file",
-    "make_estimator",
-    "NODE_OPTIONS",
-    "node_options",
-]
+__all__ = ["ESTIMATORS", "KNN_OPTIONS", "MAP_OPTIONS", "METHODS", "MOMENTUM_OPTIONS", "Method", "Option",
+           "make_estimator", "method"]

@@ -20,6 +20,10 @@ each
 and the observer's steady noise against the best any estimator can do from these
 sensors at its bandwidth (observer.steady_state_bound, a Cramér-Rao-type bound)
     noise: method=observer std=<x> bound=<x> N m ratio=<x>
+and the momentum observer's (current and speed only) noise on a constant load against its predicted
+steady noise, and the least noise any linear estimator that reaches 90 % of a step 5 samples after it
+has on these sensors (momentum.linear_noise_bound: why it detects steps instead)
+    noise: method=momentum std=<x> predicted=<x> N m ratio=<x> linear_5_sample_floor=<x> N m
 and the gearbox's health (health.study): detection of a 10 % and a 5 % rise of mu with the oil
 temperature measured and estimated, false alarms over 1000 healthy checks, the live monitor on a
 lubricant loss and a cold start, the real drive's check (health.real_drive), as lines
@@ -27,12 +31,19 @@ lubricant loss and a cold start, the real drive's check (health.real_drive), as 
     health: false_alarms=<n> of <m> temperature=measured
     health: live lubricant_loss=mu+30% warn_after_s=<x> ...
 and health_trend.png (a simulated gearbox's life with its alarm bands), health_live.png (the live
-monitor on the two scenarios); then the fast road
-(evaluation.identified): on the simulated rig with every default effect
+monitor on the two scenarios); then the fast road (evaluation.identified): on the simulated rig with every default effect
 on and the rig file off (mu x1.3, K_t x1.05, drags x2), one `identify` run against the
 k-NN grid calibrated on that rig, the extended model and the observer with the identified
 parameters, on the same held-out points, ending with
     identify: rig_time_s=<x> identified_mae_pct=<x> identified_max_pct=<x> observer_mae_pct=<x> ...
+
+Then, unless --no-real, the model against a real worm drive's measurements (evaluation.real_drive:
+the T-RO 2021 drive's 46 steady points, their published fit beside ours, the load estimated
+cross-fitted; real_drive_torque.png), ending with
+    real: drive=tro2021_worm points=<n> fit_rms_mNm=<x> tro_fit_rms_mNm=<x> load_mae_pct=<x> ...
+and the momentum observer on that drive's two start-stop runs (evaluation.start_stop: the hanging load
+estimated from current and speed during each move), one line per move
+    start_stop: file=<f> pass=<n> move=<lifting|lowering> rpm=<x> mean_mNm=<x> error_pct=<x> ...
 
 Errors are |estimated - true| in % of the calibrated torque range (max - min
 of the database's τ_d). The last line printed is
@@ -47,8 +58,8 @@ from pathlib import Path
 from typing import Any
 
 from worm_model.cli.errors import run_tool
-from worm_model.cli.options import Parser, existing_file, integer
-from worm_model.files.writing import atomic_dir, check_output
+from worm_model.cli.options import Parser, existing_file, integer, output_path
+from worm_model.files.writing import Output, atomic_dir, check_output
 from worm_model.physics.parameters import ParameterError, load_rig
 from torque_estimator.evaluation.residual_cases import evaluate_lines, full_matrix, small_matrix
 
@@ -58,11 +69,18 @@ from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
 from torque_estimator.evaluation.held_out import format_table, measure_held_out, score, sweep_grid_density, sweep_k, sweep_noise
 from torque_estimator.estimation.knn import WEIGHTINGS
 from torque_estimator.estimation.observer import steady_state_bound
-from torque_estimator.evaluation.transient import STEP_SPEED, transient_figures
+from torque_estimator.estimation.momentum import linear_noise_bound
+from torque_estimator.estimation.momentum import predicted_noise as momentum_noise
+from torque_estimator.evaluation.transient import STEP_SPEED, ensemble_noise, transient_figures
 from torque_estimator.evaluation.identified import evaluate_lines as identified_lines
+from torque_estimator.evaluation import real_drive, start_stop
 
+#: what evaluate writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
+OUTPUT = Output("evaluate", names=("*.png",))
 #: seeds of the step experiment (the ramp and the reversal take a third)
 TRANSIENT_SEEDS = 12
+#: samples after a load step by which the momentum observer is asked to have 90 % of it (5 ms at 1 kHz)
+MOMENTUM_STEP_SAMPLES = 5
 from torque_estimator.evaluation.plots import held_out_deviation, sweeps
 from worm_model.cli.progress import Progress, ProgressBar
 
@@ -104,7 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="calibration database to evaluate (default: calibrate the paper's grid now)")
     p.add_argument("--rig", type=existing_file, default=None,
                    help="rig parameter YAML of the simulated rig (default: the bundled NMRV030 rig)")
-    p.add_argument("--out", type=Path, default=Path("out/evaluate"),
+    p.add_argument("--out", type=output_path, default=Path("out/evaluate"),
                    help="folder for the PNGs, created (default out/evaluate; an existing one only with --force)")
     p.add_argument("--force", action="store_true", help="replace an existing --out folder")
     p.add_argument("--method", default="knn", choices=sorted(ESTIMATORS), help="estimator (default knn)")
@@ -129,13 +147,17 @@ def build_parser() -> argparse.ArgumentParser:
     sweep.add_argument("--noise", type=_float_list, default=[0.0, 0.5, 1.0, 2.0, 4.0],
                        help="sensor noise factors (x the rig's current and speed noise), comma-separated "
                             "(default 0,0.5,1,2,4)")
+    p.add_argument("--no-real", action="store_true",
+                   help="skip the real worm drive (the T-RO 2021 measurements, ~1 min): its table, "
+                        "real_drive_torque.png, its `real:` line and the momentum observer's `start_stop:` lines")
     p.add_argument("--no-residuals", action="store_true", help="skip the residuals tool's case matrix")
     p.add_argument("--no-health", action="store_true",
                    help="skip the gearbox health study (~1800 simulated checks, the live scenarios: ~10 min)")
     p.add_argument("--residual-cases", choices=("full", "small"), default="full",
-                   help="the residuals tool's case matrix: full (every effect alone and in pairs, each with the "
-                        "declared values nominal, high and low; clean data; out-of-vocabulary effects: 75 cases, "
-                        "~5 min) or small (a 14-case subset, ~1 min); default full")
+                   help="the residuals tool's case matrix: full (two rigs, both friction models; every effect alone "
+                        "and in pairs with the declared values nominal, high and low, copied from a catalogue, or "
+                        "drags declared 0; clean data; out-of-vocabulary effects; plants without drag: 163 cases, "
+                        "~10 min) or small (a 22-case subset, ~2 min); default full")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     return p
 
@@ -147,13 +169,11 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     start = time.monotonic()
-    check_output(args.out, args.force, folder=True)
+    inputs = [args.calibration, args.rig]
+    check_output(args.out, args.force, folder=True, inputs=inputs, output=OUTPUT)
     rig = load_rig(args.rig)
     if args.calibration is not None:
-        db = load_database(args.calibration, rig)
-        if db.torque_range <= 0:
-            raise CalibrationError(f"calibration file {args.calibration}: its {len(db)} point(s) span no torque "
-                                   "range: errors are in % of that range; calibrate at two loads at least")
+        db = load_database(args.calibration, rig)  # refuses no torque range, one point repeated, rpm
         grid = CalibrationGrid(speeds=db.speed_setpoints, torques=db.torque_setpoints)
         source = str(args.calibration)
     else:
@@ -168,7 +188,7 @@ def _main(argv: list[str] | None) -> int:
         estimator = make_estimator(args.method, db, **options)
     except ValueError as err:
         raise CalibrationError(f"--method {args.method}: {err}") from None
-    with atomic_dir(args.out, args.force) as folder:
+    with atomic_dir(args.out, args.force, inputs=inputs, output=OUTPUT) as folder:
         pngs, ev = _evaluate(args, rig, grid, db, estimator, options, source, folder)
     print(f"\nevaluate: wrote {', '.join(str(args.out / p.name) for p in pngs)} in {time.monotonic() - start:.1f} s")
     print(f"{args.method}: mae_pct={ev.mae_pct:.2f} max_pct={ev.max_pct:.2f} points={len(ev.tau_true)}")
@@ -201,6 +221,15 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
         side_by_side(args, rig, grid, db)
         # issue 18: identify from one short run vs the k-NN grid, on the simulated rig with every effect on
         print("\n".join(identified_lines(rig, args.points, args.seed + 1, args.k, args.weighting)))
+    if not args.no_real:  # a real drive's measurements through the model and the estimator
+        with ProgressBar(2 * len(real_drive.TERMS), "real drive", enabled=not args.quiet) as bar:
+            study = real_drive.run_study(progress=bar.update_to)
+        print("\nA real worm drive (the T-RO 2021 measurements, evaluation.real_drive)")
+        print("\n".join(real_drive.lines(study)))
+        print("\nThe momentum observer on the same drive's start-stop runs (current and speed only, "
+              "evaluation.start_stop)")
+        print("\n".join(m.line() for m in start_stop.run()))
+        pngs.append(real_drive.plot(study, out / "real_drive_torque.png"))
     if not args.no_health:  # the gearbox's health: checks, trend, live monitor (health.study)
         from torque_estimator.health.study import evaluate_lines as health_lines  # noqa: PLC0415
 
@@ -240,8 +269,21 @@ def side_by_side(args, rig, grid, db) -> None:
                 bound = steady_state_bound(rig, STEP_SPEED, 0.0)
                 lines.append(f"noise: method=observer std={figures.steady_std:.2e} bound={bound:.2e} N m "
                              f"ratio={figures.steady_std / bound:.2f}")
+            if method == "momentum":
+                lines.append(momentum_noise_line(rig, estimator, args.seed))
             bar.update_to(i + 1)
     print("\n".join(lines))
+
+
+def momentum_noise_line(rig, estimator, seed: int) -> str:
+    """The momentum observer's noise on a constant load (across seeds) against its predicted steady noise at its
+    bandwidth, and the noise floor of any linear estimator that follows a step in MOMENTUM_STEP_SAMPLES samples
+    (momentum.linear_noise_bound: why it detects steps instead)."""
+    std = ensemble_noise(rig, "momentum", estimator, seeds=TRANSIENT_SEEDS, seed=seed)
+    predicted = momentum_noise(rig, STEP_SPEED, 0.0, estimator.bandwidth)
+    floor = linear_noise_bound(rig, STEP_SPEED, 0.0, MOMENTUM_STEP_SAMPLES)
+    return (f"noise: method=momentum std={std:.2e} predicted={predicted:.2e} N m ratio={std / predicted:.2f} "
+            f"linear_{MOMENTUM_STEP_SAMPLES}_sample_floor={floor:.2e} N m")
 
 
 def run_sweeps(args, rig, grid, db, options) -> list:

@@ -2,9 +2,10 @@
 
 The simulated rig runs with every default effect on (worm_rig_driver ``config/effects_all.yaml``)
 and its true, bundled parameters; the rig file the user gives ``identify`` is the bundled one
-off by realistic amounts (:data:`DECLARED_OFF`: mu x1.3, K_t x1.05, drags x2; worm_model.residuals
-.cases.declared_rig).  One excitation (identification.excitation, <= 90 s of rig time) is
-recorded, identified, and written as an extended rig file; then, on the same held-out points
+off by realistic amounts (:data:`DECLARED_OFF`: mu x1.3, K_t x1.05, drags x2, each then carrying
+a ``source:``; evaluation.residual_cases.write_rig_file).  One excitation (identification.excitation,
+<= 90 s of rig time) is recorded, identified, and written as an extended rig file; then, on the same
+held-out points
 (evaluation.held_out, 17 by default, measured on the same simulated rig):
 
 * ``knn``: the paper's map calibrated point by point on that rig (544 points);
@@ -26,8 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from worm_model.physics.parameters import Rig, default_rig_path, rig_to_dict
-from torque_estimator.evaluation.residual_cases import declared_rig
+from worm_model.physics.parameters import Rig
 from worm_model.residuals.extended import ExtendedModel
 from worm_rig_driver.sim.effects import EFFECTS, EffectsConfig
 
@@ -37,12 +37,13 @@ from torque_estimator.estimation.extended_model import ExtendedModelEstimator
 from torque_estimator.estimation.knn import KnnEstimator
 from torque_estimator.estimation.observer import ObserverEstimator
 from torque_estimator.evaluation.held_out import Evaluation, measure_held_out, score
+from torque_estimator.evaluation.residual_cases import write_rig_file
 from torque_estimator.identification.excitation import DEFAULT_DURATION, default_excitation, total_duration
 from torque_estimator.identification.fit import identify, write_identified
 from torque_estimator.identification.simulated import record_on_simulator
 
-#: the declared values' errors of the issue: mu +-30 %, K_t +-5 %, drags x2 (worm_model.residuals.cases)
-DECLARED_OFF = {"friction.scale": 1.3, "torque_constant": 1.05, "drags": 2.0}
+#: the declared values' errors: mu x1.3, K_t x1.05, drags x2 (perturbation groups of evaluation.residual_cases)
+DECLARED_OFF = {"mu": 1.3, "torque_constant": 1.05, "drags": 2.0}
 
 
 def effects_all():
@@ -62,32 +63,6 @@ class RoadResult:
     model_file: Path
 
 
-def write_declared(path: Path, rig: Rig, off: dict[str, float]) -> Path:
-    """The rig file a user would write: the bundled file with its values off by ``off`` (assumptions kept)."""
-    import yaml  # noqa: PLC0415
-
-    from worm_model.residuals.free import get_value  # noqa: PLC0415
-
-    declared = declared_rig(rig, off)
-    document = yaml.safe_load(default_rig_path().read_text(encoding="utf-8"))
-    import json  # noqa: PLC0415
-
-    document = json.loads(json.dumps(document))  # break the load_motor alias
-    values = rig_to_dict(declared)
-    for section, leaves in document.items():
-        if isinstance(leaves, dict):
-            for leaf, node in leaves.items():
-                if isinstance(node, dict) and "value" in node and section in values and leaf in values[section]:
-                    try:
-                        factor = get_value(declared, f"{section}.{leaf}") / get_value(rig, f"{section}.{leaf}")
-                    except (AttributeError, TypeError, ValueError, ZeroDivisionError):
-                        continue
-                    if factor != 1.0:
-                        node["value"] = float(f"{node['value'] * factor:.6g}")
-    path.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
-    return path
-
-
 def run_roads(rig: Rig, db, grid: CalibrationGrid, *, points: int = 17, seed: int = 1, effects=None,
               duration: float = DEFAULT_DURATION, out: Path | None = None) -> RoadResult:
     """Identify on the simulated rig with ``effects`` (default: all) from a declared file off by DECLARED_OFF,
@@ -96,7 +71,7 @@ def run_roads(rig: Rig, db, grid: CalibrationGrid, *, points: int = 17, seed: in
     effects = effects_all() if effects is None else effects
     folder = Path(out) if out is not None else Path(tempfile.mkdtemp(prefix="identified_"))
     folder.mkdir(parents=True, exist_ok=True)
-    declared_file = write_declared(folder / "declared_rig.yaml", rig, DECLARED_OFF)
+    declared_file = write_rig_file(folder / "declared_rig.yaml", "nmrv030", DECLARED_OFF)
     start = time.monotonic()
     timeline = default_excitation(rig, duration)
     data = record_on_simulator(rig, timeline, effects=effects, seed=seed + 2000)
@@ -177,4 +152,4 @@ def evaluate_lines(rig: Rig, points: int = 17, seed: int = 1, k: int = 4, weight
 
 
 __all__ = ["DECLARED_OFF", "RoadResult", "effects_all", "evaluate_lines", "live_grid_rig_time", "run_roads",
-           "table_lines", "write_declared"]
+           "table_lines"]

@@ -1,4 +1,4 @@
-"""Experiments on the load observer (observer.py) on the simulated rig: shared by its tests and
+"""Experiments on the load observer (estimation/observer/) on the simulated rig: shared by its tests and
 bench/observer_bench.py. Plain numpy; no ROS.
 
 Every experiment runs n rigs side by side in one SimulatedRig (one per seed or operating

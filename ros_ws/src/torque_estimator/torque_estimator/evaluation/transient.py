@@ -2,7 +2,8 @@
 
 Every method goes through :class:`~torque_estimator.estimation.live.LiveEstimator`
 (the k-NN and the extended model behind its matched filters and change-gated
-smoothing; the observer as a streaming estimator fed voltage and encoder angle),
+smoothing; the observer as a streaming estimator fed voltage and encoder angle, the
+momentum observer as one fed the encoder angle and NaN for the voltage it does not read),
 on n simulated rigs side by side (one per seed, each with its own sensor noise),
 each held at its speed set-point by the rig's PI (worm_rig_driver.drive, no
 feedforward). Three experiments, the figures of ``make evaluate``'s ``transient:``
@@ -22,6 +23,7 @@ shaft, positive opposing positive worm rotation.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -34,6 +36,7 @@ from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 from torque_estimator.estimation.base import TorqueEstimator
 from torque_estimator.estimation.live import LiveEstimator
+from torque_estimator.estimation.registry import METHODS
 
 #: the simulator's load-loop time constant [s] that makes its load a true step
 TRUE_STEP = 1e-7
@@ -61,8 +64,9 @@ class TransientFigures:
 
 def stream(rig: Rig, estimator: TorqueEstimator, speed: Callable[[float], float], load: Callable[[float], float],
            duration: float, *, seeds: int = 4, seed: int = 0, live_options: Mapping[str, Any] | None = None,
-           true_step: bool = False) -> dict[str, np.ndarray]:
-    """Run ``seeds`` rigs under speed(t) [rad/s] and load(t) [N m] set-points, one LiveEstimator each.
+           true_step: bool = False, voltage: bool = True) -> dict[str, np.ndarray]:
+    """Run ``seeds`` rigs under speed(t) [rad/s] and load(t) [N m] set-points, one LiveEstimator each
+    (``voltage`` False: fed NaN for the drive voltage, as from a drive that reports none).
 
     Returns arrays (samples, seeds): ``t`` [s], ``tau_true`` (the load applied in the sample's
     period) and ``tau_est`` [N m], and ``flags``.
@@ -79,11 +83,10 @@ def stream(rig: Rig, estimator: TorqueEstimator, speed: Callable[[float], float]
         t = k * dt
         sim.command(load_torque=load(t))
         m = sim.sample()
-        voltage = controller.update(dt, speed(t), m.omega_worm).voltage
-        sim.command(voltage_drive=voltage)
+        sim.command(voltage_drive=controller.update(dt, speed(t), m.omega_worm).voltage)
         for i, estimator_i in enumerate(live):
-            e = estimator_i.update(float(m.omega_worm[i]), float(m.current_drive[i]), float(m.voltage_drive[i]),
-                                   float(m.theta_worm[i]))
+            e = estimator_i.update(float(m.omega_worm[i]), float(m.current_drive[i]),
+                                   float(m.voltage_drive[i]) if voltage else math.nan, float(m.theta_worm[i]))
             out["tau_est"][k, i], out["flags"][k, i] = e.torque, e.flags
         out["t"][k] = t
         out["tau_true"][k] = sim.applied_load_torque
@@ -107,23 +110,37 @@ def step_figures(run: Mapping[str, np.ndarray]) -> tuple[float, float, float]:
 def transient_figures(rig: Rig, method: str, estimator: TorqueEstimator, torque_range: float, *,
                       seeds: int = 12, seed: int = 0,
                       live_options: Mapping[str, Any] | None = None) -> TransientFigures:
-    """The three experiments of the module docstring for one estimator."""
+    """The three experiments of the module docstring for one estimator (fed the voltage only if the registry's
+    ``method`` reads it; a name not in the registry gets it)."""
+    row = METHODS.get(method)
+    voltage = row is None or row.reads_voltage
     step = stream(rig, estimator, lambda t: STEP_SPEED, lambda t: STEP_SIZE if t >= STEP_AT else 0.0, STEP_AT + 0.3,
-                  seeds=seeds, seed=seed, live_options=live_options, true_step=True)
+                  seeds=seeds, seed=seed, live_options=live_options, true_step=True, voltage=voltage)
     step90, overshoot, steady_std = step_figures(step)
     start, length, low, high, ramp_load = RAMP
     ramp = stream(rig, estimator, lambda t: low + (high - low) * min(max(t - start, 0.0), length) / length,
                   lambda t: ramp_load, start + length, seeds=max(seeds // 3, 1), seed=seed + 1,
-                  live_options=live_options)
+                  live_options=live_options, voltage=voltage)
     on_ramp = ramp["t"][:, 0] >= start
     ramp_err = float(np.nanmean(np.abs(ramp["tau_est"] - ramp["tau_true"])[on_ramp]))
     at, judged, speed, rev_load = REVERSAL
     rev = stream(rig, estimator, lambda t: speed if t < at else -speed, lambda t: rev_load, at + judged,
-                 seeds=max(seeds // 3, 1), seed=seed + 2, live_options=live_options)
+                 seeds=max(seeds // 3, 1), seed=seed + 2, live_options=live_options, voltage=voltage)
     after = rev["t"][:, 0] >= at
     rev_err = float(np.nanmean(np.abs(rev["tau_est"] - rev["tau_true"])[after]))
     return TransientFigures(method, step90, overshoot, 100 * ramp_err / torque_range, 100 * rev_err / torque_range,
                             steady_std)
 
 
-__all__ = ["TRUE_STEP", "TransientFigures", "step_figures", "stream", "transient_figures"]
+def ensemble_noise(rig: Rig, method: str, estimator: TorqueEstimator, *, seeds: int = 12, seed: int = 0,
+                   settle: float = 1.0, duration: float = 1.0) -> float:
+    """Std [N m] of the estimate on a constant load (0 N m at STEP_SPEED) across ``seeds`` rigs, averaged over
+    ``duration`` after ``settle``: the noise of an estimator slower than step_figures' 0.2 s window
+    (the momentum observer between steps), to compare with its predicted steady noise."""
+    row = METHODS.get(method)
+    run = stream(rig, estimator, lambda t: STEP_SPEED, lambda t: 0.0, settle + duration, seeds=seeds, seed=seed,
+                 voltage=row is None or row.reads_voltage)
+    return float(np.mean(np.std(run["tau_est"][run["t"][:, 0] >= settle], axis=1)))
+
+
+__all__ = ["TRUE_STEP", "TransientFigures", "ensemble_noise", "step_figures", "stream", "transient_figures"]

@@ -49,7 +49,7 @@ def _main(argv: list[str] | None) -> int:
     print(f"run_graph: started {', '.join(graph.processes)}", flush=True)
     while not stop and not graph.failed():
         time.sleep(0.2)
-    early = graph.failed()
+    early = {} if stop else graph.failed()  # after Ctrl-C (which a terminal sends the nodes too) none exits on its own
     graph.stop()
     for node, code in early.items():
         print(f"run_graph: {node} exited on its own with code {code}", file=sys.stderr)

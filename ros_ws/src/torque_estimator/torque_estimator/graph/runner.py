@@ -19,11 +19,12 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import yaml
 
 from worm_model.cli.errors import InputError
-from worm_model.files.reading import load_yaml
+from worm_model.files.reading import load_parameter_file, load_yaml
 from worm_model.ros.ament import ament_prefixes, find_executable
 from worm_rig_driver.drive.realtime import realtime_permitted
 
@@ -41,18 +42,49 @@ def default_graph_file() -> Path:
     return Path(__file__).resolve().parents[2] / "config" / "sim_graph.yaml"
 
 
-def graph_nodes(params_file: Path) -> list[str]:
-    """Node names (= executable names) at the top level of a ROS 2 parameter file."""
+def graph_sections(params_file: Path) -> dict[str, dict[str, Any]]:
+    """{node: {parameter: value}} of a ROS 2 parameter file, read as rcl reads it in every node
+    (worm_model.files.reading.load_parameter_file: no YAML anchors, a ros__parameters section per node)."""
     try:
-        data = load_yaml(params_file, "graph parameter file")
+        return load_parameter_file(params_file)
     except InputError as err:
         raise GraphError(f"graph file {err}") from None
-    if not isinstance(data, dict) or not data:
-        raise GraphError(f"graph file {params_file}: expected node names at the top level")
-    for name, body in data.items():
-        if not isinstance(body, dict) or "ros__parameters" not in body:
-            raise GraphError(f"graph file {params_file}: node '{name}' has no ros__parameters")
-    return [name for name in data if name != "/**"]
+
+
+def graph_nodes(params_file: Path) -> list[str]:
+    """Node names (= executable names) at the top level of a ROS 2 parameter file."""
+    return [name for name in graph_sections(params_file) if "*" not in name]
+
+
+def check_graph(params_file: Path, overrides: dict[str, list[str]], nodes: list[str]) -> None:
+    """Refuse, before anything starts, what the graph would refuse once started: a node with no executable,
+    a parameter a node does not declare (a misspelling; the closest name given), a value of the wrong type,
+    out of range or not one of its choices, in the file's section of a node of this project or in an
+    override.
+
+    Raises:
+        GraphError: naming the node, the parameter and the problem.
+    """
+    from torque_estimator.nodes.composed import NODE_CLASSES, node_class  # rclpy: only for run_graph
+    from worm_model.ros.parameters import declared_parameters, parameters_problem, ros_value
+
+    sections = graph_sections(params_file)
+    for node in nodes:
+        if node not in NODE_CLASSES:
+            try:
+                find_executable(node)  # another package's node: it checks its own parameters
+            except FileNotFoundError as err:
+                raise GraphError(str(err)) from None
+            continue
+        values = dict(sections.get(node, {}))
+        values.update({name: ros_value(text) for name, _, text in
+                       (a.partition(":=") for a in overrides.get(node, []))})
+        refused = parameters_problem(node, declared_parameters(node_class(node)), values)
+        if refused:
+            name, problem = refused
+            if any(a.startswith(name + ":=") for a in overrides.get(node, [])):
+                raise GraphError(f"--set {node}.{name}: {problem}")
+            raise GraphError(f"graph file {params_file}: {node}: parameter {name}: {problem}")
 
 
 #: SCHED_FIFO priority of a rig computer's graph process (below the rig loop thread's 50)
@@ -132,6 +164,7 @@ class Graph:
         unknown = set(self.overrides) - set(nodes)
         if unknown:
             raise GraphError(f"overrides name nodes not in {self.params_file}: {sorted(unknown)}")
+        check_graph(self.params_file, self.overrides, nodes)
         grouped = [n for group in self.together for n in group]
         if stray := sorted(set(grouped) - set(nodes)):
             raise GraphError(f"groups name nodes not in {self.params_file}: {stray}")
@@ -142,19 +175,24 @@ class Graph:
             print(f"graph: SCHED_FIFO {self.priority} is not permitted here (needs CAP_SYS_NICE or an rtprio "
                   "limit): the nodes run at normal priority", file=sys.stderr)
             self.priority = 0
-        for unit in units:
-            name = "+".join(unit)
-            out = None
-            if self.log_dir is not None:
-                self.log_dir.mkdir(parents=True, exist_ok=True)
-                out = open(self.log_dir / f"{name}.log", "wb")
-            command = self.command(unit[0]) if len(unit) == 1 else self.composed_command(unit)
-            if self.priority:
-                command = ["chrt", "-f", str(self.priority), *command]
-            # numpy's BLAS with one thread in every node: see torque_estimator/__init__.py
-            env = {**os.environ, "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "1")}
-            self.processes[name] = subprocess.Popen(command, stdout=out, stderr=subprocess.STDOUT if out else None,
-                                                    env=env)
+        # every command first: a node that cannot be found is refused before any other has started
+        commands = {"+".join(unit): self.command(unit[0]) if len(unit) == 1 else self.composed_command(unit)
+                    for unit in units}
+        try:
+            for name, command in commands.items():
+                out = None
+                if self.log_dir is not None:
+                    self.log_dir.mkdir(parents=True, exist_ok=True)
+                    out = open(self.log_dir / f"{name}.log", "wb")
+                if self.priority:
+                    command = ["chrt", "-f", str(self.priority), *command]
+                # numpy's BLAS with one thread in every node: see torque_estimator/__init__.py
+                env = {**os.environ, "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "1")}
+                self.processes[name] = subprocess.Popen(command, stdout=out,
+                                                        stderr=subprocess.STDOUT if out else None, env=env)
+        except BaseException:  # no node left running when the graph could not start whole
+            self.stop()
+            raise
         return self
 
     def failed(self) -> dict[str, int]:

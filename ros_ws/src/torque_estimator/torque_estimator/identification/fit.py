@@ -6,20 +6,26 @@ not to name one too many; ``identify`` builds the model an estimator inverts, so
 what makes the model's static map right:
 
 Which parameters (:func:`default_refit`)
-    By default the standard set of worm_model.residuals.free (mu scale, K_t, the drive
-    motor's Coulomb and viscous drags, the load motors' Coulomb drag, the rotor inertia),
-    restricted to the leaves the rig file marks ``assumption:``; a leaf with a ``source:``
-    (a measured or datasheet value) is kept as declared.  Not "every assumption": in the
-    bundled file nearly every leaf is one, geometry included, and the lead and pressure
-    angles trade off against mu, the radii against K_t, with nothing in the drive current to
-    tell them apart (free.py's docstring argues the set).  The rig file's ``free:`` list, or
-    ``--free``, replaces the default set.
+    What varies from gearbox to gearbox and motor to motor is unknown on *this* rig whatever the rig
+    file says about where its number came from: the standard set of worm_model.residuals.free (mu,
+    i.e. the friction model's mu parameter: ``friction.scale`` under the AGMA curve,
+    ``friction.mu_constant`` under the constant model; K_t, within its tolerance band; the drive
+    motor's Coulomb and viscous drags, the load motors' Coulomb drag, the rotor inertia) is refitted
+    whether a leaf carries a ``source:`` (a catalogue or datasheet value, copied as users copy it)
+    or an ``assumption:``, plus the rig file's ``free:`` list.  The geometry (lead and pressure
+    angles, radii) stays as declared: the lead and pressure angles trade off against mu, the radii
+    against K_t, with nothing in the drive current to tell them apart (free.py's docstring argues
+    the set).  ``--free`` replaces the whole list.  The corrections are reported as ``residuals``
+    reports them (declared -> identified +- interval, the tolerance band, what became of it), and
+    written into the extended rig file with the declared value and its provenance kept beside them.
 Which effects (:data:`IDENTIFY_SETTINGS`)
-    Every effect ``residuals`` accepts, with three settings changed: an effect must lower the
+    Every effect ``residuals`` accepts, with four settings changed: an effect must lower the
     held-out RMS of the current by 0.1 % (residuals: 2 %), it may raise the transmission
     error's by up to 5 % (residuals: as much as the first; no estimator reads the transmission
-    error, and a Stribeck law moves it by ~3 % through mu), and no effect is refused because
-    the current is already near its noise floor (residuals: within 1.1 x).  An estimator
+    error, and a Stribeck law moves it by ~3 % through mu), no effect is refused because the
+    current is already near its noise floor (residuals: within 1.1 x), and none is dropped for
+    taking only a share of a residual outside the vocabulary (residuals' step 5: that share is
+    still a share of the static map the estimator inverts).  An estimator
     averages the current over hundreds of samples: a systematic 0.01 A, half the per-sample
     noise, is ~5 % of the load range on the coast flank, where the current moves little with
     the load; a Stribeck rise, a load-dependent mu or the PWM ripple's sampled bias each buy
@@ -52,15 +58,17 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from worm_model.physics.parameters import ParameterError, Rig, default_rig_path, load_rig
+from worm_model.physics.parameters import Rig, default_rig_path, load_rig
 from worm_model.residuals import analysis as an
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
-from worm_model.residuals.free import STANDARD_REFIT, check_free, get_value, read_free
+from worm_model.residuals.free import STANDARD_REFIT, check_free, get_value, read_free, resolve_parameters
+from worm_model.residuals.report import correction_line, corrections, mu_line
 from worm_model.residuals.model import prepare_signals
 from worm_model.rig_data.schema import MeasuredData
 
 #: the residual analysis' settings for identification (module docstring: what differs and why)
-IDENTIFY_SETTINGS = an.Settings(min_improvement=0.001, other_signal_tolerance=0.05, at_floor=0.0, max_effects=10)
+IDENTIFY_SETTINGS = an.Settings(min_improvement=0.001, other_signal_tolerance=0.05, at_floor=0.0, max_effects=10,
+                                check_outside_vocabulary=False)
 #: [rad/s^2] samples accelerating faster are left out of the fit (module docstring: LiveEstimator's TRANSIENT)
 QUASI_STATIC_ACCELERATION = 200.0
 #: fewer samples than this in either set of the split cannot rank the candidates
@@ -71,25 +79,10 @@ class IdentificationError(ValueError):
     """The record cannot be fitted (too short, too slow); the message says what to change."""
 
 
-def assumed(rig_file: str | Path | None, names: Sequence[str]) -> list[str]:
-    """The dotted ``names`` whose leaf in the rig file carries an ``assumption:`` (None: the bundled file)."""
-    path = Path(rig_file) if rig_file else default_rig_path()
-    try:
-        document = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as err:
-        raise ParameterError(str(path), "", f"cannot read parameter file: {err}") from err
-    out = []
-    for name in names:
-        section, leaf = name.split(".")
-        node = (document.get(section) or {}).get(leaf) if isinstance(document, dict) else None
-        if isinstance(node, dict) and "assumption" in node:
-            out.append(name)
-    return out
-
-
 def default_refit(rig_file: str | Path | None, free: Sequence[str] | None = None) -> tuple[list[str], str]:
-    """(parameters to fit, where the choice came from): ``free`` if given, else the rig file's ``free:``
-    list if it has one, else the standard set restricted to the file's assumptions (module docstring).
+    """(parameters to fit, where the choice came from): ``free`` if given, else the standard set (whatever the
+    provenance of the declared numbers) plus the rig file's ``free:`` list (module docstring).  The friction
+    model's mu appears as ``friction.mu`` (worm_model.residuals.free.resolve_parameters names it for the rig).
 
     Raises:
         ParameterError: an unreadable rig file or an unknown parameter name.
@@ -97,9 +90,9 @@ def default_refit(rig_file: str | Path | None, free: Sequence[str] | None = None
     if free is not None:
         return check_free(free, "--free"), "--free"
     listed = read_free(rig_file)
-    if listed:
-        return listed, "the rig file's free: list"
-    return assumed(rig_file, STANDARD_REFIT), "the standard set (worm_model.residuals.free), assumptions only"
+    names = list(STANDARD_REFIT) + [name for name in listed if name not in STANDARD_REFIT]
+    why = "the standard set of worm_model.residuals.free, whatever the provenance of the declared numbers"
+    return names, why + (" + the rig file's free: list" if listed else "")
 
 
 @dataclass
@@ -108,6 +101,7 @@ class Identification:
 
     model: ExtendedModel
     analysis: an.Analysis
+    problem: an.Problem
     declared: Rig
     fitted: list[str]
     choice: str  # where the fitted list came from
@@ -122,6 +116,12 @@ class Identification:
         final = self.analysis.final
         return {p: (get_value(self.declared, p), get_value(self.model.rig, p), float(final.free_ci.get(p, math.nan)))
                 for p in self.fitted if p not in self.analysis.aliased_parameters}
+
+    def correction_lines(self) -> list[str]:
+        """The corrections as ``residuals`` prints them (and mu as a friction coefficient)."""
+        lines = [correction_line(row) for row in corrections(self.problem, self.analysis)]
+        mu = mu_line(self.problem, self.analysis)
+        return lines + ([mu] if mu else [])
 
     def section(self, source: str) -> dict:
         """The ``identification:`` section of the written file."""
@@ -149,6 +149,7 @@ def identify(data: MeasuredData, rig_file: str | Path | None, free: Sequence[str
     """
     declared = load_rig(rig_file or None)
     fitted, choice = default_refit(rig_file, free)
+    fitted = resolve_parameters(declared, fitted, "--free" if free is not None else str(rig_file or default_rig_path()))
     settings = replace(settings, refit=tuple(fitted))
     finite = np.isfinite(data.current_drive)
     signals = prepare_signals(declared, data, settings.alpha_time_constant, settings.reference_temperature)
@@ -166,7 +167,7 @@ def identify(data: MeasuredData, rig_file: str | Path | None, free: Sequence[str
     tau = data.tau_load[np.isfinite(data.tau_load)]
     runs = np.unique(data.run)
     rig_time = float(sum(np.ptp(data.t[data.run == r]) + data.sample_period for r in runs))
-    return Identification(model, result, declared, list(problem.free), choice,
+    return Identification(model, result, problem, declared, list(problem.free), choice,
                           float(np.percentile(speed, 99.9)),
                           (float(np.percentile(tau, 0.5)), float(np.percentile(tau, 99.5))),
                           rig_time, len(data))
@@ -185,5 +186,5 @@ def write_identified(path: str | Path, rig_file: str | Path | None, ident: Ident
                           encoding="utf-8")
 
 
-__all__ = ["IDENTIFY_SETTINGS", "QUASI_STATIC_ACCELERATION", "Identification", "IdentificationError", "assumed",
+__all__ = ["IDENTIFY_SETTINGS", "QUASI_STATIC_ACCELERATION", "Identification", "IdentificationError",
            "default_refit", "identify", "write_identified"]

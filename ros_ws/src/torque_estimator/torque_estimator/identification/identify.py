@@ -13,10 +13,12 @@ sample is recorded (<record>, the worm_rig_data CSV schema), then fitted.
 
 Offline (--from): fits a recorded run (CSV in that schema, or a rosbag2 bag).
 
-The fit (identification/fit.py): the rig file's uncertain parameters (by default the
-standard set of worm_model.residuals.free that the file marks as assumptions: mu scale, K_t,
-drags, rotor inertia; the file's free: list or --free replaces it) and the effects the
-residual analysis accepts.  Output: the extended rig file (the rig file with identified
+The fit (identification/fit.py): what varies from gearbox to gearbox, whatever the rig file
+says about where its number came from (source: or assumption:): the standard set of
+worm_model.residuals.free (mu under the file's friction model, K_t, drags, rotor inertia), plus
+the file's free: list (--free replaces both); the geometry stays as declared.  Each correction is
+printed as `residuals` prints it (declared -> identified +- interval, tolerance band).  Also
+the effects the residual analysis accepts.  Output: the extended rig file (the rig file with identified
 values, free:, effects: and an identification: section with the ranges covered), which
 estimator_node loads as model_file (method extended_model or observer), and `estimate`
 with --model-file.
@@ -36,11 +38,16 @@ import sys
 import time
 from pathlib import Path
 
+from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.options import Parser, output_path
 from worm_model.cli.progress import Progress, ProgressBar
+from worm_model.files.reading import load_yaml
+from worm_model.files.writing import Output, atomic_file, check_output
 from worm_model.physics.parameters import ParameterError, load_rig
 from worm_model.residuals.free import FREE_PARAMETERS
+from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import RigDataError, write_rig_csv
+from worm_model.rig_data.schema import RigDataError, is_rig_csv, write_rig_csv
 
 from torque_estimator.calibration.live import LiveRigError
 from torque_estimator.identification.excitation import DEFAULT_DURATION, MAX_DURATION, default_excitation, total_duration
@@ -51,15 +58,30 @@ PROG = "identify"
 EXIT_INTERRUPTED = 130
 
 
+def _is_identified(path: Path) -> bool:
+    """``path`` is an extended rig file identify wrote (a rig file with an identification: section)."""
+    document = load_yaml(path, "rig parameter file")
+    return isinstance(document, dict) and "identification" in document
+
+
+#: what identify writes; --force replaces only its own earlier output (worm_model.files.writing)
+OUTPUT = Output(PROG, recognise=_is_identified)
+RECORD = Output(PROG, recognise=is_rig_csv)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
+    p = Parser(prog=PROG, description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[1:]),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", type=Path, required=True,
-                   help="extended rig file to write (YAML; estimator_node's model_file)")
+    p.add_argument("--out", type=output_path, required=True,
+                   help="extended rig file to write (YAML; estimator_node's model_file); an existing one is "
+                        "replaced only with --force, and only if identify wrote it")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing --out (and --record) that identify wrote before")
     p.add_argument("--params", type=Path, default=None,
-                   help="the rig file to start from (worm_rig_parameters); its assumption: marks and optional "
-                        "free: list choose what is fitted (default: the bundled NMRV030 rig)")
+                   help="the rig file to start from (worm_rig_parameters); the standard set (mu, K_t, drags, rotor "
+                        "inertia) is fitted whatever its source:/assumption: marks, plus its optional free: list "
+                        "(default: the bundled NMRV030 rig)")
     p.add_argument("--free", default=None,
                    help="comma-separated parameters to fit instead of the default set; allowed: "
                         f"{', '.join(FREE_PARAMETERS)}")
@@ -70,13 +92,14 @@ def build_parser() -> argparse.ArgumentParser:
     live.add_argument("--duration", type=float, default=DEFAULT_DURATION,
                       help=f"rig time of the excitation [s], at most {MAX_DURATION:g}; shorter runs fit less well "
                            f"(default {DEFAULT_DURATION:g})")
-    live.add_argument("--record", type=Path, default=None,
+    live.add_argument("--record", type=output_path, default=None,
                       help="where to keep the recorded run as CSV (default: <out without suffix>_record.csv)")
     live.add_argument("--resume", action="store_true",
                       help="continue the interrupted run in the journal (same --out and --duration required)")
     live.add_argument("--start-timeout", type=float, default=30.0,
                       help="wait this long [s] for the rig's samples and controller_node (default 30)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    add_epos_arguments(p)
     return p
 
 
@@ -90,6 +113,10 @@ def _interrupt(signum, _frame) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    return run_tool(PROG, lambda: _main(argv))  # Ctrl-C while reading: exit 130, nothing written
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     if not args.out.parent.is_dir():
         return _fail("--out", f"folder {args.out.parent} does not exist")
@@ -106,6 +133,14 @@ def main(argv: list[str] | None = None) -> int:
         if bad or not free:
             return _fail("--free", f"{bad[0] if bad else args.free!r} cannot be fitted "
                                    f"(allowed: {', '.join(FREE_PARAMETERS)})")
+    record = None if args.source is not None else args.record or args.out.with_name(args.out.stem + "_record.csv")
+    inputs = [args.params, args.source]
+    try:  # before any work: never over an input, --force only over identify's own output
+        check_output(args.out, args.force, inputs=inputs, output=OUTPUT)
+        if record is not None:
+            check_output(record, args.force, option="--record", inputs=[*inputs, args.out], output=RECORD)
+    except InputError as err:
+        return _fail(err.where, err.what)
     try:
         rig = load_rig(args.params)
     except ParameterError as err:
@@ -114,13 +149,16 @@ def main(argv: list[str] | None = None) -> int:
     start = time.monotonic()
     if args.source is not None:
         try:
-            data = read_rig_data(args.source)
+            data = read_rig_data(args.source, rig=rig, epos=epos_settings(args, rig))
+        except InputError as err:
+            return _fail(err.where, err.what)
         except RigDataError as err:
             return _fail("--from", str(err))
+        for note in data.notes:
+            print(f"identify: note: {note}")
         source = str(args.source)
         journal = None
     else:
-        record = args.record or args.out.with_name(args.out.stem + "_record.csv")
         try:
             journal, data = _record_live(args, rig)
         except KeyboardInterrupt:
@@ -135,7 +173,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{PROG}: live rig: {err}\n{PROG}: the finished segments are in {state}; fix the graph and run "
                   "the same command with --resume", file=sys.stderr)
             return 1
-        write_rig_csv(record, data)
+        with atomic_file(record, args.force, option="--record", inputs=[*inputs, args.out], output=RECORD) as tmp:
+            write_rig_csv(tmp, data)
         source = f"{record.name} (live rig, {total_duration(default_excitation(rig, args.duration)):.1f} s excitation)"
     progress = Progress(enabled=not args.quiet)
 
@@ -146,7 +185,8 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         ident = identify(data, args.params, free, progress=on_progress)
-        write_identified(args.out, args.params, ident, source)
+        with atomic_file(args.out, args.force, inputs=inputs, output=OUTPUT) as tmp:
+            write_identified(tmp, args.params, ident, source)
     except KeyboardInterrupt:
         progress.close()
         print(f"\n{PROG}: interrupted while fitting" + ("; the record is in the journal: run the same command with "
@@ -159,6 +199,9 @@ def main(argv: list[str] | None = None) -> int:
     except IdentificationError as err:
         progress.close()
         return _fail("--from" if args.source else "record", str(err))
+    except InputError as err:  # --out cannot be written
+        progress.close()
+        return _fail(err.where, err.what)
     progress.close()
     if journal is not None:
         journal.remove()
@@ -190,8 +233,7 @@ def summary(ident, wall: float) -> list[str]:
     lines = [f"record: {ident.samples} samples, {ident.rig_time:.1f} s of rig time; speeds up to "
              f"{ident.speed_max:.0f} rad/s, loads {ident.torque_range[0]:+.3f} .. {ident.torque_range[1]:+.3f} N m",
              f"fitted ({ident.choice}): {', '.join(ident.fitted) or 'none'}"]
-    for name, (declared, value, ci) in ident.corrections.items():
-        lines.append(f"  correction {name}: declared {declared:.4g}, identified {value:.4g} +- {ci:.2g}")
+    lines += [f"  {line}" for line in ident.correction_lines()]
     lines.append(f"effects: {', '.join(ident.model.names) or 'none'}; held-out current RMS "
                  f"{ident.analysis.rms_before:.4f} A (rig file as declared) -> {ident.analysis.final.rms_held_out:.4f} A; "
                  f"{wall:.1f} s")

@@ -4,14 +4,32 @@ Subscribes /rig/samples (worm_msgs/RigSamples, batches of consecutive samples)
 and runs the estimator on every sample; publishes /torque_estimate
 (worm_msgs/TorqueEstimate) for the newest sample of each batch (the rig's batch
 rate, 200 Hz by default), sensor-data QoS: what the controller feeds forward and
-other stacks read. The per-sample work is live_estimator.LiveEstimator, a disturbance observer: speed and
-current pass through the same low-pass (input_filter), the current that
-accelerates the inertia is removed (quasi_static.py), the result is smoothed
-(estimate_filter) except while a change is detected (change_threshold), then
-the configured estimator (k-NN over the calibration database, paper Eqs
-33-34) maps (omega, i) to tau_d with an uncertainty and flags. A sample taken
-while the worm accelerates faster than transient_acceleration is flagged
-TRANSIENT.
+other stacks read.
+
+The estimator is the parameter ``method`` (estimation.registry), built from the
+node's parameters by estimation.settings (as replay, ``estimate`` and the rig
+feedforward build theirs), and fed every sample by estimation.live.LiveEstimator:
+
+* ``observer`` (the shipped graph's, config/sim_graph.yaml): a Kalman filter on the
+  rig's model (Eqs 28-30, estimation/observer/) fed each sample's drive voltage,
+  current, speed and encoder angle, with a load-step detector; its noise model is
+  the rig file's sensors section. It needs no calibration; with one, it adds the
+  model's error measured at the calibration's points. Model: ``model_file`` (an
+  identified rig) or ``rig_file``.
+* ``knn`` (the paper's k-NN map over a calibration database, Eqs 33-34) and
+  ``extended_model`` (inverts the identified model's quasi-static current): a
+  quasi-static map behind a disturbance observer. Speed and current pass through the
+  same low-pass (``input_filter``), the current that accelerates the inertia is
+  removed (``inertia_compensation``, quasi_static.py), the result is smoothed
+  (``estimate_filter``) except while a change is detected (``change_threshold``),
+  then the map gives tau_d with an uncertainty and flags; a sample taken while the
+  worm accelerates faster than ``transient_acceleration`` is flagged TRANSIENT.
+  These options (and knn's ``k`` and ``weighting``) are declared only for the
+  methods that read them.
+
+A parameter set for this node (parameter file or -p) that it does not declare (an
+option of another method, or no option at all) is reported at start, one warning
+line each naming it, and ignored.
 
 For other stacks the same estimate goes out in standard types, at the batch rate,
 while someone subscribes: sensor_msgs/JointState on ``joint_state_topic`` (one
@@ -21,9 +39,11 @@ observers follow) and geometry_msgs/WrenchStamped on ``wrench_topic`` (torque
 about +z of ``wrench_frame``, the output shaft's axis pointing so that positive
 rotation is about +z: torque.z = -tau_d; force and the other torques 0).
 
-A missing or broken calibration file is reported (log + /diagnostics ERROR)
-and the node keeps running without publishing estimates, so the rest of the
-graph (the controller falls back to no feedforward) carries on.
+A calibration, model or rig file that is named but cannot be used (missing,
+damaged, implausible for the rig) stops the node at start: one line, exit code 2.
+With none named and a method that needs a calibration (knn), the node reports it
+(log + /diagnostics ERROR) and keeps running without publishing estimates, so the
+rest of the graph (the controller falls back to no feedforward) carries on.
 """
 from __future__ import annotations
 
@@ -38,48 +58,21 @@ from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
 from worm_model.ros.qos import STREAM
-from worm_model.physics.parameters import ParameterError, load_rig
+from worm_model.physics.parameters import ParameterError
 
-from torque_estimator.estimation.database import CalibrationError, load_database
 from torque_estimator.estimation.base import EstimateFlags
-from torque_estimator.estimation.registry import (CALIBRATION_OPTIONAL, ESTIMATORS, live_rig_file, make_estimator,
-                                                  node_options)
+from torque_estimator.estimation.database import CalibrationError
 from torque_estimator.estimation.live import LiveEstimator
+from torque_estimator.estimation.registry import METHODS, Option
+from torque_estimator.estimation.settings import ALL_OPTIONS, SETTINGS_OPTIONS, EstimatorSettings, build_estimator
 
 
 class EstimatorNode(Node):
     def __init__(self) -> None:
         super().__init__("estimator_node")
-        rig_file = declare(self, "rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
-        self.inertia_compensation = declare(
-            self, "inertia_compensation", True,
-            "Remove the current that accelerates the rig's inertia (Eq. 28) before the quasi-static lookup.")
-        self.calibration_file = declare(self, "calibration_file", "",
-                                        "Calibration database (JSON written by `calibrate`); the observer can do "
-                                        "without one (its ranges then come from the rig file); with one it also "
-                                        "adds the model's error measured at its points.")
-        self.method = declare(self, "method", "knn", "Estimator.", choices=tuple(ESTIMATORS))
-        k = declare(self, "k", 4, "Neighbours averaged by the k-NN estimator.", low=1, high=64)
-        weighting = declare(self, "weighting", "inverse_distance", "k-NN weighting of the neighbours.",
-                            choices=("inverse_distance", "uniform"))
-        model_file = declare(self, "model_file", "",
-                             "Extended model parameter file (rig + effects, written by `identify` or `residuals`): "
-                             "inverted by the extended_model estimator, its identified parameters are the "
-                             "observer's model, and its identification: ranges replace a calibration's; empty = "
-                             "rig_file (or the bundled rig) with no effects, the paper's model.")
-        tau = declare(self, "input_filter", 0.003,
-                      "Time constant [s] of each of the 3 low-pass stages speed and current pass alike.",
-                      low=0.0, high=5.0)
-        estimate_filter = declare(self, "estimate_filter", 0.05,
-                                  "Time constant [s] of the smoothing of the compensated current (0: none).",
-                                  low=0.0, high=5.0)
-        change_threshold = declare(
-            self, "change_threshold", 4.0,
-            "Departure of the compensated current from its smoothed value, in running noise sigma, taken for a "
-            "change and followed at once (0: never).", low=0.0, high=100.0)
-        self.transient_acceleration = declare(
-            self, "transient_acceleration", 200.0,
-            "Worm acceleration [rad/s^2] above which an estimate is flagged TRANSIENT.", low=0.0, high=1e6)
+        values = {o.name: self._declare(o) for o in SETTINGS_OPTIONS}
+        self.method = values["method"]
+        values.update({o.name: self._declare(o) for o in METHODS[self.method].options})
         period = 1.0 / declare(self, "sample_rate", 1000.0, "Rig sample rate [Hz].", low=1.0, high=100000.0)
         joint_topic = declare(self, "joint_state_topic", "/torque_estimate/joint_states",
                               "Topic of the estimate as sensor_msgs/JointState (effort = -tau_d).")
@@ -90,26 +83,19 @@ class EstimatorNode(Node):
                                     "frame_id of that wrench: its z axis is the output shaft, positive rotation "
                                     "about +z.")
 
-        try:  # a bad model_file is reported below, where the estimator is built from it
-            self.rig = load_rig(live_rig_file(self.method, rig_file, model_file) or None)
-        except ParameterError:
-            self.rig = load_rig(rig_file or None)
+        self.settings = EstimatorSettings.from_parameters(values)
         self.estimator: LiveEstimator | None = None
         self.problem = ""
         try:
-            database = (None if not self.calibration_file and self.method in CALIBRATION_OPTIONAL
-                        else load_database(self.calibration_file, self.rig))
-            options = node_options(self.method, {"k": k, "weighting": weighting, "model_file": model_file,
-                                                 "rig_file": rig_file})
-            self.estimator = LiveEstimator(self.rig, make_estimator(self.method, database, **options),
-                                           period, input_filter=tau,
-                                           inertia_compensation=self.inertia_compensation,
-                                           transient_acceleration=self.transient_acceleration,
-                                           estimate_filter=estimate_filter, change_threshold=change_threshold)
-            self.get_logger().info(f"{self.method} estimator on {len(database)} calibration points from "
-                                   f"{self.calibration_file}" if database is not None else
-                                   f"{self.method} estimator without a calibration (ranges from the rig file)")
+            built = build_estimator(self.settings)
+            self.estimator = built.live(period)
+            self.get_logger().info(
+                f"{self.method} estimator on {len(built.database)} calibration points from "
+                f"{self.settings.calibration_file}" if built.database is not None else
+                f"{self.method} estimator without a calibration (ranges from the rig file)")
         except (CalibrationError, ParameterError) as err:
+            if self.calibration_file or model_file or rig_file:  # a file the user named cannot be used: stop (exit 2)
+                raise
             self.problem = str(err)
             self.get_logger().error(f"no estimates: {err}")
 
@@ -121,6 +107,21 @@ class EstimatorNode(Node):
         self.malformed = 0  # /rig/samples messages refused
         self.flag_counts = {flag.name: 0 for flag in EstimateFlags if flag}
         Diagnostics(self, self.report)
+        self._warn_undeclared()
+
+    def _declare(self, option: Option):
+        return declare(self, option.name, option.default, option.description, low=option.low, high=option.high,
+                       choices=option.choices)
+
+    def _warn_undeclared(self) -> None:
+        """One warning per parameter given to this node that it did not declare: rclpy keeps such an override
+        and never reads it, so a file setting, say, input_filter for the observer would otherwise be ignored
+        without a word. (rclpy has no public accessor for a node's overrides.)"""
+        for name in sorted(n for n in self._parameter_overrides if not self.has_parameter(n)):
+            readers = [m for m, row in METHODS.items() if any(o.name == name for o in row.options)]
+            why = (f"method {self.method} does not read it (read by {', '.join(readers)} only)" if name in ALL_OPTIONS
+                   else "estimator_node has no such parameter")
+            self.get_logger().warning(f"parameter {name} is set but {why}: ignored")
 
     def on_samples(self, batch: RigSamples) -> None:
         problem = batch_problem(batch, ("omega_worm", "current_drive", "voltage_drive", "theta_worm"))

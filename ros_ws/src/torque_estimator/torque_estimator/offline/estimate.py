@@ -4,11 +4,13 @@
     ros2 run torque_estimator estimate run.csv --method knn --calibration calibration.json
     ros2 run torque_estimator estimate run.csv --method observer [--model-file identified_rig.yaml]
 
-Every sample of the log (a CSV in the worm_rig_data schema or a rosbag2 bag; read by
-worm_model.rig_data.read_rig_data) goes through LiveEstimator with the method, exactly as
+Every sample of the log (a CSV in the worm_rig_data schema, a rosbag2 bag, or an EPOS Studio
+export or a folder of them with the load given by --load-torque or --load-mass/--pulley-radius;
+read by worm_model.rig_data.read_rig_data) goes through LiveEstimator with the method, exactly as
 estimator_node runs it on /rig/samples: the same class, the node's parameters (defaults,
-or --params-file's estimator_node section), the same rule for the rig of the inertia
-compensation (rig_file, else model_file, else the bundled rig).  The estimate is written
+or --params-file's estimator_node section), built by the node's builder (estimation.settings:
+the same rule for the rig of the inertia compensation, rig_file, else model_file, else the
+bundled rig; a calibration checked against that rig).  The estimate is written
 as a CSV column (--out): the log's columns, then tau_estimate [N m],
 tau_estimate_uncertainty [N m] and estimate_flags (EstimateFlags bits).
 
@@ -19,7 +21,8 @@ SteadyStateCriterion: the mean speeds of its two halves within 2 % + 0.5 rad/s o
 other, its mean currents within 0.01 A) and |omega_worm| >= 5 rad/s (the estimators
 are kinetic).  Per steady point the error is |mean estimate - mean tau_load|; the rest
 of the samples (transients; standstill left out) give an RMS of the sample-by-sample error.
-Errors are in % of the log's load range (the 0.5 .. 99.5 percentiles of tau_load).
+Errors are in % of the log's load range (the 0.5 .. 99.5 percentiles of tau_load); a log held at one
+load (a hanging mass: no range) is scored in % of that load's magnitude.
 Nothing else is used: the figures come from the log and the files given, never from
 knowledge of a simulator.  The last line printed is
     estimate: method=<m> mae_pct=<x> max_pct=<x> steady_points=<n> transient_rms_pct=<x>
@@ -39,19 +42,25 @@ from pathlib import Path
 
 import numpy as np
 
-from worm_model.physics.parameters import ParameterError, load_rig
+from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.options import Parser, input_problem, output_path
+from worm_model.files.writing import Output, atomic_file, check_output
+from worm_model.physics.parameters import ParameterError
+from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import MeasuredData, RigDataError
+from worm_model.rig_data.schema import MeasuredData, RigDataError, csv_header
 
 from torque_estimator.calibration.operating_points import SteadyStateCriterion
-from torque_estimator.estimation.database import CalibrationError, load_database
+from torque_estimator.estimation.database import CalibrationError
 from torque_estimator.estimation.live import LiveEstimator
-from torque_estimator.estimation.registry import CALIBRATION_OPTIONAL, ESTIMATORS, live_rig_file, make_estimator, \
-    node_options
+from torque_estimator.estimation.registry import ESTIMATORS, METHODS
+from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.offline.replay import ReplayError, node_parameters
 from worm_model.cli.progress import ProgressBar
 
 PROG = "estimate"
+#: what estimate writes; --force replaces only a CSV with its estimate column (worm_model.files.writing)
+OUTPUT = Output(PROG, recognise=lambda path: "tau_estimate" in csv_header(path))
 #: windows slower than this [rad/s] are not steady points, and standstill samples are left out of the RMS
 MIN_SPEED = 5.0
 
@@ -73,7 +82,8 @@ class Figures:
     max_pct: float
     steady_points: int
     transient_rms_pct: float
-    load_range: float  # [N m]
+    load_range: float  # [N m]: what 100 % is
+    one_load: bool = False  # the log has one load: load_range is its magnitude
 
     def line(self, method: str) -> str:
         return (f"{PROG}: method={method} mae_pct={self.mae_pct:.2f} max_pct={self.max_pct:.2f} "
@@ -127,7 +137,10 @@ def figures(data: MeasuredData, estimate: LogEstimate,
     if not finite.any():
         return None
     low, high = np.percentile(reference[finite], [0.5, 99.5])
-    span = float(high - low) or float("nan")
+    span = float(high - low)
+    one_load = not span > 0.0
+    if one_load:  # one load (e.g. a hanging mass): % of that load
+        span = float(np.max(np.abs(reference[finite]))) or float("nan")
     windows = steady_windows(data, criterion)
     errors = []
     steady = np.zeros(len(data), dtype=bool)
@@ -142,7 +155,7 @@ def figures(data: MeasuredData, estimate: LogEstimate,
     rms = float(np.sqrt(np.mean((estimate.torque[rest] - reference[rest]) ** 2))) if rest.any() else math.nan
     return Figures(float(np.mean(errors_pct)) if len(errors_pct) else math.nan,
                    float(np.max(errors_pct)) if len(errors_pct) else math.nan,
-                   len(errors_pct), 100.0 * rms / span, span)
+                   len(errors_pct), 100.0 * rms / span, span, one_load)
 
 
 def write_estimate_csv(path: Path, data: MeasuredData, estimate: LogEstimate) -> None:
@@ -157,10 +170,11 @@ def write_estimate_csv(path: Path, data: MeasuredData, estimate: LogEstimate) ->
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n\n")[0],
+    p = Parser(prog=PROG, description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[1:]),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("log", type=Path, help="the logged run: a worm_rig_data CSV or a rosbag2 bag (directory, .mcap, .db3)")
+    p.add_argument("log", type=Path, help="the logged run: a worm_rig_data CSV, a rosbag2 bag (directory, .mcap, .db3), "
+                                          "or an EPOS Studio export or folder of them (with the load options below)")
     p.add_argument("--method", required=True, choices=sorted(ESTIMATORS), help="the estimator (estimator_node's method)")
     p.add_argument("--calibration", type=Path, default=None,
                    help="calibration database (calibrate); required by knn, optional for the others (ranges)")
@@ -171,65 +185,71 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--params-file", type=Path, default=None,
                    help="a graph parameter file whose estimator_node section sets the filters (default: the node's "
                         "defaults)")
-    p.add_argument("--out", type=Path, default=None,
-                   help="CSV to write (default: <log without suffix>_<method>.csv beside the log)")
+    p.add_argument("--out", type=output_path, default=None,
+                   help="CSV to write (default: <log without suffix>_<method>.csv beside the log); an existing "
+                        "one is replaced only with --force, and only if estimate wrote it")
+    p.add_argument("--force", action="store_true", help="replace an existing --out that estimate wrote before")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_epos_arguments(p)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
+    return run_tool(PROG, lambda: _main(argv))  # Ctrl-C: exit 130, the output untouched
+
+
+def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
 
     def fail(where: str, what: str) -> int:
         print(f"{PROG}: {where}: {what}", file=sys.stderr)
         return 2
 
-    if args.method not in CALIBRATION_OPTIONAL and args.calibration is None:
-        return fail("--calibration", f"{args.method} needs a calibration database (calibrate --out FILE)")
     for option, path in (("--calibration", args.calibration), ("--model-file", args.model_file), ("--rig", args.rig),
                          ("--params-file", args.params_file)):
-        if path is not None and not path.is_file():
-            return fail(option, f"{path}: no such file")
+        if path is not None and (problem := input_problem(path, "file")):
+            return fail(option, f"{path}: {problem}")
     out = args.out or args.log.with_name(f"{args.log.stem}_{args.method}.csv")
-    if not out.parent.is_dir():
-        return fail("--out", f"folder {out.parent} does not exist")
+    inputs = [args.log, args.calibration, args.model_file, args.rig, args.params_file]
+    try:  # before any work: never over an input, --force only over estimate's own output
+        check_output(out, args.force, inputs=inputs, output=OUTPUT)
+    except InputError as err:
+        return fail(err.where, err.what)
     try:
         params = node_parameters(args.params_file)["estimator_node"]
     except ReplayError as err:
         return fail("--params-file", str(err))
+    settings = EstimatorSettings.from_parameters(
+        {**params, "method": args.method, "rig_file": args.rig or params.get("rig_file"),
+         "model_file": args.model_file or params.get("model_file"), "calibration_file": args.calibration}, args.method)
     try:
-        data = read_rig_data(args.log)
+        built = build_estimator(settings)
+    except CalibrationError as err:
+        return fail("--calibration", str(err) if args.calibration is not None else f"{err}: pass --calibration FILE")
+    except ParameterError as err:
+        return fail("--model-file" if settings.model_file else "--rig", str(err))
+    except ValueError as err:
+        return fail("--params-file" if args.params_file else "--method", str(err))
+    try:  # its units checked against the rig
+        data = read_rig_data(args.log, rig=built.rig, epos=epos_settings(args, built.rig))
+    except InputError as err:
+        return fail(err.where, err.what)
     except RigDataError as err:
         return fail("log", str(err))
-    if args.method == "observer" and (data.voltage_drive is None or not np.isfinite(data.voltage_drive).any()):
-        return fail("log", f"{args.log}: the observer needs the voltage_drive column")
-    rig_file = str(args.rig or params.get("rig_file") or "")
-    model_file = str(args.model_file or params.get("model_file") or "")
-    try:
-        database = load_database(args.calibration) if args.calibration is not None else None
-        options = node_options(args.method, {"k": int(params["k"]), "weighting": str(params["weighting"]),
-                                             "model_file": model_file, "rig_file": rig_file})
-        estimator = make_estimator(args.method, database, **options)
-        rig = load_rig(live_rig_file(args.method, rig_file, model_file) or None)
-    except CalibrationError as err:
-        return fail("--calibration", str(err))
-    except ParameterError as err:
-        return fail("--model-file" if model_file else "--rig", str(err))
-    except ValueError as err:
-        return fail("--method", str(err))
-    settings = {"input_filter": float(params["input_filter"]),
-                "inertia_compensation": bool(params["inertia_compensation"]),
-                "transient_acceleration": float(params["transient_acceleration"]),
-                "estimate_filter": float(params["estimate_filter"]),
-                "change_threshold": float(params["change_threshold"])}
+    for note in data.notes:
+        print(f"{PROG}: note: {note}")
+    if METHODS[args.method].reads_voltage and (data.voltage_drive is None or not np.isfinite(data.voltage_drive).any()):
+        return fail("log", f"{args.log}: the {args.method} method needs the voltage_drive column (momentum, knn and "
+                           "extended_model do without)")
+    estimator, model_file, rig_file = built.estimator, settings.model_file, settings.rig_file
     start = time.monotonic()
     with ProgressBar(len(data), "samples", enabled=not args.quiet) as bar:
-        estimate = run_estimator(data, lambda: LiveEstimator(rig, estimator, data.sample_period, **settings),
-                                 bar.update_to)
+        estimate = run_estimator(data, lambda: built.live(data.sample_period), bar.update_to)
     try:
-        write_estimate_csv(out, data, estimate)
-    except OSError as err:
-        return fail("--out", f"{out}: cannot write: {err.strerror or err}")
+        with atomic_file(out, args.force, inputs=inputs, output=OUTPUT) as tmp:
+            write_estimate_csv(tmp, data, estimate)
+    except InputError as err:
+        return fail(err.where, err.what)
     ranges = getattr(estimator, "ranges_from", None)
     print(f"{PROG}: {args.log}: {len(data)} samples, {data.t[-1] - data.t[0]:.1f} s, {len(np.unique(data.run))} run(s); "
           f"{args.method} from {args.calibration or model_file or rig_file or 'the bundled rig'}"
@@ -239,7 +259,10 @@ def main(argv: list[str] | None = None) -> int:
     if score is None:
         print(f"{PROG}: method={args.method} samples={len(data)} (no tau_load in the log: no figures)")
         return 0
-    print(f"{PROG}: load range of the log {score.load_range:.4f} N m (0.5..99.5 percentiles of tau_load)")
+    if score.one_load:
+        print(f"{PROG}: the log has one load, {score.load_range:.4f} N m: errors in % of it")
+    else:
+        print(f"{PROG}: load range of the log {score.load_range:.4f} N m (0.5..99.5 percentiles of tau_load)")
     print(score.line(args.method))
     return 0
 

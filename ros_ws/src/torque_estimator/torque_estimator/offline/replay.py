@@ -61,31 +61,29 @@ import yaml
 from worm_model.live.live_model import FIELDS as FORCE_FIELDS
 from worm_model.live.live_model import LiveModel
 from worm_model.cli.errors import InputError, run_tool
-from worm_model.cli.options import Parser, existing_file, number
-from worm_model.files.reading import load_yaml
+from worm_model.cli.options import Parser, existing_file, existing_bag, nearest, number
+from worm_model.files.reading import load_parameter_file
 from worm_model.physics.envelope import Envelope
 from worm_model.physics.parameters import ParameterError, load_rig
 from worm_model.rig_data.schema import RigDataError
 from worm_model.bags.reader import BagReader
 from worm_model.bags.typestore import BagRecordingError
 from worm_model.rig_data.bags import find_sample_topic
+from worm_model.rig_data.plausibility import sample_rate_problem
+from worm_model.rig_data.reader import is_bag
 from worm_model.rig_data.samples import samples_of
 
-from torque_estimator.estimation.database import CalibrationError, load_database
-from torque_estimator.estimation.registry import (CALIBRATION_OPTIONAL, ESTIMATORS, live_rig_file, make_estimator,
-                                                  node_options)
+from torque_estimator.estimation.database import CalibrationError
+from torque_estimator.estimation.registry import ESTIMATORS
+from torque_estimator.estimation.settings import ALL_OPTIONS, EstimatorSettings, build_estimator
 from torque_estimator.graph.runner import GraphError, default_graph_file, parse_overrides
-from torque_estimator.estimation.live import LiveEstimator
 from worm_model.cli.progress import ProgressBar
 
-#: The nodes' parameter defaults (model_node.py, estimator_node.py), for what the file leaves out.
+#: The nodes' parameter defaults (model_node.py; estimator_node.py: every method's options, from
+#: estimation.settings), for what the file leaves out.
 NODE_DEFAULTS: dict[str, dict[str, Any]] = {
     "model_node": {"rig_file": "", "use_acceleration": True, "acceleration_filter": 0.01, "publish_period": 0.02},
-    "estimator_node": {"rig_file": "", "inertia_compensation": True, "calibration_file": "",
-                       "method": "knn", "k": 4, "weighting": "inverse_distance", "model_file": "",
-                       "input_filter": 0.003,
-                       "estimate_filter": 0.05, "change_threshold": 4.0,
-                       "transient_acceleration": 200.0, "sample_rate": 1000.0,
+    "estimator_node": {**{name: option.default for name, option in ALL_OPTIONS.items()}, "sample_rate": 1000.0,
                        "joint_state_topic": "/torque_estimate/joint_states", "joint_name": "gear",
                        "wrench_topic": "/torque_estimate/wrench", "wrench_frame": "gear_output"},
 }
@@ -112,16 +110,15 @@ def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> 
     params = {node: dict(values) for node, values in NODE_DEFAULTS.items()}
     if params_file is not None:
         try:
-            document = load_yaml(params_file, "graph parameter file") or {}
+            document = load_parameter_file(params_file)  # read as rcl reads it in the nodes
         except InputError as err:
             raise ReplayError(f"parameter file {err}") from None
-        if not isinstance(document, dict):
-            raise ReplayError(f"parameter file {params_file}: expected node names at the top level")
         for node in params:
-            section = document.get(node, {}) or {}
-            values = section.get("ros__parameters", {}) if isinstance(section, dict) else None
-            if not isinstance(values, dict):
-                raise ReplayError(f"parameter file {params_file}: {node}.ros__parameters is not a mapping")
+            values = document.get(node, {})
+            for name in values:  # a misspelt name would leave the node's default in force without a word
+                if name not in NODE_DEFAULTS[node]:
+                    raise ReplayError(f"parameter file {params_file}: {node}: {node} declares no parameter "
+                                      f"{name!r}{nearest(name, NODE_DEFAULTS[node])}")
             params[node].update(values)
     try:
         parsed = parse_overrides(list(overrides))
@@ -134,8 +131,8 @@ def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> 
             name, _, text = assignment.partition(":=")
             default = NODE_DEFAULTS[node].get(name)
             if name not in NODE_DEFAULTS[node]:
-                raise ReplayError(f"--set {node}.{name}={text}: {node} has no parameter {name!r} "
-                                  f"(it has: {', '.join(NODE_DEFAULTS[node])})")
+                raise ReplayError(f"--set {node}.{name}={text}: {node} has no parameter {name!r}"
+                                  f"{nearest(name, NODE_DEFAULTS[node])} (it has: {', '.join(NODE_DEFAULTS[node])})")
             try:
                 value = yaml.safe_load(text) if text else ""
             except yaml.YAMLError:
@@ -224,38 +221,17 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
     names = list(estimators) if estimators else [str(est_p["method"])]
     if unknown := [n for n in names if n not in ESTIMATORS]:
         raise ReplayError(f"unknown estimator(s) {unknown}; registry: {sorted(ESTIMATORS)}")
-    database = None
-    if est_p["calibration_file"]:
-        try:
-            database = load_database(est_p["calibration_file"], load_rig(est_p["rig_file"] or None))
-        except CalibrationError as err:
-            raise ReplayError(f"estimator_node.calibration_file: {err}") from None
-    elif needing := [n for n in names if n not in CALIBRATION_OPTIONAL]:
-        raise ReplayError(f"estimator_node.calibration_file is not set and {', '.join(needing)} need(s) one: pass "
-                          "--set estimator_node.calibration_file=FILE (or set it in the parameter file)")
     start = time.perf_counter()
     model = LiveModel(load_rig(model_p["rig_file"] or None), bool(model_p["use_acceleration"]),
                       float(model_p["acceleration_filter"]))
     est_rig = load_rig(est_p["rig_file"] or None)  # the envelope of plausible samples
     period = 1.0 / float(est_p["sample_rate"])
-    options = {**est_p, "k": int(est_p["k"]), "weighting": str(est_p["weighting"]),
-               "model_file": str(est_p["model_file"]), "rig_file": str(est_p["rig_file"])}
-    try:
-        estimators_built = {name: make_estimator(name, database, **node_options(name, options)) for name in names}
-    except ValueError as err:  # worm_model's ParameterError is a ValueError: a bad model_file
-        raise ReplayError(f"estimator_node: {err}") from None
-    rig_files = {name: live_rig_file(name, str(est_p["rig_file"]), str(est_p["model_file"])) for name in names}
-    cores = {name: LiveEstimator(load_rig(rig_files[name] or None), estimators_built[name],
-                                 period, input_filter=float(est_p["input_filter"]),
-                                 inertia_compensation=bool(est_p["inertia_compensation"]),
-                                 transient_acceleration=float(est_p["transient_acceleration"]),
-                                 estimate_filter=float(est_p["estimate_filter"]),
-                                 change_threshold=float(est_p["change_threshold"]))
-             for name in names}
+    cores = {name: _core(est_p, name, period) for name in names}
     model_out, est_out = Outputs(), {name: Outputs() for name in names}
     envelope = Envelope.of(est_rig)
     first = last = None
     n = 0
+    early: list[float] | None = []
     try:
         with BagReader(bag, allow_truncated=allow_truncated) as reader:
             topic = find_sample_topic(reader, sample_topic)
@@ -279,6 +255,12 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
                     if last_seq < start_seq:
                         continue
                     stamps = [s.header.stamp.sec + 1e-9 * s.header.stamp.nanosec for s in batch]
+                    if early is not None:  # the stamps' step against the rig's sample rate, as every reader checks
+                        early += stamps
+                        if len(early) >= 50 or n_messages == total:
+                            if problem := sample_rate_problem(np.asarray(early), 1.0 / period, est_rig.name):
+                                raise ReplayError(f"{bag}: {topic}: sample stamps: {problem}")
+                            early = None
                     first = stamps[0] if first is None else first
                     last = stamps[-1]
                     n += len(batch)
@@ -303,6 +285,22 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
     return ReplayResult(n, (last - first) if first is not None else 0.0, wall, model_out, est_out,
                         {"model": len(model_out.seq), **{k: len(v.seq) for k, v in est_out.items()}}
                         if follow_live else {})
+
+
+def _core(parameters: Mapping[str, Any], name: str, period: float):
+    """estimator_node's core for estimator ``name`` with the node's ``parameters`` (as the node builds it).
+
+    Raises:
+        ReplayError: a bad or missing calibration, rig or model file, or a bad option (named).
+    """
+    try:
+        return build_estimator(EstimatorSettings.from_parameters(parameters, name)).live(period)
+    except CalibrationError as err:
+        hint = "" if parameters["calibration_file"] else \
+            " (pass --set estimator_node.calibration_file=FILE, or set it in the parameter file)"
+        raise ReplayError(f"estimator_node.calibration_file: {err}{hint}") from None
+    except ValueError as err:  # worm_model's ParameterError is a ValueError: a bad rig_file or model_file
+        raise ReplayError(f"estimator_node: {err}") from None
 
 
 # --- comparison with the live run ------------------------------------------------------------------
@@ -386,7 +384,8 @@ def _main(argv: Sequence[str] | None) -> int:
                "the live outputs the bag holds, replay_forces_* and replay_estimates_* (matched, compared,\n"
                "live_only, replay_only, max_abs_diff; per-field differences on stderr).\n"
                "exit code 2 on a bad bag, parameter file or calibration (the message names it).")
-    parser.add_argument("bag", type=Path, help="bag directory (or .mcap/.db3 file) holding /rig/samples or /rig/sample")
+    parser.add_argument("bag", type=existing_bag,
+                        help="bag directory (or .mcap/.db3 file) holding /rig/samples or /rig/sample")
     parser.add_argument("--params-file", type=existing_file, default=None, metavar="FILE",
                         help="graph parameter file of the live run (default: the installed sim_graph.yaml)")
     parser.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
@@ -406,6 +405,9 @@ def _main(argv: Sequence[str] | None) -> int:
                         help="leave the first SECONDS of live outputs out of the comparison (filter start-up)")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
+    if not is_bag(args.bag):  # a CSV log is estimate's input
+        raise InputError(str(args.bag), "replay reads a bag (a folder, or a .mcap or .db3 file) of the graph's "
+                                        "sample stream; for a worm_rig_data CSV run `estimate` on it")
     params = node_parameters(args.params_file or default_graph_file(), args.set)
     names = args.estimators.split(",") if args.estimators else None
     result = replay(args.bag, params, names, follow_live=args.follow_live, sample_topic=args.topic,

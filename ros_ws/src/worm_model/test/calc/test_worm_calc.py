@@ -34,12 +34,12 @@ def run_json(*args: str) -> dict:
 def test_forces_json_matches_the_core() -> None:
     geometry = dict(r_w=0.01, r_g=0.04, lam=8.0, phi=14.5)
     out = run_json("--r-worm", "0.01", "--r-gear", "0.04", "--lead-angle-deg", "8", "--pressure-angle-deg", "14.5",
-                   "--tau-in", "0.05", "--tau-load", "0.6", "--omega", "-120", "--alpha-worm", "30",
+                   "--tau-in", "0.01", "--tau-load", "0.6", "--omega", "-120", "--alpha-worm", "30",
                    "--worm-inertia", "2e-5", "--gear-inertia", "1e-4")
     gb = replace(GB, worm_pitch_radius=geometry["r_w"], gear_pitch_radius=geometry["r_g"],
                  lead_angle=math.radians(geometry["lam"]), normal_pressure_angle=math.radians(geometry["phi"]))
     ratio = gb.geometric_ratio
-    ref = internal_forces(gb, 0.05, 0.6, -120.0, 30.0, ratio * 30.0, worm_inertia=2e-5, gear_inertia=1e-4)
+    ref = internal_forces(gb, 0.01, 0.6, -120.0, 30.0, ratio * 30.0, worm_inertia=2e-5, gear_inertia=1e-4)
     assert out["normal_force"] == pytest.approx(float(ref.normal_force), rel=1e-12)
     assert out["friction_force"] == pytest.approx(float(ref.friction_force), rel=1e-12)
     assert out["mu"] == pytest.approx(float(ref.mu), rel=1e-12)
@@ -94,6 +94,7 @@ def test_text_output_and_help() -> None:
         (("--mu", "abc"), "not a number"),
         (("--tau-in", "0.1", "--tau-load", "0.1", "--gear-inertia", "-1"), "gear inertia"),
         (("--tau-in", "0.1", "--tau-load", "0.1", "--rig", "/nonexistent/rig.yaml"), "rig.yaml"),
+        (("--tau-in", "0.001", "--tau-load", "0.3", "--omega", "150"), "more out than in"),
     ],
 )
 def test_bad_input_exits_2(args: tuple[str, ...], fragment: str) -> None:
@@ -113,3 +114,16 @@ def test_core_rejects_bad_geometry_and_computes_efficiency_table() -> None:
     assert np.all(np.diff(eta) < 0) and eta[0] == pytest.approx(1.0)
     assert not efficiencies(GB, 0.999 * GB.self_locking_mu)["self_locking"]
     assert efficiencies(GB, 1.001 * GB.self_locking_mu)["self_locking"]
+
+
+def test_torques_that_would_make_energy_are_refused() -> None:
+    """Friction only takes power out of the mesh: 0.001 N m in against 0.3 N m at the gear, 150 rad/s (0.15 W
+    in, 1.5 W out, mu -0.084) is refused, with and without a speed; 0.02 N m in (mu 0.09) is a real point."""
+    with pytest.raises(CalculatorError, match="0.15 W in and the gear takes 1.5 W out"):
+        forces(GB, 0.001, 0.3, 150.0)
+    with pytest.raises(CalculatorError, match=r"mu = -0.0845 < 0"):
+        forces(GB, 0.001, 0.3)
+    with pytest.raises(CalculatorError, match="more out than in"):  # assistive: the gear drives the worm
+        forces(GB, -0.02, -0.3, 150.0)
+    ok = forces(GB, 0.02, 0.3, 150.0)
+    assert ok["mu"] > 0 and ok["input_power"] > ok["output_power"] > 0

@@ -20,6 +20,7 @@ from worm_model.physics.gear_side import gear_side_drag, gear_side_load
 from worm_model.physics.modes import Mode
 from worm_model.figures.paper_figures import ReportError, compute, read_calibration, rig_for, trends
 from worm_model.physics.parameters import Rig, load_rig, rig_to_dict
+from worm_model.files.writing import MARKER
 from worm_model.figures.report import FIGURES
 
 RIG = load_rig()
@@ -141,7 +142,8 @@ def test_report_executable_writes_six_pngs(calibration: Path, tmp_path: Path) ->
     done = subprocess.run([executable("report"), str(calibration), "--out", str(out)],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
-    assert sorted(p.name for p in out.iterdir()) == sorted(FIGURES)
+    assert sorted(p.name for p in out.iterdir() if p.name != MARKER) == sorted(FIGURES)
+    assert (out / MARKER).read_text() == "report\n"  # what lets `report --force` replace it later
     for name in FIGURES:
         data = (out / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000, name
@@ -152,6 +154,7 @@ def test_report_executable_bad_input_exit_2(tmp_path: Path) -> None:
     missing = subprocess.run([executable("report"), str(tmp_path / "nope.json"), "--out", str(tmp_path)],
                              capture_output=True, text=True, timeout=60)
     assert missing.returncode == 2 and "nope.json" in missing.stderr
-    no_out = subprocess.run([executable("report"), str(tmp_path / "nope.json")], capture_output=True, text=True,
+    (tmp_path / "cal.json").write_text("{}")
+    no_out = subprocess.run([executable("report"), str(tmp_path / "cal.json")], capture_output=True, text=True,
                             timeout=60)
     assert no_out.returncode == 2 and "--out" in no_out.stderr

@@ -11,10 +11,15 @@ import pytest
 from worm_model.physics.dynamics import (
     breakaway,
     disturbance_from_gear_axis,
+    effective_worm_inertia,
     gear_velocity,
+    inertia_at_flank_factor,
+    load_per_flank,
+    make_reflected_input_torque_float,
     reflected_input_torque,
     worm_acceleration,
 )
+from worm_model.physics.efficiency import flank_factor
 from worm_model.physics.efficiency import forward_efficiency
 from worm_model.physics.friction import sliding_velocity
 from worm_model.physics.internal_forces import internal_forces, switching_torque
@@ -61,6 +66,42 @@ def test_reflected_input_torque_is_quasi_static_equilibrium() -> None:
     # resistive case: T_min = i D / eta (section 6)
     assert tau_in[0] == pytest.approx(GB.ratio * 0.3 / forward_efficiency(GB, mu))
     assert tau_in[3] == pytest.approx(-tau_in[0]) and tau_in[2] == pytest.approx(-tau_in[1])  # mirror images
+
+
+def test_load_per_flank_inverts_the_input_torque() -> None:
+    """Every (mu, tau_d, omega) is found again on the flank that carries it; in the self-locking V a driving
+    torque has a second load on the other flank needing the same torque, and below the V's vertex none."""
+    rng = np.random.default_rng(3)
+    n = 4000
+    mu = rng.uniform(0.01, 0.2, n)  # both sides of self-locking (0.094)
+    tau_d = rng.normal(0, 0.4, n)
+    omega = rng.choice([-1, 1], n) * rng.uniform(0.1, 400, n)
+    tau_in = reflected_input_torque(GB, mu, tau_d, omega)
+    driving, coast = load_per_flank(GB, mu, tau_in, omega)
+    found = np.where(np.sign(omega) * tau_d >= 0, driving, coast)
+    np.testing.assert_allclose(found, tau_d, rtol=1e-12, atol=1e-15)
+    both = np.isfinite(driving) & np.isfinite(coast)
+    assert both.any() and np.all(mu[both] > GB.self_locking_mu)
+    for branch in (driving[both], coast[both]):
+        np.testing.assert_allclose(reflected_input_torque(GB, mu[both], branch, omega[both]), tau_in[both],
+                                   rtol=1e-12, atol=1e-15)
+    # a self-locking box: no load at all needs less than the torque at D = 0 (0 N m), driving or braking
+    none_d, none_c = load_per_flank(GB, 0.15, -0.01, 100.0)
+    assert np.isnan(none_d) and np.isnan(none_c)
+
+
+def test_the_float_twins_are_the_array_functions_to_the_bit() -> None:
+    rng = np.random.default_rng(4)
+    mu = rng.uniform(0.01, 0.2, 500)
+    tau_d = np.concatenate([rng.normal(0, 0.4, 497), [0.0, -0.0, 0.2]])
+    omega = np.concatenate([rng.choice([-1, 1], 497) * rng.uniform(0.1, 400, 497), [0.0, 150.0, -1e-12]])
+    reflected = make_reflected_input_torque_float(GB)
+    scalar = [reflected(float(m), float(t), float(w)) for m, t, w in zip(mu, tau_d, omega)]
+    torque, factor, flank = (np.array(column) for column in zip(*scalar))
+    np.testing.assert_array_equal(torque, reflected_input_torque(GB, mu, tau_d, omega))
+    np.testing.assert_array_equal(factor, flank_factor(GB, mu, flank))
+    j_eff = [inertia_at_flank_factor(GB, float(k), JW, JG) for k in factor]
+    np.testing.assert_array_equal(j_eff, effective_worm_inertia(GB, mu, flank, JW, JG))
 
 
 def test_self_locking_box_needs_driving_torque_under_aiding_load() -> None:

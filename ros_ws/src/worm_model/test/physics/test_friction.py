@@ -13,6 +13,7 @@ from worm_model.physics.friction import (
     friction_coefficient,
     make_friction_coefficient_float,
     sliding_velocity,
+    stribeck_friction_coefficient,
 )
 from worm_model.physics.parameters import Friction, load_rig
 
@@ -57,8 +58,11 @@ def test_sliding_velocity_and_models() -> None:
     assert np.allclose(const, 0.07) and const.shape == (3,)
 
 
-@pytest.mark.parametrize("friction", [RIG.friction, replace(RIG.friction, scale=1.3), Friction("constant", 0.07, 1.0)],
-                         ids=["agma", "agma-scaled", "constant"])
+STRIBECK = Friction("stribeck", 0.12, 1.1, 0.06, 0.0034443)
+
+
+@pytest.mark.parametrize("friction", [RIG.friction, replace(RIG.friction, scale=1.3), Friction("constant", 0.07, 1.0),
+                                      STRIBECK], ids=["agma", "agma-scaled", "constant", "stribeck"])
 def test_float_twin(friction) -> None:
     """make_friction_coefficient_float agrees with friction_coefficient to round-off (libm's exp and pow
     against numpy's: measured up to 3 ulp, on ~3-5 % of speeds), both signs, through the AGMA break and at
@@ -72,6 +76,19 @@ def test_float_twin(friction) -> None:
     assert np.all(np.abs(floats - arrays) <= 4 * np.spacing(arrays))
     assert all(isinstance(mu_float(float(x)), float) for x in w[:3])
     assert np.isnan(mu_float(float("nan")))
+
+
+def test_stribeck_law_as_the_t_ro_scripts_evaluate_it() -> None:
+    """mu = mu_k + mu_s exp(-|v|/v_st)^2 (their getFrictionCoeff: the square on the exponential, i.e.
+    exp(-2|v|/v_st), not the Gaussian exp(-(v/v_st)^2)); with their drive No. 3: 0.12 + 0.06 = 0.18 at rest,
+    0.12 + 0.06 e^-2 = 0.128120 at v = v_st, 0.12 + 0.06 e^-4 = 0.121099 at 2 v_st; scale multiplies it all."""
+    v = np.array([0.0, 0.0034443, -0.0068886])
+    np.testing.assert_allclose(stribeck_friction_coefficient(v, 0.12, 0.06, 0.0034443), [0.18, 0.128120, 0.121099],
+                               atol=1e-6)
+    gb = RIG.gearbox
+    w = v * np.cos(gb.lead_angle) / gb.worm_pitch_radius  # the worm speeds of those sliding speeds
+    np.testing.assert_allclose(friction_coefficient(STRIBECK, gb, w), 1.1 * np.array([0.18, 0.128120, 0.121099]),
+                               atol=2e-6)
 
 
 def test_agma_metric_form_checks_the_unit_conversion() -> None:

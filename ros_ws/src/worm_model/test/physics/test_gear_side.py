@@ -5,7 +5,7 @@ import numpy as np
 
 from worm_model.physics.dynamics import reflected_input_torque, worm_acceleration
 from worm_model.physics.friction import friction_coefficient
-from worm_model.physics.gear_side import gear_side_drag, gear_side_load, no_load_switching_torque
+from worm_model.physics.gear_side import gear_side_drag, gear_side_load, make_gear_side_drag_float, no_load_switching_torque
 from worm_model.physics.modes import Flank
 from worm_model.physics.parameters import load_rig
 
@@ -25,6 +25,12 @@ def test_drag_opposes_the_gear_motion_and_vanishes_at_rest() -> None:
     np.testing.assert_allclose(drag, expected, rtol=1e-15)
     # the drag takes power out of the gear shaft at every speed
     assert np.all(drag * omega_gear > 0)
+
+
+def test_the_float_drag_is_the_array_drag_to_the_bit() -> None:
+    speeds = np.concatenate([SPEEDS, [0.0, -0.0, 1e-300, 123.456]])
+    drag = make_gear_side_drag_float(RIG)
+    np.testing.assert_array_equal([drag(float(w)) for w in speeds], gear_side_drag(RIG, speeds))
 
 
 def test_gear_side_load_adds_drag_to_the_external_load() -> None:

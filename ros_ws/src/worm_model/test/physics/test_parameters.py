@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from collections.abc import Callable
@@ -12,7 +13,9 @@ import pytest
 import yaml
 
 from worm_model.physics.parameters import (
+    ADC_SEQUENCE,
     ParameterError,
+    Sensors,
     default_rig_path,
     load_rig,
     rig_from_dict,
@@ -101,6 +104,19 @@ BAD = {
     "unknown model": (lambda d: d["friction"].update(model="magic"), "friction.model", "unknown model"),
     "bare number": (lambda d: d.update(supply_voltage=24), "supply_voltage", "mapping"),
     "wrong format": (lambda d: d.update(format="other"), "format", "worm_rig_parameters"),
+    # physically implausible numbers: a unit slip or a typo, refused with the plausible range
+    "K_t 1e-12": (_set("drive_motor", "torque_constant", value=1e-12), "drive_motor.torque_constant",
+                  "not a plausible torque_constant: expected 0.0001 .. 50 N m/A"),
+    "1 MV supply": (lambda d: d.update(supply_voltage={**d["supply_voltage"], "value": 1e6}), "supply_voltage",
+                    "not a plausible supply_voltage"),
+    "48 V supply on 24 V motors x3": (lambda d: d.update(supply_voltage={**d["supply_voltage"], "value": 72}),
+                                      "supply_voltage", "3 x the drive motor's max_voltage"),
+    "K_e in V/krpm as V s/rad": (_set("drive_motor", "back_emf_constant", value=5.759), "back_emf_constant",
+                                 "differ 105-fold"),
+    "lead angle in rad written deg": (_set("gearbox", "lead_angle", value=0.0996687), "gearbox.lead_angle",
+                                      "expected 0.5 .. 45 deg"),
+    "encoder decoding 8": (_set("sensors", "encoder_decoding", value=8), "sensors.encoder_decoding",
+                           "expected 1 .. 4"),
 }
 
 
@@ -115,6 +131,49 @@ def test_bad_files_are_rejected_naming_the_field(tmp_path: Path, case: str) -> N
     message = str(info.value)
     assert str(path) in message and field in message and fragment in message, message
     assert isinstance(info.value, ValueError)
+
+
+OPTIONAL_SENSORS = ("tacho_drive_lsb", "tacho_load_lsb", "tacho_ripple_order", "adc_clock_hz", "adc_conversion_cycles",
+                    "adc_hold_cycles")
+
+
+def test_the_sensor_chain_is_in_the_rig_file() -> None:
+    """The numbers the simulator's sensors and the observer's noise model share: the tachos' resolutions (500 and
+    20 rad/s over 512 codes), the ripple order, the ADC timing (13 clocks at 125 kHz per channel, held 1.5 clocks
+    in): the current is sampled 12 us after the tick, the drive tacho 116 us."""
+    s = load_rig().sensors
+    assert (s.tacho_drive_lsb, s.tacho_load_lsb, s.tacho_ripple_order) == (500 / 512, 20 / 512, 7)
+    assert isinstance(s.tacho_ripple_order, int) and isinstance(s.adc_conversion_cycles, int)
+    times = s.sample_times()
+    assert list(times) == list(ADC_SEQUENCE)
+    assert times["current_drive"] == pytest.approx(12e-6, rel=1e-12)
+    assert times["tacho_drive"] == pytest.approx(116e-6, rel=1e-12)
+    assert s.sequence_time() == pytest.approx(6 * 104e-6, rel=1e-12)
+    assert s.counts_per_rev == 2000
+
+
+def test_a_file_without_the_optional_sensor_fields_takes_the_bundled_ones(tmp_path: Path) -> None:
+    """A rig file (or a calibration's embedded rig) written without the sensor chain's optional fields reads as
+    before they existed: the bundled rig's values; one that gives them has its own."""
+    doc = _document()
+    for name in OPTIONAL_SENSORS:
+        del doc["sensors"][name]
+    assert load_rig(_write(tmp_path, doc)).sensors == load_rig().sensors
+    data = rig_to_dict(load_rig())
+    for name in OPTIONAL_SENSORS:
+        del data["sensors"][name]
+    assert rig_from_dict(data).sensors == load_rig().sensors
+    doc["sensors"]["tacho_ripple_order"] = {"value": 9, "unit": "1", "assumption": "a 9-segment tacho"}
+    assert load_rig(_write(tmp_path, doc)).sensors.tacho_ripple_order == 9
+    assert {f.name for f in dataclasses.fields(Sensors) if f.metadata.get("optional")} == set(OPTIONAL_SENSORS)
+
+
+def test_the_bundled_file_gives_every_field() -> None:
+    """The bundled file is what optional fields fall back to: it must have them all, each with its source."""
+    doc = _document()
+    for f in dataclasses.fields(Sensors):
+        assert f.name in doc["sensors"], f.name
+        assert doc["sensors"][f.name].get("source") or doc["sensors"][f.name].get("assumption"), f.name
 
 
 def test_broken_ratio_names_all_fields_and_values(tmp_path: Path) -> None:

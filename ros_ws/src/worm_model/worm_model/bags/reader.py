@@ -84,6 +84,8 @@ from rosbags.typesys.store import Typestore
 from ruamel.yaml import YAML
 from ruamel.yaml.error import YAMLError
 
+from worm_model.cli.errors import InputError
+from worm_model.files.reading import MAX_YAML_BYTES, check_input, check_yaml, read_text
 from worm_model.bags.typestore import (
     BagReadError,
     BagRecordingError,
@@ -322,10 +324,18 @@ def read_metadata_file(path: Path) -> BagMetadata:
 
     """
     try:
-        document = YAML(typ='safe', pure=True).load(path.read_text(encoding='utf-8'))
-    except (OSError, UnicodeDecodeError) as err:
-        msg = f'Cannot read bag metadata {path}: {err}'
-        raise BagReadError(msg) from err
+        text = read_text(path, 'bag metadata file', MAX_YAML_BYTES)
+    except InputError as err:
+        msg = f'Cannot read bag metadata {err}'
+        raise BagReadError(msg) from None
+    try:
+        check_yaml(text, str(path))  # depth, size, alias expansion: the limits of every YAML file read
+        document = YAML(typ='safe', pure=True).load(text)
+    except InputError as err:
+        place = err.where.removeprefix(str(path)).lstrip(': ')
+        msg = f'Bag metadata {path} is not YAML{" (" + place + ")" if place else ""}: ' \
+              f'{err.what.removeprefix("not valid YAML: ")}'
+        raise BagReadError(msg) from None
     except YAMLError as err:
         msg = f'Bag metadata {path} is not YAML: {err}'
         raise BagReadError(msg) from err
@@ -775,6 +785,10 @@ class BagReader(ClosesOnExit):
         return paths
 
     def _open_file(self, path: Path, default: str) -> StorageFile:
+        try:
+            check_input(path, 'bag storage file')  # a FIFO or a device is refused, never opened (that would wait)
+        except InputError as err:
+            raise BagReadError(str(err)) from None
         opened = path
         if path.suffix == ZSTD_SUFFIX:
             opened = self._decompress_file(path)

@@ -119,7 +119,8 @@ def forces(gearbox: Gearbox, tau_in: float, tau_d: float, omega_worm: float | No
         gear_tangential_force = worm_axial_force, radial_force [N], sliding_velocity [m/s],
         input_power, output_power, friction_power [W] (input = output + friction).
     Raises:
-        CalculatorError: a non-finite input or a negative switching torque.
+        CalculatorError: a non-finite input, a negative switching torque, or torques that would make the
+            mesh a source of energy (mu < 0: more power out than in).
     """
     for name, value in (("tau_in", tau_in), ("tau_d", tau_d), ("alpha_worm", alpha_worm),
                         ("switching_torque", switching_torque)):
@@ -160,6 +161,7 @@ def forces(gearbox: Gearbox, tau_in: float, tau_d: float, omega_worm: float | No
         "output_power": None,
         "friction_power": None,
     })
+    _conserves_energy(gearbox, tau_in, tau_d, omega_worm, float(f.mu))
     overflowed = [k for k, v in out.items() if isinstance(v, float) and math.isinf(v)]
     if overflowed:
         raise CalculatorError(f"{overflowed[0]} overflows (inf) for these inputs: they are far outside any gear set")
@@ -174,6 +176,27 @@ def forces(gearbox: Gearbox, tau_in: float, tau_d: float, omega_worm: float | No
             "friction_power": float(f.friction_force) * v_s,
         })
     return out
+
+
+def _conserves_energy(gearbox: Gearbox, tau_in: float, tau_d: float, omega_worm: float | None, mu: float) -> None:
+    """Refuse torques that make the mesh a source of energy: friction can only take power out, so mu >= 0.
+
+    A negative mu means more power leaves the mesh than enters it (in resistive mode: more at the gear than
+    the worm puts in), which no gear set does; the likely cause is a torque in the wrong unit or sign.
+    """
+    if not (math.isfinite(mu) and mu < 0.0):
+        return
+    if omega_worm is not None and omega_worm != 0.0:
+        p_in = tau_in * omega_worm
+        p_out = tau_d * gearbox.geometric_ratio * omega_worm
+        flow = (f"the worm puts {p_in:.4g} W in and the gear takes {p_out:.4g} W out" if p_in >= 0 else
+                f"the gear puts {-p_out:.4g} W in and the worm takes {-p_in:.4g} W out")
+        raise CalculatorError(f"--tau-in {tau_in:g} N m with --tau-load {tau_d:g} N m at --omega {omega_worm:g} "
+                              f"rad/s: {flow}, more out than in (mu = {mu:.3g} < 0): no gear set makes energy; "
+                              "check the torques' units and signs (tau_d + opposes + worm rotation)")
+    raise CalculatorError(f"--tau-in {tau_in:g} N m with --tau-load {tau_d:g} N m: mu = {mu:.3g} < 0, friction "
+                          "that would feed energy into the mesh: no gear set does; check the torques' units and "
+                          "signs (tau_d + opposes + worm rotation)")
 
 
 def efficiencies(gearbox: Gearbox, mu: float) -> dict[str, Any]:

@@ -11,7 +11,9 @@ bug, the traceback saved to a file.
 from __future__ import annotations
 
 import os
+import signal
 import sys
+import threading
 import tempfile
 import traceback
 from collections.abc import Callable, Sequence
@@ -35,13 +37,26 @@ def one_line(err: BaseException) -> str:
     return " ".join(str(err).split()) or type(err).__name__
 
 
+def _raise_interrupt(signum: int, _frame: object) -> None:
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def _terminate_as_interrupt() -> None:
+    """SIGTERM (``kill``, a closed terminal's session) ends a tool as Ctrl-C does: with its cleanup."""
+    if threading.current_thread() is threading.main_thread() \
+            and signal.getsignal(signal.SIGTERM) in (signal.SIG_DFL, None):
+        signal.signal(signal.SIGTERM, _raise_interrupt)
+
+
 def run_tool(tool: str, main: Callable[[], int], bad_input: Sequence[type[BaseException]] = ()) -> int:
     """Run a tool's ``main`` and turn what escapes it into an exit code and one stderr line.
 
     InputError and the loaders' errors the tool names in ``bad_input`` -> exit 2;
-    KeyboardInterrupt -> 130; OSError (disk full, ...) -> exit 1; any other exception is a bug: one line saying so, the traceback
-    written to a file named in that line, exit 1.
+    KeyboardInterrupt (Ctrl-C, and SIGTERM, which is made to raise it so that temporary outputs are
+    removed alike) -> 130; OSError (disk full, ...) -> exit 1; any other exception is a bug: one line
+    saying so, the traceback written to a file named in that line, exit 1.
     """
+    _terminate_as_interrupt()
     try:
         return main()
     except (InputError, *bad_input) as err:
@@ -54,7 +69,8 @@ def run_tool(tool: str, main: Callable[[], int], bad_input: Sequence[type[BaseEx
         sys.stderr.close()
         return 0
     except OSError as err:  # the machine, not the input: a full disk, a folder gone meanwhile
-        print(f"{tool}: {one_line(err)}", file=sys.stderr)
+        what = f"{err.filename}: {err.strerror}" if err.filename and err.strerror else one_line(err)
+        print(f"{tool}: {what}", file=sys.stderr)
         return 1
     except Exception as err:  # noqa: BLE001 - reported as a bug, with its traceback kept
         fd, name = tempfile.mkstemp(prefix=f"{tool}-traceback-", suffix=".txt")

@@ -1,12 +1,17 @@
 """Command-line options and numbers read from files, checked alike: finite, inside a physical range,
-the unit named in the message; :class:`Parser`, an ArgumentParser whose errors are one line and exit 2.
+the unit named in the message; input and output paths (:func:`input_path`, ``existing_file``,
+``existing_bag``, :func:`output_path`); :func:`nearest` for a misspelt name; :class:`Parser`, an
+ArgumentParser whose errors are one line and exit 2.
 """
 from __future__ import annotations
 
 import argparse
+import difflib
 import math
+import os
+import stat
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +20,7 @@ from worm_model.cli.errors import EXIT_BAD_INPUT, InputError
 
 def _bound(low: float | None, high: float | None, open_low: bool, open_high: bool, unit: str) -> str:
     u = f" {unit}" if unit else ""
-    lo, hi = (str(x) if isinstance(x, int) else f"{x:g}" for x in (low, high))
+    lo, hi = (str(x) if isinstance(x, int) or x is None else f"{x:g}" for x in (low, high))
     if low is not None and high is not None:
         return f"in {'(' if open_low else '['}{lo}, {hi}{')' if open_high else ']'}{u}"
     if low is not None:
@@ -77,14 +82,65 @@ def integer(low: int | None = None, high: int | None = None, unit: str = "", wha
     return parse
 
 
-def existing_file(text: str) -> Path:
-    """An argparse ``type``: a path that is an existing file (not a folder)."""
-    path = Path(text)
-    if not path.exists():
-        raise argparse.ArgumentTypeError(f"{text}: no such file")
-    if path.is_dir():
-        raise argparse.ArgumentTypeError(f"{text}: is a folder, expected a file")
-    return path
+_KINDS = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISSOCK, "a socket"),
+          (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
+
+
+def article(what: str) -> str:
+    """``what`` with its indefinite article ("an effects file")."""
+    return f"{'an' if what[:1] in 'aeiou' else 'a'} {what}"
+
+
+def input_problem(path: str | os.PathLike[str], what: str = "file", folder: bool = False) -> str | None:
+    """Why ``path`` cannot be read as ``what`` (missing, a folder, a FIFO, a device, ...), or None.
+
+    The path is only stat-ed, never opened: opening a FIFO waits for a writer that may never come.
+    ``folder``: a folder is fine too (a bag folder).
+    """
+    if not str(path):
+        return f"empty path, expected {article(what)} (an unset shell variable?)"
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return f"cannot read: no such file (expected {article(what)})"
+    except OSError as err:
+        return f"cannot read: {err.strerror or err}"
+    if stat.S_ISREG(mode) or folder and stat.S_ISDIR(mode):
+        return None
+    kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+    return f"is {kind}, expected {article(what)}" + (" or a folder" if folder else "")
+
+
+def input_path(what: str = "file", folder: bool = False) -> Callable[[str], Path]:
+    """An argparse ``type``: an existing regular file (with ``folder``, or a folder), refused naming ``what``."""
+    def parse(text: str) -> Path:
+        problem = input_problem(text, what, folder)
+        if problem:
+            raise argparse.ArgumentTypeError(f"{text}: {problem}" if text else problem)
+        return Path(text)
+    parse.__name__ = "input_path"
+    return parse
+
+
+#: an argparse ``type``: an existing regular file (not a folder, FIFO or device; stat-ed, never opened)
+existing_file = input_path()
+#: an argparse ``type``: an existing regular file, or a folder (a bag folder)
+existing_input = input_path(folder=True)
+#: an argparse ``type``: a rosbag2 bag, a folder or one storage file
+existing_bag = input_path("bag folder or .mcap/.db3 file", folder=True)
+
+
+def output_path(text: str) -> Path:
+    """An argparse ``type`` for an output: any path but an empty one (what ``--out "$UNSET"`` becomes)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty path (an unset shell variable?): name the file or folder to write")
+    return Path(text)
+
+
+def nearest(name: str, known: Iterable[str]) -> str:
+    """`` (did you mean 'x'?)`` for the known name closest to a misspelt ``name``, or ""."""
+    match = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)
+    return f" (did you mean {match[0]!r}?)" if match else ""
 
 
 class Parser(argparse.ArgumentParser):

@@ -1,4 +1,5 @@
-"""Progress bars for long work in every command-line tool (tqdm on stderr, silent when disabled)."""
+"""Progress bars for long work in every command-line tool (tqdm on stderr, silent when disabled, and when
+stderr is not a terminal: in a log or a pipe a bar is noise, and a refusal must stay one line)."""
 from __future__ import annotations
 
 import sys
@@ -10,7 +11,8 @@ class ProgressBar:
     """One bar: context manager around tqdm with an absolute ``update_to``."""
 
     def __init__(self, total: int, unit: str, enabled: bool = True) -> None:
-        self._bar = tqdm(total=total, desc=unit, disable=not enabled, file=sys.stderr, leave=False)
+        self._bar = tqdm(total=total, desc=unit, disable=not enabled or not sys.stderr.isatty(), file=sys.stderr,
+                         leave=False)
 
     def update_to(self, done: int) -> None:
         self._bar.update(max(0, done - self._bar.n))

@@ -38,12 +38,12 @@ import numpy as np
 
 from worm_model.cli.errors import InputError
 from worm_model.files.reading import load_json
-from worm_model.physics.envelope import Envelope
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.physics.internal_forces import internal_forces
 from worm_model.physics.modes import Mode, classify_mode
 from worm_model.physics.motor import electromagnetic_torque, shaft_torque
 from worm_model.physics.parameters import ParameterError, Rig, load_rig, rig_from_dict
+from worm_model.rig_data.plausibility import calibration_problem
 
 FORMAT = "worm_torque_calibration"
 VERSION = 1
@@ -139,12 +139,13 @@ def read_calibration(path: str | os.PathLike[str]) -> CalibrationPoints:
 def rig_for(points: CalibrationPoints, rig_file: str | os.PathLike[str] | None) -> Rig:
     """The rig to analyse with: ``rig_file`` if given, else the rig embedded in the calibration file.
 
-    The points are then checked against what that rig can do (worm_model.physics.envelope.Envelope).
+    The points are then checked as every reader of a calibration checks them (a torque range, not one point
+    repeated, inside what the rig can do: worm_model.rig_data.plausibility.calibration_problem).
 
     Raises:
         ReportError: the rig file or the embedded rig is invalid (message from load_rig); the
             calibration holds no rig and none is given (the bundled one would be a guess); a point
-            far outside the rig's envelope (file, point and field named).
+            far outside the rig's envelope (file, point and field named), no torque range.
     """
     try:
         if rig_file is not None:
@@ -156,12 +157,9 @@ def rig_for(points: CalibrationPoints, rig_file: str | os.PathLike[str] | None) 
                               "is unknown; pass --rig RIG_FILE")
     except ParameterError as err:
         raise ReportError(str(err)) from None
-    envelope = Envelope.of(rig)
-    for name in COLUMNS:
-        k = envelope.first_outside(name, getattr(points, name))
-        if k is not None:
-            raise ReportError(f"{points.source}: field 'points.{name}' at point {k}: "
-                              f"{envelope.problem(name, float(getattr(points, name)[k]))}")
+    problem = calibration_problem(points.omega_worm, points.current_drive, points.tau_load, rig)
+    if problem:
+        raise ReportError(f"{points.source}: {problem}")
     return rig
 
 

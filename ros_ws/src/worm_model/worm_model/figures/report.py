@@ -20,10 +20,12 @@ import numpy as np  # noqa: E402
 from matplotlib.colors import Normalize  # noqa: E402
 
 from worm_model.cli.errors import run_tool
-from worm_model.cli.options import Parser, existing_file
-from worm_model.files.writing import atomic_dir, check_output
+from worm_model.cli.options import Parser, existing_file, output_path
+from worm_model.files.writing import Output, atomic_dir, check_output
 from worm_model.figures.paper_figures import DRAG_MODELS, PaperFigures, ReportError, compute, read_calibration, rig_for, trends  # noqa: E402
 
+#: what report writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
+OUTPUT = Output("report", names=("fig*.png",))
 SPEED_CMAP = "coolwarm"
 TORQUE_CMAP = "viridis"
 TAU_LABEL = r"load torque $\tau_d$ [N m] (+ opposes + worm rotation)"
@@ -143,10 +145,10 @@ def build_parser() -> argparse.ArgumentParser:
                     "mu, mu filtered by Remark 4, mu vs speed) as PNG files from a calibration database.",
         epilog="Writes fig06_normal_force.png ... fig11_mu_vs_speed.png into --out and prints the trend "
                "figures behind the paper's section 3.2 narrative. Exit code 2 on bad input.")
-    p.add_argument("calibration", type=Path,
+    p.add_argument("calibration", type=existing_file,
                    help="calibration database (JSON, format worm_torque_calibration v1, as written by "
                         "'ros2 run torque_estimator calibrate')")
-    p.add_argument("--out", type=Path, required=True,
+    p.add_argument("--out", type=output_path, required=True,
                    help="directory for the PNG files (created; an existing one only with --force)")
     p.add_argument("--force", action="store_true", help="replace an existing --out directory")
     p.add_argument("--rig", type=existing_file, default=None,
@@ -166,9 +168,10 @@ def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     points = read_calibration(args.calibration)
     rig = rig_for(points, args.rig)
-    check_output(args.out, args.force, folder=True)
+    inputs = [args.calibration, args.rig]
+    check_output(args.out, args.force, folder=True, inputs=inputs, output=OUTPUT)
     fig = compute(points, rig, args.drag)
-    with atomic_dir(args.out, args.force) as folder:
+    with atomic_dir(args.out, args.force, inputs=inputs, output=OUTPUT) as folder:
         written = write_figures(fig, folder, note=f"{args.calibration.name}, {len(points)} points, "
                                                   f"rig: {rig.name}, drag: {args.drag}")
     paths = [args.out / p.name for p in written]

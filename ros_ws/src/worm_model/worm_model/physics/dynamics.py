@@ -14,12 +14,13 @@ N = (J_g i a_w + D) / (r_g (s cos(phi_n) cos(lambda) - mu sin(lambda))), is >= 0
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from worm_model.physics.efficiency import flank_factor
+from worm_model.physics.efficiency import flank_factor, make_flank_factor_float
 from worm_model.physics.modes import motion_sign
 from worm_model.physics.units import FloatArray, IntArray
 
@@ -59,8 +60,17 @@ def effective_worm_inertia(gearbox: Gearbox, mu: ArrayLike, flank: ArrayLike, wo
     inertias on each shaft [kg m^2] and flank s = +1 driving / -1 coast.
     """
     K = flank_factor(gearbox, mu, flank)
-    return np.asarray(worm_inertia, dtype=float) + np.asarray(gear_inertia, dtype=float) * gearbox.ratio \
-        * gearbox.radius_ratio * K
+    return inertia_at_flank_factor(gearbox, K, np.asarray(worm_inertia, dtype=float),
+                                   np.asarray(gear_inertia, dtype=float))
+
+
+def inertia_at_flank_factor(gearbox: Gearbox, factor, worm_inertia, gear_inertia):
+    """:func:`effective_worm_inertia` for a flank factor K_s already known [kg m^2]: J_w + J_g i (r_w/r_g) K_s.
+
+    Plain arithmetic in the same order: floats give a float (a per-sample loop that has K_s pays no
+    numpy call), arrays broadcast.
+    """
+    return worm_inertia + gear_inertia * gearbox.ratio * gearbox.radius_ratio * factor
 
 
 def _frame_acceleration(
@@ -99,6 +109,47 @@ def reflected_input_torque(gearbox: Gearbox, mu: ArrayLike, tau_d: ArrayLike, om
     D = sigma * np.asarray(tau_d, dtype=float)
     s = np.where(D >= 0.0, 1.0, -1.0)
     return sigma * gearbox.radius_ratio * flank_factor(gearbox, mu, s) * D
+
+
+def make_reflected_input_torque_float(gearbox: Gearbox) -> Callable[[float, float, float], tuple[float, float, int]]:
+    """:func:`reflected_input_torque` for one float mu, tau_d [N m] and omega_worm [rad/s], in plain math: for
+    per-sample loops. Returns (tau_in [N m, fixed frame], K_s, flank s: +1 driving / -1 coast).
+
+    The same operations in the same order (the flank factor's float twin agrees with flank_factor bit for
+    bit), with motion_sign's rule: speeds within 1e-9 rad/s of 0 count as positive.
+    """
+    factor = make_flank_factor_float(gearbox)
+    ratio = gearbox.radius_ratio
+
+    def torque(mu: float, tau_d: float, omega_worm: float) -> tuple[float, float, int]:
+        sigma = -1.0 if omega_worm <= -1e-9 else 1.0
+        d = sigma * tau_d
+        flank = 1 if d >= 0.0 else -1
+        k = factor(mu, float(flank))
+        return sigma * ratio * k * d, k, flank
+
+    return torque
+
+
+def load_per_flank(gearbox: Gearbox, mu: ArrayLike, tau_in: ArrayLike, omega_worm: ArrayLike
+                   ) -> tuple[FloatArray, FloatArray]:
+    """Eq. 28 quasi-statically, inverted: the gear-side load [N m, fixed frame] that needs the input torque
+    tau_in [N m] at this speed, per flank: (driving, coast), NaN where that flank cannot carry it.
+
+    The inverse of :func:`reflected_input_torque`: sigma tau_in = (r_w/r_g) K_s D, so D = sigma tau_in /
+    ((r_w/r_g) K_s) on the driving flank where that gives D >= 0 and on the coast flank where it gives
+    D < 0. In a self-locking box (K_- < 0) both hold for a driving torque: two loads need the same input
+    torque (the V of physics.md section 8); an input torque below the V's vertex (D = 0) has neither.
+    """
+    w = np.asarray(omega_worm, dtype=float)
+    sigma = motion_sign(w)
+    x = sigma * np.asarray(tau_in, dtype=float) / gearbox.radius_ratio  # = K_s D
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d_plus = x / flank_factor(gearbox, mu, 1.0)
+        d_minus = x / flank_factor(gearbox, mu, -1.0)
+    driving = np.where(d_plus >= 0, sigma * d_plus, np.nan)
+    coast = np.where((d_minus < 0) & np.isfinite(d_minus), sigma * d_minus, np.nan)
+    return driving, coast
 
 
 def worm_acceleration(

@@ -22,6 +22,8 @@ class Friction(Protocol):
     model: str
     mu_constant: float  # [-]
     scale: float  # [-]
+    stribeck_rise: float  # [-]
+    stribeck_speed: float  # [m/s]
 
 
 class Gearbox(Protocol):
@@ -97,10 +99,30 @@ def _constant(friction: Friction, v_sliding: FloatArray) -> FloatArray:
     return np.where(np.isnan(v_sliding), np.nan, friction.mu_constant)
 
 
+def stribeck_friction_coefficient(v_sliding: ArrayLike, mu_kinetic: float, rise: float, speed: float) -> FloatArray:
+    """mu = mu_k + mu_s exp(-|V_s| / V_st)^2: the Stribeck law of Mablekos-Alexiou, da Cruz and Bergeles
+    (IEEE T-RO 37(4), 2021), as their public scripts evaluate it (``Transmission.getFrictionCoeff`` and
+    ``id_1dof_static.m``: ``kinFriction + strbFriction*exp(-abs(v)/strbVelocity)^2``, the square applied to
+    the exponential). They write it in the worm's angular speed; here in the sliding speed V_s [m/s], so
+    V_st = their velocity x r_w / cos(lambda).
+
+    Args:
+        v_sliding: sliding speed [m/s] (magnitude used); mu_kinetic, rise [-]; speed V_st [m/s] > 0.
+    """
+    v = np.abs(np.asarray(v_sliding, dtype=float))
+    return mu_kinetic + rise * np.exp(-v / speed) ** 2
+
+
+def _stribeck(friction: Friction, v_sliding: FloatArray) -> FloatArray:
+    return friction.scale * stribeck_friction_coefficient(v_sliding, friction.mu_constant, friction.stribeck_rise,
+                                                          friction.stribeck_speed)
+
+
 #: model name -> mu(friction parameters, sliding velocity [m/s])
 FRICTION_MODELS: dict[str, Callable[[Friction, FloatArray], FloatArray]] = {
     "agma": _agma,
     "constant": _constant,
+    "stribeck": _stribeck,
 }
 
 
@@ -112,18 +134,25 @@ def _constant_float(friction: Friction, v_sliding: float) -> float:
     return math.nan if v_sliding != v_sliding else friction.mu_constant
 
 
+def _stribeck_float(friction: Friction, v_sliding: float) -> float:
+    decay = math.exp(-abs(v_sliding) / friction.stribeck_speed)
+    return friction.scale * (friction.mu_constant + friction.stribeck_rise * decay**2)
+
+
 #: the same models for one float (plain math; the simulator's scalar fast path):
 #: model name -> mu(friction parameters, sliding velocity [m/s] as a float) as a float
 FLOAT_FRICTION_MODELS: dict[str, Callable[[Friction, float], float]] = {
     "agma": _agma_float,
     "constant": _constant_float,
+    "stribeck": _stribeck_float,
 }
 
 
 def friction_coefficient(friction: Friction, gearbox: Gearbox, omega_worm: ArrayLike) -> FloatArray:
     """mu at worm speed omega_worm [rad/s] under the rig's friction model.
 
-    "agma": scale * agma_friction_coefficient(sliding_velocity); "constant": mu_constant.
+    "agma": scale * agma_friction_coefficient(sliding_velocity); "constant": mu_constant;
+    "stribeck": scale * stribeck_friction_coefficient(sliding_velocity, mu_constant, stribeck_rise, stribeck_speed).
 
     Raises:
         KeyError: unknown model (load_rig rejects it earlier with a ParameterError).

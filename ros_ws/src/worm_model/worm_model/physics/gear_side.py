@@ -12,6 +12,8 @@ omega_worm [rad/s] is the worm speed, the gear turns at ratio * omega_worm.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from worm_model.physics.parameters import Rig
@@ -22,6 +24,19 @@ def gear_side_drag(rig: Rig, omega_worm) -> np.ndarray:
     load = rig.load_motor
     omega_gear = rig.gearbox.ratio * np.asarray(omega_worm, dtype=float)
     return rig.load_motor_count * (load.viscous_drag * omega_gear + load.coulomb_drag * np.sign(omega_gear))
+
+
+def make_gear_side_drag_float(rig: Rig) -> Callable[[float], float]:
+    """:func:`gear_side_drag` at one float worm speed [rad/s], in plain math (per-sample loops): the same
+    operations in the same order, so the same number."""
+    count, ratio = rig.load_motor_count, rig.gearbox.ratio
+    viscous, coulomb = rig.load_motor.viscous_drag, rig.load_motor.coulomb_drag
+
+    def drag(omega_worm: float) -> float:
+        omega_gear = ratio * omega_worm
+        return count * (viscous * omega_gear + coulomb * ((omega_gear > 0) - (omega_gear < 0)))
+
+    return drag
 
 
 def gear_side_load(rig: Rig, tau_load, omega_worm) -> np.ndarray:

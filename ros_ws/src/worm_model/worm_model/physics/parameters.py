@@ -12,7 +12,9 @@ version 1 (current): top-level keys ``format``, ``version``, ``name`` and the se
 with exactly one of ``source`` / ``assumption``.  Values are converted to SI with
 :mod:`worm_model.physics.units`.  Which fields exist, their dimension and their range check
 are declared once, as ``metadata`` on the dataclass fields below; the loader walks
-that table (adding a parameter is adding a field).
+that table (adding a parameter is adding a field).  A field declared optional (the sensor
+chain's tacho scaling, ripple order and ADC timing) may be left out of a file: it then takes
+the bundled rig's value, so a file written without them reads as it always did.
 
 Conventions: SI units, angles in rad.  ``hand`` is +1 for a right-hand worm and -1
 for a left-hand one; it only decides the sign of the gear rotation,
@@ -25,6 +27,7 @@ field (``nmrv030_rig.yaml: gearbox.lead_angle: ...``).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import os
 from collections.abc import Callable, Mapping
@@ -36,6 +39,11 @@ from worm_model.cli.errors import InputError
 from worm_model.files.reading import load_yaml
 from worm_model.physics.friction import FRICTION_MODELS
 from worm_model.physics.units import UNITS, normalize_unit, to_si
+
+#: the SI unit of each dimension, for messages
+_SI = {"length": "m", "inertia": "kg m^2", "resistance": "ohm", "inductance": "H", "torque_constant": "N m/A",
+       "back_emf_constant": "V s/rad", "viscous": "N m s/rad", "torque": "N m", "current": "A", "voltage": "V",
+       "angular_velocity": "rad/s", "frequency": "Hz"}
 
 FORMAT_NAME = "worm_rig_parameters"
 FORMAT_VERSION = 1
@@ -75,9 +83,41 @@ CHECKS: dict[str, tuple[Callable[[float], bool], str]] = {
 }
 
 
-def _num(dimension: str, check: str = "positive") -> Any:
-    """Field declaration of a numeric leaf: its dimension and its range check."""
-    return field(metadata={"dimension": dimension, "check": check})
+#: physically plausible SI values per dimension, for an electric drive on a worm gear from a bench rig to an
+#: industrial one: a value outside is a unit slip or a typo (K_t = 1e-12 N m/A, a 1 MV supply), refused
+#: with the range. A field may narrow it (``plausible=``); dimensionless fields have their own.
+PLAUSIBLE: dict[str, tuple[float, float]] = {
+    "length": (1e-4, 2.0),  # [m] a pitch radius from 0.1 mm to 2 m
+    "inertia": (1e-10, 1e3),  # [kg m^2]
+    "resistance": (1e-3, 1e3),  # [ohm] a winding
+    "inductance": (1e-7, 10.0),  # [H]
+    "torque_constant": (1e-4, 50.0),  # [N m/A]
+    "back_emf_constant": (1e-4, 50.0),  # [V s/rad]
+    "viscous": (0.0, 10.0),  # [N m s/rad]
+    "torque": (0.0, 1e3),  # [N m] a drag torque
+    "current": (0.0, 1e4),  # [A]
+    "voltage": (0.1, 1e3),  # [V]
+    "angular_velocity": (0.0, 1e4),  # [rad/s] a noise level
+    "frequency": (1.0, 1e7),  # [Hz] a sample rate
+}
+#: K_t [N m/A] and K_e [V s/rad] of one DC motor are the same number in SI; a rig file may differ this much
+#: (rounding, two data-sheet values), not by the factor a unit slip makes (V/krpm taken for V s/rad: 105)
+MOTOR_CONSTANT_RATIO = 1.5
+#: the supply may exceed the drive motor's rated voltage this many times, no more (PWM drives a 24 V motor
+#: from up to ~48 V)
+SUPPLY_OVER_MOTOR = 2.5
+
+
+def _num(dimension: str, check: str = "positive", plausible: tuple[float, float] | None = None, *,
+         optional: bool = False, default: float | None = None) -> Any:
+    """Field declaration of a numeric leaf: its dimension, its range check and its plausible SI range. A file
+    may leave the leaf out when it is ``optional`` (the bundled rig's value is taken then) or has a ``default``
+    (that value [SI], so the files written before the leaf existed still load)."""
+    metadata = {"dimension": dimension, "check": check, "plausible": plausible or PLAUSIBLE.get(dimension),
+                "optional": optional}
+    if default is None:
+        return field(metadata=metadata)
+    return field(default=default, metadata={**metadata, "default": default})
 
 
 def _text() -> Any:
@@ -92,12 +132,12 @@ def _section(cls: type) -> Any:
 class Gearbox:
     """Worm gear set (SI).  ``gear_inertia`` is gear + output shaft, NOT the load motors."""
 
-    worm_starts: int = _num("dimensionless", "count")
-    gear_teeth: int = _num("dimensionless", "count")
+    worm_starts: int = _num("dimensionless", "count", (1, 20))
+    gear_teeth: int = _num("dimensionless", "count", (1, 1000))
     worm_pitch_radius: float = _num("length")  # r_w [m]
     gear_pitch_radius: float = _num("length")  # r_g [m]
-    lead_angle: float = _num("angle", "angle")  # lambda [rad]
-    normal_pressure_angle: float = _num("angle", "angle")  # phi_n [rad]
+    lead_angle: float = _num("angle", "angle", (math.radians(0.5), math.radians(45)))  # lambda [rad]
+    normal_pressure_angle: float = _num("angle", "angle", (math.radians(5), math.radians(40)))  # phi_n [rad]
     hand: int = _num("dimensionless", "hand")  # +1 right-hand, -1 left-hand
     worm_inertia: float = _num("inertia")  # J_w [kg m^2]
     gear_inertia: float = _num("inertia")  # J_g [kg m^2]
@@ -130,11 +170,16 @@ class Gearbox:
 
 @dataclass(frozen=True)
 class Friction:
-    """Tooth-thread friction model: ``model`` is a key of ``worm_model.physics.friction.FRICTION_MODELS``."""
+    """Tooth-thread friction model: ``model`` is a key of ``worm_model.physics.friction.FRICTION_MODELS``.
 
-    model: str = _text()  # "agma" or "constant"
-    mu_constant: float = _num("dimensionless", "nonnegative")  # used by model "constant"
-    scale: float = _num("dimensionless")  # multiplies the AGMA curve
+    ``stribeck_rise`` and ``stribeck_speed`` are optional (model "stribeck" only; 0 and 0.01 m/s when left out).
+    """
+
+    model: str = _text()  # "agma", "constant" or "stribeck"
+    mu_constant: float = _num("dimensionless", "nonnegative", (0.0, 1.0))  # "constant"; the kinetic mu of "stribeck"
+    scale: float = _num("dimensionless", "positive", (0.01, 100.0))  # multiplies the AGMA curve and the Stribeck law
+    stribeck_rise: float = _num("dimensionless", "nonnegative", (0.0, 1.0), default=0.0)  # mu_s of "stribeck"
+    stribeck_speed: float = _num("velocity", "positive", (1e-6, 10.0), default=0.01)  # V_st [m/s] of "stribeck"
 
 
 @dataclass(frozen=True)
@@ -152,17 +197,49 @@ class Motor:
     max_voltage: float = _num("voltage")  # [V]
 
 
+#: The firmware's analogue conversion order within one sample period (firmware/adc_mux.c): per motor its
+#: armature current, then its tachogenerator. Channel k is held at (k * adc_conversion_cycles +
+#: adc_hold_cycles) ADC clocks after the tick (:meth:`Sensors.sample_times`).
+ADC_SEQUENCE = ("current_drive", "tacho_drive", "current_load_1", "tacho_load_1", "current_load_2", "tacho_load_2")
+
+
 @dataclass(frozen=True)
 class Sensors:
-    """Measurement chain of one motor channel (SI)."""
+    """The rig's measurement chain (SI): what the simulator reproduces and what an estimator's noise model reads.
+
+    The current and tacho figures hold for every motor's channel but the tacho's resolution, which is per
+    shaft (the load motors' tachos turn with the gear, 1/ratio slower than the worm).
+    """
 
     current_noise_std: float = _num("current", "nonnegative")  # [A]
     current_lsb: float = _num("current")  # ADC resolution of the Hall current channel [A]
     tacho_noise_std: float = _num("angular_velocity", "nonnegative")  # [rad/s]
     tacho_ripple: float = _num("dimensionless", "fraction")  # relative ripple amplitude
-    encoder_pulses_per_rev: int = _num("dimensionless", "count")  # per channel
-    encoder_decoding: int = _num("dimensionless", "count")  # 1, 2 or 4 (quadrature)
+    encoder_pulses_per_rev: int = _num("dimensionless", "count", (1, 1e7))  # per channel
+    encoder_decoding: int = _num("dimensionless", "count", (1, 4))  # 1, 2 or 4 (quadrature)
     sample_rate_hz: float = _num("frequency")  # [Hz]
+    tacho_drive_lsb: float = _num("angular_velocity", optional=True)  # ADC resolution, drive tacho [rad/s]
+    tacho_load_lsb: float = _num("angular_velocity", optional=True)  # ADC resolution, each load tacho [rad/s]
+    tacho_ripple_order: int = _num("dimensionless", "count", optional=True)  # ripple periods per shaft turn
+    adc_clock_hz: float = _num("frequency", optional=True)  # the ADC's conversion clock [Hz]
+    adc_conversion_cycles: int = _num("dimensionless", "count", optional=True)  # ADC clocks per conversion
+    adc_hold_cycles: float = _num("dimensionless", "nonnegative", optional=True)  # clocks to the sample-and-hold
+
+    @property
+    def counts_per_rev(self) -> int:
+        """Encoder counts per shaft turn after decoding."""
+        return self.encoder_pulses_per_rev * self.encoder_decoding
+
+    def sample_times(self, sequence: tuple[str, ...] = ADC_SEQUENCE) -> dict[str, float]:
+        """Signal -> instant [s] after the tick at which its channel is held, for channels converted one after
+        the other in ``sequence`` order (default: the firmware's, :data:`ADC_SEQUENCE`)."""
+        cycle = 1.0 / self.adc_clock_hz
+        return {signal: (k * self.adc_conversion_cycles + self.adc_hold_cycles) * cycle
+                for k, signal in enumerate(sequence)}
+
+    def sequence_time(self, channels: int = len(ADC_SEQUENCE)) -> float:
+        """[s] from the tick to the end of the last of ``channels`` conversions."""
+        return channels * self.adc_conversion_cycles / self.adc_clock_hz
 
 
 @dataclass(frozen=True)
@@ -174,7 +251,7 @@ class Rig:
     friction: Friction = _section(Friction)
     drive_motor: Motor = _section(Motor)
     load_motor: Motor = _section(Motor)
-    load_motor_count: int = _num("dimensionless", "count")
+    load_motor_count: int = _num("dimensionless", "count", (1, 16))
     supply_voltage: float = _num("voltage")  # [V]
     sensors: Sensors = _section(Sensors)
     source: str = field(default="", metadata={"kind": "origin"})  # file it came from
@@ -270,7 +347,28 @@ def _checked(f: dataclasses.Field[Any], value: float, origin: str, where: str, s
     predicate, message = CHECKS[f.metadata["check"]]
     if not predicate(result):
         raise ParameterError(origin, where, f"value {shown}: {message}")
+    plausible = f.metadata.get("plausible")
+    if plausible is not None and not plausible[0] <= result <= plausible[1]:
+        low, high = plausible
+        si = {"angle": "rad", "dimensionless": ""}.get(f.metadata["dimension"], _SI.get(f.metadata["dimension"], ""))
+        span = (f"{math.degrees(low):g} .. {math.degrees(high):g} deg" if f.metadata["dimension"] == "angle"
+                else f"{low:g} .. {high:g}{' ' + si if si else ''}")
+        raise ParameterError(origin, where, f"value {shown} = {result:g}{' ' + si if si else ''} (SI) is not a "
+                                            f"plausible {where.rsplit('.', 1)[-1]}: expected {span} (a unit slip?)")
     return result
+
+
+@functools.lru_cache(maxsize=1)
+def _bundled_rig() -> Rig:
+    return load_rig(None)
+
+
+def _bundled_value(dotted: str) -> Any:
+    """The bundled rig's value of an optional field (``sensors.adc_clock_hz``) a file leaves out."""
+    value: Any = _bundled_rig()
+    for name in dotted.split("."):
+        value = getattr(value, name)
+    return value
 
 
 def _build(cls: type, node: Any, origin: str, prefix: str, leaves: bool) -> Any:
@@ -285,6 +383,12 @@ def _build(cls: type, node: Any, origin: str, prefix: str, leaves: bool) -> Any:
         if f.metadata.get("kind") == "origin":
             continue
         if f.name not in node:
+            if "default" in f.metadata:
+                kwargs[f.name] = f.metadata["default"]
+                continue
+            if f.metadata.get("optional") and origin != str(default_rig_path()):
+                kwargs[f.name] = _bundled_value(prefix + f.name)
+                continue
             raise ParameterError(origin, where, "missing")
         raw = node[f.name]
         if "section" in f.metadata:
@@ -304,11 +408,27 @@ def _build(cls: type, node: Any, origin: str, prefix: str, leaves: bool) -> Any:
 
 
 def check_rig(rig: Rig, origin: str) -> None:
-    """Cross-field checks: friction model known; n/Z consistent with r_w tan(lambda)/r_g within 5 %.
+    """Cross-field checks: friction model known; n/Z consistent with r_w tan(lambda)/r_g within 5 %; each
+    motor's K_t and K_e the same number in SI within MOTOR_CONSTANT_RATIO; a supply the drive motor is
+    rated for (at most SUPPLY_OVER_MOTOR x its max_voltage).
 
     Raises:
         ParameterError: naming the fields and both values.
     """
+    for section in ("drive_motor", "load_motor"):
+        motor: Motor = getattr(rig, section)
+        ratio = motor.torque_constant / motor.back_emf_constant
+        if not 1 / MOTOR_CONSTANT_RATIO <= ratio <= MOTOR_CONSTANT_RATIO:
+            raise ParameterError(
+                origin, f"{section}.torque_constant vs {section}.back_emf_constant",
+                f"K_t = {motor.torque_constant:g} N m/A but K_e = {motor.back_emf_constant:g} V s/rad: in SI they "
+                f"are the same constant of a DC motor, these differ {max(ratio, 1 / ratio):.3g}-fold (one of them "
+                "in another unit?)")
+    if rig.supply_voltage > SUPPLY_OVER_MOTOR * rig.drive_motor.max_voltage:
+        raise ParameterError(
+            origin, "supply_voltage", f"{rig.supply_voltage:g} V is {rig.supply_voltage / rig.drive_motor.max_voltage:.3g}"
+            f" x the drive motor's max_voltage {rig.drive_motor.max_voltage:g} V: not a supply that motor runs on "
+            "(a unit slip?)")
     if rig.friction.model not in FRICTION_MODELS:
         raise ParameterError(
             origin, "friction.model", f"unknown model {rig.friction.model!r} (known: {', '.join(FRICTION_MODELS)})"

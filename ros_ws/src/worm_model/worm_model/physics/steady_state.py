@@ -23,8 +23,7 @@ from scipy.optimize import brentq
 import math
 from collections.abc import Callable
 
-from worm_model.physics.dynamics import reflected_input_torque
-from worm_model.physics.efficiency import make_flank_factor_float
+from worm_model.physics.dynamics import make_reflected_input_torque_float, reflected_input_torque
 from worm_model.physics.friction import friction_coefficient, make_friction_coefficient_float
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.physics.motor import shaft_torque, steady_state_current
@@ -81,14 +80,11 @@ def make_balancing_torque_float(rig: Rig) -> Callable[[float, float], float]:
     computes it for every estimate. Agrees with it to round-off (the friction law's float twin does);
     a test checks. Speeds below 1e-9 rad/s count as positive (motion_sign with no torque)."""
     mu_of = make_friction_coefficient_float(rig.friction, rig.gearbox)
-    factor = make_flank_factor_float(rig.gearbox)
-    ratio = rig.gearbox.radius_ratio
+    reflected = make_reflected_input_torque_float(rig.gearbox)
 
     def torque(tau_load: float, omega_worm: float) -> float:
         if not (math.isfinite(tau_load) and math.isfinite(omega_worm)):
             return 0.0
-        sigma = -1.0 if omega_worm <= -1e-9 else 1.0
-        d = sigma * tau_load
-        return sigma * ratio * factor(mu_of(omega_worm), 1.0 if d >= 0.0 else -1.0) * d
+        return reflected(mu_of(omega_worm), tau_load, omega_worm)[0]
 
     return torque

@@ -39,12 +39,15 @@ UNITS: dict[str, tuple[float, str]] = {
     "N m": (1.0, "torque"),
     "mN m": (1e-3, "torque"),
     "N m/A": (1.0, "torque_constant"),
+    "mN m/A": (1e-3, "torque_constant"),
     "V s/rad": (1.0, "back_emf_constant"),
     "V/krpm": (1.0 / (1000.0 * _RPM), "back_emf_constant"),
     "N m s/rad": (1.0, "viscous"),
     "mN m/krpm": (1e-3 / (1000.0 * _RPM), "viscous"),
     # speed and frequency
     "rad/s": (1.0, "angular_velocity"),
+    "m/s": (1.0, "velocity"),
+    "mm/s": (1e-3, "velocity"),
     "rpm": (_RPM, "angular_velocity"),
     "Hz": (1.0, "frequency"),
     # dimensionless

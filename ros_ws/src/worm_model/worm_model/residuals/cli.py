@@ -24,20 +24,22 @@ import numpy as np
 
 from worm_model.physics.parameters import ParameterError, default_rig_path, load_rig
 from worm_model.cli.errors import run_tool
-from worm_model.cli.options import Parser, existing_file, integer, number
-from worm_model.files.writing import atomic_dir, check_output
-from worm_model.physics.envelope import Envelope
-from worm_model.rig_data.schema import RigDataError, check_envelope
+from worm_model.cli.options import Parser, existing_file, integer, number, output_path
+from worm_model.files.writing import Output, atomic_dir, check_output
+from worm_model.rig_data.schema import RigDataError
 
-from worm_model.residuals.analysis import Settings, Problem, analyse, extended_effects, make_split
+from worm_model.residuals.analysis import Problem, Settings, analyse, extended_effects, make_split
 from worm_model.residuals.data import load_data
+from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
 from worm_model.residuals.effects import EFFECTS
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
-from worm_model.residuals.free import FREE_PARAMETERS, STANDARD_REFIT, check_free, read_free
+from worm_model.residuals.free import FREE_PARAMETERS, STANDARD_REFIT, check_free, read_free, resolve_parameters
 from worm_model.residuals.model import ALPHA_TIME_CONSTANT, prepare_signals
 from worm_model.cli.progress import Progress
 from worm_model.residuals.report import build_report, console_summary, windowed_rms, write_json, write_plots
 
+#: what residuals writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
+OUTPUT = Output("residuals", names=("report.json", "extended_rig.yaml", "*.png"))
 MIN_SAMPLES = 200  # per set: fewer cannot rank the 14 candidates (effects.EFFECTS)
 
 
@@ -62,11 +64,11 @@ def build_parser() -> argparse.ArgumentParser:
                     "backlash shows.",
         epilog="CSV schema: header row; required columns t [s], current_drive [A], omega_worm [rad/s], "
                "theta_worm [rad], tau_load [N m] (+ opposes + rotation); optional voltage_drive [V], "
-               "theta_gear [rad], current_load [A], temperature [degC]. See README.md.",
+               "theta_gear [rad], current_load [A], temperature [degC]. See docs/bags-and-tools.md.",
         formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     p.add_argument("data", help="measured data: a CSV file in the worm_rig_data schema, or a rosbag2 directory "
                                 "(converted with worm_rig_driver's bag exporter, which must be installed)")
-    p.add_argument("--out", required=True,
+    p.add_argument("--out", required=True, type=output_path,
                    help="output directory (created; an existing one is replaced only with --force): report.json, "
                         "extended_rig.yaml, PNG plots")
     p.add_argument("--force", action="store_true", help="replace an existing --out directory")
@@ -78,10 +80,12 @@ def build_parser() -> argparse.ArgumentParser:
                         f"allowed: {', '.join(FREE_PARAMETERS)}")
     p.add_argument("--refit", default=",".join(STANDARD_REFIT),
                    help="comma-separated parameters refitted always, on top of the free list ('none' for none): "
-                        "the declared numbers a rig file typically gets wrong (worm_model.residuals.free explains "
-                        "the choice); a deviation beyond a parameter's tolerance that an effect is an alias of "
-                        "(K_t: sensor_gain, drags: bearing_coulomb/viscous_drag, rotor inertia: inertia_error) is "
-                        "named as that effect")
+                        "the declared numbers a rig file typically gets wrong, whatever their source: or assumption: "
+                        "(worm_model.residuals.free explains the choice; friction.mu is the friction model's mu "
+                        "parameter, friction.scale under agma, friction.mu_constant under constant); a deviation "
+                        "beyond a parameter's tolerance that an effect is an alias of (K_t: sensor_gain, drags: "
+                        "bearing_coulomb/viscous_drag, rotor inertia: inertia_error) is named as that effect; drags, "
+                        "mu and inertias are never fitted below 0")
     p.add_argument("--candidates", default=",".join(EFFECTS),
                    help="comma-separated candidate effects to consider")
     p.add_argument("--holdout-fraction", type=number("", 0, 1, open_low=True, open_high=True), default=d.holdout_fraction,
@@ -104,6 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--confidence", type=number("", 0, 1, open_low=True, open_high=True), default=d.confidence, help="level of the confidence intervals")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_epos_arguments(p)
     return p
 
 
@@ -127,11 +132,15 @@ def _main(argv: list[str] | None) -> int:
         rig = load_rig(args.params)
         free = check_free(_names(args.free, FREE_PARAMETERS, "free parameter", parser)) if args.free is not None \
             else read_free(args.params)
+        # a friction parameter the rig's friction model does not read would be a correction that cannot move
+        resolve_parameters(rig, free, "--free" if args.free is not None else str(args.params or default_rig_path()))
+        resolve_parameters(rig, settings.refit, "--refit")
         progress.stage("reading data", 1)
-        data = load_data(args.data)
-        check_envelope(data, Envelope.of(rig))
+        data = load_data(args.data, rig, epos_settings(args, rig))  # its units checked against the rig
+        for note in data.notes:
+            print(f"residuals: note: {note}")
         progress.update_to(1)
-        check_output(args.out, args.force, folder=True)
+        check_output(args.out, args.force, folder=True, inputs=[args.data, args.params], output=OUTPUT)
     finally:
         progress.close()
     signals = prepare_signals(rig, data, settings.alpha_time_constant, settings.reference_temperature)
@@ -143,7 +152,7 @@ def _main(argv: list[str] | None) -> int:
                   f"{settings.min_speed} rad/s (need {MIN_SAMPLES}); record longer or lower --block / --min-speed",
                   file=sys.stderr)
             return 2
-    with atomic_dir(args.out, args.force) as folder:
+    with atomic_dir(args.out, args.force, inputs=[args.data, args.params], output=OUTPUT) as folder:
         return _analyse(args, rig, free, data, signals, split, settings, progress, folder, Path(args.out))
 
 

@@ -656,7 +656,7 @@ class Backlash(_Base):
     1/J_eff = 1/J_g + i (r_w/r_g) K_s / J_w: the gear's own inertia and the small part
     the freed worm adds) per unit of gap, so the coefficient *is* the gap; the gap that
     times the crossing is searched on a grid.  The fitted signal is the transmission
-    error (analysis.py: per-run encoder offsets plus this term).  In the drive current
+    error (fitting.fit_te: per-run encoder offsets plus this term).  In the drive current
     backlash leaves only a few-ms transient at each flank change, of the size of the
     declared model's own transient error there, so no current term is fitted for it.
     """

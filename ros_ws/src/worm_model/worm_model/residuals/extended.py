@@ -170,8 +170,9 @@ def write_parameter_file(path: str | Path, base_file: str | Path, model: Extende
                          effect_notes: Mapping[str, str] | None = None) -> None:
     """Write the extended model: the base rig file with identified free values, ``free:`` and ``effects:``.
 
-    Every identified leaf gets ``source: "<provenance> (95 % CI +-x unit)"`` in place of its
-    assumption, so the file stays a valid ``worm_rig_parameters`` file.
+    Every identified leaf gets ``source: "<provenance> (95 % CI +-x unit); declared <value> <unit>, <its
+    source or assumption>"`` in place of its provenance, so the file stays a valid ``worm_rig_parameters``
+    file and keeps what was declared beside what was identified.
     """
     document = yaml.safe_load(Path(base_file).read_text(encoding="utf-8"))
     document = json.loads(json.dumps(document))  # break YAML anchors: load_motor aliases drive_motor
@@ -181,9 +182,12 @@ def write_parameter_file(path: str | Path, base_file: str | Path, model: Extende
         unit = node["unit"]
         value = _si_to_unit(get_value(model.rig, name), unit)
         ci = _si_to_unit(free_ci.get(name, math.nan), unit)
+        kind = "source" if "source" in node else "assumption"
+        shown = f"{node['value']}" + ("" if unit == "1" else f" {unit}")
+        before = f"declared {shown}, {kind}: {_shortened(str(node.get(kind, '')))}"
         node = {k: v for k, v in node.items() if k not in ("source", "assumption")}
         node["value"] = float(f"{value:.6g}")
-        node["source"] = f"{provenance} (95 % CI +-{ci:.2g} {unit})"
+        node["source"] = f"{provenance} (95 % CI +-{ci:.2g} {unit}); {before}"
         document[section][leaf] = node
     document["free"] = list(free)
     effects: dict[str, Any] = {}
@@ -195,6 +199,11 @@ def write_parameter_file(path: str | Path, base_file: str | Path, model: Extende
               "# effect plug-ins' parameter names and units (worm_rig_driver effects.py).\n")
     notes = "".join(f"# {name}: {note}\n" for name, note in (effect_notes or {}).items())
     Path(path).write_text(header + notes + yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
+
+
+def _shortened(text: str, limit: int = 120) -> str:
+    """``text`` cut to ``limit`` characters (an ellipsis marks the cut)."""
+    return text if len(text) <= limit else text[: limit - 3].rstrip() + "..."
 
 
 def write_with_effects(path: str | Path, effects: Mapping[str, Any], base_file: str | Path | None = None) -> Path:

@@ -15,9 +15,13 @@ from typing import Any
 
 import numpy as np
 
+from worm_model.physics.friction import friction_coefficient, sliding_velocity
 from worm_model.physics.units import FloatArray
 
-from worm_model.residuals.analysis import Analysis, Problem
+from worm_model.residuals.analysis import Analysis
+from worm_model.residuals.descriptors import time_in_run
+from worm_model.residuals.fitting import Problem, fit
+from worm_model.residuals.free import FREE_PARAMETERS, LOWER_BOUNDS, TOLERANCES, get_value, mu_parameter
 
 UNIT = "A"
 
@@ -103,6 +107,7 @@ def build_report(problem: Problem, result: Analysis, tau_d: dict[str, float], fi
                      "min_improvement": s.min_improvement, "max_effects": s.max_effects,
                      "alpha_time_constant": s.alpha_time_constant, "confidence": s.confidence,
                      "reference_temperature": s.reference_temperature,
+                     "check_outside_vocabulary": s.check_outside_vocabulary,
                      "candidates": list(s.candidates)},
         "fitted_signal": "current_drive",
         "unit": UNIT,
@@ -143,11 +148,13 @@ def build_report(problem: Problem, result: Analysis, tau_d: dict[str, float], fi
         "tau_d_note": "tau_d inverted from each held-out sample's current by the declared (before) and the "
                       "extended (after) model; the _20ms figures average the error over 20 ms stretches first",
         "free_parameters": {
-            name: {"declared": declared_value, "value": final.free_values[name],
-                   "ci_half_width": final.free_ci.get(name, math.nan)}
-            for name, declared_value in ((n, _declared(problem, n)) for n in final.free)},
+            name: {"declared": get_value(problem.rig0, name), "value": final.free_values[name],
+                   "ci_half_width": final.free_ci.get(name, math.nan)} for name in final.free},
         "effects": [effect_record(e, s.confidence) for e in final.effects],
         "pruned": result.pruned,
+        "outside_vocabulary": {"dropped": result.outside,
+                               "note": "effects accepted by the search that do not earn their keep beside a generic "
+                                       "description of the residual left above the floor: not named"},
         "rounds": rounds,
         "effective_samples": {"declared": declared.n_eff, "final": final.n_eff, "train": declared.n_train,
                               "transmission_error": None if final.te is None else final.te.n_eff,
@@ -159,49 +166,57 @@ def build_report(problem: Problem, result: Analysis, tau_d: dict[str, float], fi
 
 
 def corrections(problem: Problem, result: Analysis) -> list[dict[str, Any]]:
-    """Every fitted rig parameter: declared and identified value, interval, band, and what became of it."""
-    from worm_model.residuals.free import TOLERANCES  # noqa: PLC0415
+    """Every fitted rig parameter: declared and identified value, interval, band, and what became of it.
 
+    ``ratio`` is identified / declared (None around a declared 0, where the band is absolute: free.Tolerance);
+    ``band`` the band's edges [SI] (None: unbounded), ``band_text`` as the console prints it.
+    """
     out = []
     final = result.final
     for name in final.free:
-        declared, value = _declared(problem, name), final.free_values[name]
+        declared, value = get_value(problem.rig0, name), final.free_values[name]
         tol = TOLERANCES.get(name)
         alias = next((a.effect for a in result.aliases if name in a.parameters), None)
-        ratio = value / declared if declared else math.nan
-        outside = tol is not None and ((tol.low is not None and ratio < tol.low) or
-                                       (tol.high is not None and ratio > tol.high))
+        outside = tol is not None and tol.outside(declared, value, problem.rig0)
         status = (f"beyond its tolerance: named as the effect {alias}" if alias else
                   "beyond its tolerance band, kept as a correction" if outside else "correction")
+        low_bound = LOWER_BOUNDS.get(name)
+        if low_bound is not None and value <= low_bound:
+            status += f" (held at its physical bound {low_bound:g})"
+        unit = FREE_PARAMETERS.get(name, ("", ""))[0]
         out.append({"name": name, "declared": declared, "identified": value,
-                    "ci_half_width": final.free_ci.get(name, math.nan), "ratio": ratio,
-                    "band": None if tol is None else [tol.low, tol.high], "status": status})
+                    "ci_half_width": final.free_ci.get(name, math.nan),
+                    "ratio": value / declared if declared else None,
+                    "band": None if tol is None else list(tol.band(declared, problem.rig0)),
+                    "band_text": "" if tol is None else tol.describe(declared, problem.rig0, unit),
+                    "unit": unit, "status": status})
     return out
+
+
+def correction_line(row: dict[str, Any]) -> str:
+    """One row of :func:`corrections` as the console prints it."""
+    ratio = "" if row["ratio"] is None else f"; x{row['ratio']:.3g}"
+    band = f", tolerance {row['band_text']}" if row["band_text"] else ""
+    return (f"parameter {row['name']}: declared {row['declared']:.6g} -> {row['identified']:.6g} "
+            f"+- {row['ci_half_width']:.2g} (95 %{ratio}{band}): {row['status']}")
 
 
 def mu_line(problem: Problem, result: Analysis) -> str | None:
     """The mu correction as a friction coefficient at the data's median sliding speed and reference temperature."""
-    if "friction.scale" not in result.final.free:
+    name = mu_parameter(problem.rig0.friction.model)
+    if name not in result.final.free:
         return None
-    from worm_model.physics.friction import friction_coefficient, sliding_velocity  # noqa: PLC0415
-
     used = result.split.train | result.split.held_out
     omega = np.array([float(np.median(np.abs(problem.signals.omega[used])))])
     rig0, final = problem.rig0, result.final
     mu0 = float(friction_coefficient(rig0.friction, rig0.gearbox, omega)[0])
     mu1 = float(friction_coefficient(final.rig.friction, final.rig.gearbox, omega)[0])
-    half = mu1 / final.rig.friction.scale * final.free_ci.get("friction.scale", math.nan) \
-        if final.rig.friction.scale else math.nan
+    value = get_value(final.rig, name)
+    half = mu1 / value * final.free_ci.get(name, math.nan) if value else math.nan
     vs = float(sliding_velocity(rig0.gearbox, omega)[0])
     return (f"correction mu: declared {mu0:.4f}, identified {mu1:.4f} +- {half:.4f} at "
             f"{problem.settings.reference_temperature:g} degC (sliding speed {vs:.2f} m/s, the data's median; "
-            f"friction.scale {rig0.friction.scale:.4g} -> {final.rig.friction.scale:.4g})")
-
-
-def _declared(problem: Problem, name: str) -> float:
-    from worm_model.residuals.free import get_value  # noqa: PLC0415
-
-    return get_value(problem.rig0, name)
+            f"friction model {rig0.friction.model}: {name} {get_value(rig0, name):.4g} -> {value:.4g})")
 
 
 # --------------------------------------------------------------------------- plots
@@ -262,8 +277,8 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
     gear_orders = np.arange(0.1, 4.0 + 1e-9, 0.02)
     for ax, angle, orders, label in ((axes[0], sig.theta_worm, worm_orders, "worm (= motor) orders [cycles/worm turn]"),
                                      (axes[1], sig.theta_gear, gear_orders, "gear orders [cycles/gear turn]")):
-        for fit, name in ((declared, "declared model"), (final, "with effects")):
-            ax.plot(orders, order_spectrum(fit.residual, angle, split.train, orders) * 1e3, lw=0.8, label=name)
+        for fitted, name in ((declared, "declared model"), (final, "with effects")):
+            ax.plot(orders, order_spectrum(fitted.residual, angle, split.train, orders) * 1e3, lw=0.8, label=name)
         ax.set(xlabel=label, ylabel="amplitude [mA]")
         ax.legend(loc="upper right")
     axes[0].axvline(rig.gearbox.worm_starts, color="grey", ls=":", lw=0.8)
@@ -276,11 +291,9 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
         written.append(unexplained_plot(out / "unexplained.png", problem, result, plt))
 
     # 3. per effect found: the residual it explains against its regressor
-    from worm_model.residuals.analysis import fit as refit  # noqa: PLC0415
-
     for k, ef in enumerate(final.effects):
         others = [(e.effect, e.grid) for e in final.effects if e is not ef]
-        without = refit(problem, others, final) if others else declared
+        without = fit(problem, others, final) if others else declared
         x_label, x = ef.effect.signature(final.rig, sig, ef.grid)
         on_te = ef.effect.fitted_signal == "transmission_error" and final.te is not None and without.te is not None
         if on_te:  # position effects: the transmission error's residual, in mrad
@@ -312,8 +325,7 @@ def unexplained_plot(path: Path, problem: Problem, result: Analysis, plt) -> str
     angle-domain spectra (worm and gear orders, each direction of rotation apart)."""
     sig, held, r = problem.signals, result.split.held_out, result.final.residual
     floor = result.noise.rms if result.noise is not None else math.nan
-    runs, first = np.unique(sig.run, return_index=True)
-    t_run = sig.t - sig.t[first][np.searchsorted(runs, sig.run)]
+    t_run = time_in_run(sig)
     panels = [("omega_worm [rad/s]", sig.omega), ("tau_load [N m]", sig.tau_load), ("time within the run [s]", t_run)]
     if sig.temperature is not None:
         panels.append(("temperature [degC]", sig.temperature))
@@ -353,11 +365,7 @@ def console_summary(problem: Problem, result: Analysis, tau_d: dict[str, float])
     kt = problem.rig0.drive_motor.torque_constant
     d, f = result.declared, result.final
     lines = []
-    for row in corrections(problem, result):
-        band = "" if not row["band"] or row["band"][0] is None else \
-            f", tolerance x{row['band'][0]:g}..x{row['band'][1]:g}"
-        lines.append(f"parameter {row['name']}: declared {row['declared']:.6g} -> {row['identified']:.6g} "
-                     f"+- {row['ci_half_width']:.2g} (95 %; x{row['ratio']:.3g}{band}): {row['status']}")
+    lines += [correction_line(row) for row in corrections(problem, result)]
     mu = mu_line(problem, result)
     if mu:
         lines.append(mu)
@@ -378,6 +386,9 @@ def console_summary(problem: Problem, result: Analysis, tau_d: dict[str, float])
         lines.append(f"    -> {'added ' + rnd.accepted if rnd.accepted else 'nothing significant left'}")
     if result.pruned:
         lines.append(f"dropped as redundant after later additions: {', '.join(result.pruned)}")
+    if result.outside:
+        lines.append(f"not named, as they only took a share of a residual no effect of the vocabulary describes "
+                     f"(they do not earn their keep beside a generic description of it): {', '.join(result.outside)}")
     for ef in f.effects:
         parts = [f"{p.name} = {ef.values[p.name]:.4g} +- {ef.ci.get(p.name, math.nan):.2g}{_unit(p.unit)}"
                  for p in ef.effect.parameters]

@@ -1,10 +1,15 @@
-"""Measured rig data: the ``worm_rig_data`` CSV schema and its conversion to and from bags.
+"""Measured rig data: the ``worm_rig_data`` CSV schema, its conversion to and from bags, drive-controller exports.
 
 =================  ==============================================================
 ``schema``         the CSV schema, :class:`MeasuredData`, CSV reader and writer
-``reader``         :func:`read_rig_data`: the one entry for CSV files and bags
+``reader``         :func:`read_rig_data`: the one entry for CSV files, bags and EPOS exports
+``epos``           EPOS Studio data-recorder exports (Maxon): header, channel table, SI,
+                   dirty rows reported and refused or skipped; one steady point per file
+``epos_options``   the load options (``--load-torque``, ``--load-mass`` ...) of the tools
+                   that read EPOS exports
+``plausibility``   rig data and calibration points against the rig: sample rate, units, angle
 ``bags``           RigSample bags <-> MeasuredData (``bag export`` / ``bag import``)
-``samples``        the rig's sample streams as recorded (RigSample or RigSamples batches)
+``samples``        the rig's sample streams as recorded (one per message or batched), in order
 =================  ==============================================================
 
 Start with :mod:`~worm_model.rig_data.schema`. Bags themselves (rosbag2 layouts,

@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import math
 import os
-import shutil
-import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any, Final
@@ -30,15 +28,15 @@ from worm_model.rig_data.schema import (
     REQUIRED_COLUMNS,
     MeasuredData,
     RigDataError,
-    check_envelope,
+    is_rig_csv,
     read_rig_csv,
     write_rig_csv,
 )
 from worm_model.rig_data.samples import SAMPLE_TOPICS, SAMPLE_TYPES, iter_samples
 from worm_model.bags.reader import BagReader
 from worm_model.bags.typestore import BagRecordingError
-from worm_model.files.writing import atomic_file
-from worm_model.physics.envelope import Envelope
+from worm_model.files.writing import Output, atomic_dir, atomic_file
+from worm_model.rig_data.plausibility import check_rig_data
 from worm_model.bags.writer import BagWriter
 from worm_model.bags.typestore import MessageTypes
 
@@ -240,11 +238,19 @@ def measured_to_bag(data: MeasuredData, out: Path | str, storage: str = 'mcap',
         return writer.counts[topic]
 
 
+#: what ``bag export`` writes, and recognises as its own (a CSV in the worm_rig_data schema) for --force
+EXPORT_OUTPUT: Final = Output("bag export", recognise=is_rig_csv)
+#: what ``bag import`` writes: a bag folder with the marker naming it (what --force may replace)
+IMPORT_OUTPUT: Final = Output("bag import")
+
+
 def bag_to_csv(bag: Path | str, csv_path: Path | str, topic: str | None = None,
-               allow_truncated: bool = False) -> MeasuredData:
+               allow_truncated: bool = False, force: bool = False) -> MeasuredData:
     """``bag export``: the bag's RigSample stream as a ``worm_rig_data`` CSV; returns what was written.
 
-    The CSV is written to a temporary file beside ``csv_path`` and renamed at the end.
+    The CSV is written to a temporary file beside ``csv_path`` and renamed at the end, under the output
+    policy of worm_model.files.writing (``force``: an existing worm_rig_data CSV may be replaced; never the
+    bag itself nor a file inside it).
 
     Raises:
         RigDataError: No usable RigSample topic or sample, or the CSV cannot be written.
@@ -252,18 +258,19 @@ def bag_to_csv(bag: Path | str, csv_path: Path | str, topic: str | None = None,
 
     """
     data = bag_to_measured(bag, topic, allow_truncated=allow_truncated)
-    with atomic_file(csv_path, force=True) as tmp:
+    with atomic_file(csv_path, force, inputs=[bag], output=EXPORT_OUTPUT) as tmp:
         write_rig_csv(tmp, data)
     return data
 
 
 def csv_to_bag(csv_path: Path | str, bag: Path | str, storage: str = 'mcap',
-               topic: str = DEFAULT_TOPIC, start_ns: int = 0, envelope: Envelope | None = None) -> int:
+               topic: str = DEFAULT_TOPIC, start_ns: int = 0, rig: Any = None, force: bool = False) -> int:
     """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample; returns the message count.
 
-    The CSV is read and checked whole first (every stamp a bag can hold; with ``envelope``, every
-    value inside what the rig can do), and the bag is written in a temporary folder beside ``bag``
-    and renamed at the end, so a bad file or a failed write leaves no bag.
+    The CSV is read and checked whole first (every stamp a bag can hold; with ``rig``, its units against
+    the rig as every reader of rig data checks them, worm_model.rig_data.plausibility), and the bag is written in a temporary folder beside
+    ``bag`` and renamed at the end, so a bad file or a failed write leaves no bag (worm_model.files.writing:
+    ``force`` replaces only a bag ``bag import`` wrote).
 
     Raises:
         RigDataError: A bad CSV (named by file, line and column), a stamp out of range, or a value
@@ -272,17 +279,14 @@ def csv_to_bag(csv_path: Path | str, bag: Path | str, storage: str = 'mcap',
 
     """
     data = read_rig_csv(csv_path)
-    if envelope is not None:
-        check_envelope(data, envelope)
+    if rig is not None:
+        check_rig_data(data, rig)
     check_stamps(data, start_ns)
     target = Path(bag)
-    if target.exists():
-        msg = f'{target}: exists; a new bag needs a new name'
-        raise BagRecordingError(msg)
-    work = Path(tempfile.mkdtemp(prefix=f'.{target.name}.', suffix='.tmp', dir=target.absolute().parent))
-    try:
-        n = measured_to_bag(data, work / target.name, storage, topic, start_ns)
-        os.replace(work / target.name, target)
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
+    with atomic_dir(target, force, inputs=[csv_path], output=IMPORT_OUTPUT) as work:
+        inner = work / target.name  # the writer names the storage files after the bag's folder
+        n = measured_to_bag(data, inner, storage, topic, start_ns)
+        for part in inner.iterdir():
+            os.replace(part, work / part.name)
+        inner.rmdir()
     return n

@@ -50,7 +50,8 @@ from typing import Final
 
 import numpy as np
 
-from worm_model.physics.envelope import Envelope
+from worm_model.cli.errors import InputError
+from worm_model.files.reading import check_input
 from worm_model.physics.units import FloatArray
 
 REQUIRED_COLUMNS: Final[dict[str, str]] = {
@@ -114,6 +115,10 @@ class MeasuredData:
     """Line of the CSV file each sample came from (None for other sources)."""
     damage: tuple[str, ...] = ()
     """Storage files read although truncated (messages lost), and what was lost."""
+    notes: tuple[str, ...] = ()
+    """What the reader derived or tolerated and the user should know (rows skipped, channels derived)."""
+    run_sources: tuple[str, ...] = ()
+    """The file each run came from, when the runs are several files (a folder of exports); else empty."""
 
     def __post_init__(self) -> None:
         n = len(self.t)
@@ -148,23 +153,6 @@ class MeasuredData:
             if kwargs[name] is not None:
                 kwargs[name] = np.asarray(kwargs[name])[index]
         return MeasuredData(**kwargs)
-
-
-def check_envelope(data: MeasuredData, envelope: Envelope) -> None:
-    """Every sample inside what the rig can do (worm_model.physics.envelope.Envelope, from the rig file).
-
-    Raises:
-        RigDataError: the first sample far outside it, naming the file, the line (CSV) or the
-            sample index, and the column.
-    """
-    for name in data.names:
-        k = envelope.first_outside(name, getattr(data, name))
-        if k is None:
-            continue
-        problem = envelope.problem(name, float(getattr(data, name)[k]))
-        if data.lines is not None:
-            raise RigDataError(data.source, problem, int(data.lines[k]), name)
-        raise RigDataError(data.source, f"sample {k}: {problem}", column=name)
 
 
 def split_runs(t: FloatArray) -> np.ndarray:
@@ -204,7 +192,10 @@ def read_rig_csv(path: str | Path) -> MeasuredData:
     """
     source = str(path)
     try:
-        handle = Path(path).open(newline="", encoding="utf-8")
+        check_input(path, "worm_rig_data CSV file")  # a FIFO or a device is refused before it is opened
+        handle = Path(path).open(newline="", encoding="utf-8-sig")  # -sig: a byte-order mark is dropped
+    except InputError as err:
+        raise RigDataError(source, err.what) from None
     except OSError as err:
         raise RigDataError(source, f"cannot read: {err.strerror or err}") from err
     with handle:
@@ -254,6 +245,20 @@ def read_rig_csv(path: str | Path) -> MeasuredData:
             del arrays[name]  # an all-empty optional column is an absent one
     ignored = tuple(n for n in header if n not in REQUIRED_COLUMNS and n not in OPTIONAL_COLUMNS)
     return MeasuredData(**arrays, source=source, ignored_columns=ignored, lines=np.asarray(lines))
+
+
+def csv_header(path: str | Path) -> list[str]:
+    """The column names of a CSV file's first line ([] when it has none or cannot be read as text)."""
+    try:
+        with Path(path).open(newline="", encoding="utf-8-sig") as handle:
+            return [h.strip() for h in next(csv.reader([handle.readline(1 << 16)]), [])]
+    except (OSError, UnicodeDecodeError, csv.Error):
+        return []
+
+
+def is_rig_csv(path: str | Path) -> bool:
+    """``path`` is a CSV whose header holds the required columns of the schema (what ``bag export`` writes)."""
+    return set(REQUIRED_COLUMNS) <= set(csv_header(path))
 
 
 def _cell(value: float) -> str:

@@ -114,7 +114,7 @@ def test_help_explains_every_option() -> None:
 
 def test_bad_input_exits_2_naming_the_file(rig_bag: Path, tmp_path: Path) -> None:
     done = run_bag('info', tmp_path / 'nothing')
-    assert done.returncode == 2 and 'No bag at' in done.stderr and 'nothing' in done.stderr
+    assert done.returncode == 2 and 'no such file (expected a bag folder' in done.stderr and 'nothing' in done.stderr
     done = run_bag('echo', rig_bag, '/no/such/topic')
     assert done.returncode == 2 and "'/no/such/topic'" in done.stderr
     bad = tmp_path / 'bad.csv'

@@ -1,4 +1,4 @@
-"""The scalar fast path for one rig (issue 13) against the vectorised path it must reproduce.
+"""The scalar fast path for one rig against the vectorised path it must reproduce.
 
 SimulatedRig(n=1) steps ScalarPlant + ScalarSensors (plain float math) unless told
 scalar=False. Both implement the same model with the same floating-point operations

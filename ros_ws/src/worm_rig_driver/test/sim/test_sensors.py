@@ -8,11 +8,10 @@ import pytest
 
 from worm_model.physics.parameters import load_rig
 from worm_rig_driver.sim.plant import PlantOutputs, PlantState
-from worm_rig_driver.protocol.scaling import TACHO_DRIVE_FULL_SCALE, TACHO_LOAD_FULL_SCALE
+from worm_rig_driver.protocol.scaling import RigScaling
 from worm_rig_driver.sim.sensors import (
     STATUS_DRIVE_LIMIT,
     STATUS_SIMULATED,
-    TACHO_RIPPLE_ORDER,
     AdcChain,
     SensorModel,
     Trajectory,
@@ -23,6 +22,7 @@ RIG = load_rig()
 QUIET = replace(RIG, sensors=replace(RIG.sensors, current_noise_std=0.0, tacho_noise_std=0.0))
 LSB = RIG.sensors.current_lsb
 COUNTS_PER_REV = RIG.sensors.encoder_pulses_per_rev * RIG.sensors.encoder_decoding
+RIPPLE_ORDER = RIG.sensors.tacho_ripple_order  # 7 on the bundled rig
 
 
 def _state(n: int, current=0.0, omega=0.0, theta=0.0, current_load=0.0) -> PlantState:
@@ -78,9 +78,9 @@ def test_tacho_ripple_has_the_commutator_order_and_amplitude() -> None:
     omega = 100.0
     relative = _true(QUIET, _state(n, omega=omega, theta=theta))["tacho_drive"] / omega - 1.0
     spectrum = np.abs(np.fft.rfft(relative)) * 2 / n  # harmonic k = cycles per revolution
-    assert np.argmax(spectrum) == TACHO_RIPPLE_ORDER
-    assert spectrum[TACHO_RIPPLE_ORDER] == pytest.approx(RIG.sensors.tacho_ripple, rel=1e-6)
-    assert np.delete(spectrum, TACHO_RIPPLE_ORDER).max() < 1e-9
+    assert np.argmax(spectrum) == RIPPLE_ORDER
+    assert spectrum[RIPPLE_ORDER] == pytest.approx(RIG.sensors.tacho_ripple, rel=1e-6)
+    assert np.delete(spectrum, RIPPLE_ORDER).max() < 1e-9
 
 
 def test_gear_tacho_ripple_is_in_gear_angle() -> None:
@@ -91,18 +91,20 @@ def test_gear_tacho_ripple_is_in_gear_angle() -> None:
     for name in ("tacho_load_1", "tacho_load_2"):
         relative = signals[name] / (ratio * 60.0) - 1.0
         spectrum = np.abs(np.fft.rfft(relative)) * 2 / n
-        assert np.argmax(spectrum) == TACHO_RIPPLE_ORDER
-        assert spectrum[TACHO_RIPPLE_ORDER] == pytest.approx(RIG.sensors.tacho_ripple, rel=1e-6)
+        assert np.argmax(spectrum) == RIPPLE_ORDER
+        assert spectrum[RIPPLE_ORDER] == pytest.approx(RIG.sensors.tacho_ripple, rel=1e-6)
 
 
 def test_tachos_are_quantised_by_the_adc_with_a_range_per_shaft() -> None:
     sensor = SensorModel(QUIET, np.random.default_rng(0))
-    # the driver's scaling (one source for simulator and driver), above each shaft's top speed
-    drive_lsb = TACHO_DRIVE_FULL_SCALE / 512
-    assert sensor.tacho_lsb["tacho_drive"] == pytest.approx(drive_lsb)
-    assert sensor.tacho_lsb["tacho_load_1"] == pytest.approx(TACHO_LOAD_FULL_SCALE / 512)
+    # the rig file's resolutions, as the driver scales the codes (one source for simulator and driver)
+    scaling = RigScaling.from_rig(RIG)
+    drive_lsb = RIG.sensors.tacho_drive_lsb
+    assert sensor.tacho_lsb["tacho_drive"] == drive_lsb == scaling.tacho_drive_lsb == 500 / 512
+    assert sensor.tacho_lsb["tacho_load_1"] == RIG.sensors.tacho_load_lsb == scaling.tacho_load_lsb == 20 / 512
+    # each full scale (512 codes either side of mid-scale) above its shaft's top speed
     no_load_speed = RIG.supply_voltage / RIG.drive_motor.back_emf_constant
-    assert no_load_speed < TACHO_DRIVE_FULL_SCALE and RIG.gearbox.ratio * no_load_speed < TACHO_LOAD_FULL_SCALE
+    assert no_load_speed < 512 * drive_lsb and RIG.gearbox.ratio * no_load_speed < 512 * RIG.sensors.tacho_load_lsb
     omega = np.linspace(-400.0, 400.0, 997)
     m = sensor.measure(_state(omega.size, omega=omega), _outputs(omega.size))
     np.testing.assert_allclose(m.omega_worm / drive_lsb, np.round(m.omega_worm / drive_lsb), atol=1e-9)
@@ -134,12 +136,14 @@ def test_tacho_noise_level() -> None:
 
 def test_adc_sequence_timing_follows_the_atmega_conversion_time() -> None:
     adc = AdcChain()
-    times = adc.sample_times()
+    times = adc.sample_times(RIG.sensors)
     conversion = 13 / (16e6 / 128)  # 13 ADC clocks at 125 kHz = 104 us
     assert list(times) == [ch.signal for ch in adc.channels]
     np.testing.assert_allclose(np.diff(list(times.values())), conversion)
     assert times["current_drive"] == pytest.approx(1.5 / 125e3)
-    assert adc.sequence_time() == pytest.approx(6 * conversion) and adc.sequence_time() < 1e-3
+    assert adc.sequence_time(RIG.sensors) == pytest.approx(6 * conversion) and adc.sequence_time() < 1e-3
+    # the instants the estimators read from the rig file are the simulator's, to the bit
+    assert RIG.sensors.sample_times() == times == SensorModel(RIG, np.random.default_rng(0)).sample_time
     # two 8:1 multiplexers: currents on one, tachos on the other, distinct inputs
     assert {ch.mux for ch in adc.channels} == {0, 1}
     assert len({(ch.mux, ch.mux_input) for ch in adc.channels}) == len(adc.channels)
@@ -165,12 +169,12 @@ def test_each_channel_is_sampled_at_its_own_instant_and_encoders_at_the_tick() -
     sensor = SensorModel(QUIET, np.random.default_rng(0))
     trajectory = Trajectory(period, states)
     signals = sensor.true_signals(trajectory)
-    t = AdcChain().sample_times()
+    t = AdcChain().sample_times(RIG.sensors)
     assert signals["current_drive"][0] == pytest.approx(2000.0 * t["current_drive"])
     assert signals["current_load_1"][0] == pytest.approx(2000.0 * t["current_load_1"] + 0.5)
     assert signals["current_load_2"][0] == pytest.approx(2000.0 * t["current_load_2"] + 0.5)
     theta = 50.0 + 0.5 * 1e5 * t["tacho_drive"] ** 2  # (linear interpolation of theta: error < 1e-3 rad)
-    expected = 1e5 * t["tacho_drive"] * (1 + RIG.sensors.tacho_ripple * np.sin(TACHO_RIPPLE_ORDER * theta))
+    expected = 1e5 * t["tacho_drive"] * (1 + RIG.sensors.tacho_ripple * np.sin(RIPPLE_ORDER * theta))
     assert signals["tacho_drive"][0] == pytest.approx(expected, rel=1e-3)
     m = sensor.measure_period(trajectory, _outputs(n))
     assert m.current_load_2[0] - m.current_load_1[0] == pytest.approx(2000.0 * (t["current_load_2"]

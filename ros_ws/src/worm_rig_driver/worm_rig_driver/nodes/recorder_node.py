@@ -4,7 +4,9 @@ Node ``recorder``. It subscribes with ``raw=True`` and writes the CDR bytes as
 received, stamped with the node clock's receive time (ns), like
 ``ros2 bag record``. On SIGINT or SIGTERM it writes the messages already
 queued, closes the bag (``metadata.yaml`` written), logs the message count of
-every topic and exits with code 0 (1 on a bag or type error).
+every topic and exits with code 0 (1 on a bag error while recording). Bad
+parameters (an invalid topic name, an output that exists) are refused before
+the bag is created: one line, exit code 2, nothing left behind.
 
 Parameters:
     output (string): bag directory to create; must not exist. Empty: a
@@ -51,6 +53,7 @@ from __future__ import annotations
 
 import functools
 import importlib
+import shutil
 import signal
 import sys
 import threading
@@ -68,7 +71,6 @@ from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 from rclpy.subscription import Subscription
 from rclpy.timer import Timer
 from rclpy.topic_endpoint_info import TopicEndpointInfo
@@ -81,9 +83,14 @@ from rosbags.interfaces import (
     QosTime,
 )
 
-from worm_model.ros.lifecycle import freeze_built_objects, parameter_problem
+from rclpy.exceptions import InvalidTopicNameException
+from rclpy.validate_full_topic_name import validate_full_topic_name
+
+from worm_model.cli.errors import one_line
+from worm_model.files.writing import check_output
+from worm_model.ros.lifecycle import freeze_built_objects, init_rclpy, parameter_problem, start_problem
 from worm_model.ros.teardown import deadline
-from worm_model.ros.parameters import help_text, wants_help
+from worm_model.ros.parameters import check_undeclared, help_text, wants_help, wildcard_names
 from worm_model.bags.writer import (
     COMPRESSIONS,
     STORAGES,
@@ -411,7 +418,14 @@ class RecorderNode(Node):
             'queue_depth', DEFAULT_QUEUE_DEPTH, '[messages] KEEP_LAST depth of every subscription',
             integer_range=[IntegerRange(from_value=1, to_value=1_000_000, step=1)],
         )
+        for topic in [*(topics or []), *exclude]:  # before the bag exists: a refusal leaves nothing behind
+            check_topic_name(topic)
+        for name, value, known in (('storage', storage, sorted(STORAGES)), ('compression', compression,
+                                                                            list(COMPRESSIONS))):
+            if value not in known:
+                raise ValueError(f'parameter {name}: {value!r} is not one of {", ".join(known)}')
         path = Path(output or datetime.now().strftime('rosbag2_%Y_%m_%d-%H_%M_%S'))
+        check_output(path, folder=True, option='parameter output')  # a new folder: never over anything
         writer = BagWriter(path, storage, compression=compression)
         self.recorder = TopicRecorder(self, writer, queue_depth=depth)
         zstd = ', zstd chunks' if compression == 'zstd' else ''
@@ -468,6 +482,19 @@ def drain(executor: Executor, recorder: TopicRecorder) -> None:
             written, last_change = total, time.monotonic()
 
 
+def check_topic_name(topic: str) -> None:
+    """Refuse a topic name ROS cannot subscribe to, before anything is created.
+
+    Raises:
+        ValueError: naming the topic and what is wrong with it.
+    """
+    try:
+        validate_full_topic_name(topic if topic.startswith(('/', '~')) else '/' + topic)
+    except InvalidTopicNameException as err:
+        reason = one_line(err).split(':', 1)[-1].strip()
+        raise ValueError(f'parameter topics/exclude: {topic!r} is not a valid topic name ({reason})') from None
+
+
 def main(args: list[str] | None = None) -> int:
     """Run the recorder until SIGINT/SIGTERM; return the exit code.
 
@@ -475,37 +502,56 @@ def main(args: list[str] | None = None) -> int:
     handlers are off, so a signal only sets a flag: the loop ends, the queued
     messages are written (:func:`drain`), the bag is closed, the node
     destroyed and rclpy shut down, with no executor thread alive at exit
-    (which would abort the process).
+    (which would abort the process). Exit codes: 0 recorded, 2 bad parameters
+    or a bag that may not be created (nothing is left behind), 1 the bag failed
+    while recording, 130 interrupted while starting.
     """
     given = sys.argv if args is None else list(args)
     if wants_help(given[1:]):  # before rclpy.init: no context, no DDS, no bag
         print(help_text([RecorderNode], 'recorder'))
         return 0
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    refused = start_problem('recorder', given[1:], [RecorderNode])
+    if refused is not None:
+        return refused
     stop = threading.Event()
+
+    def interrupt(signum: int, _frame: FrameType | None) -> None:
+        raise KeyboardInterrupt(f'signal {signum}')
 
     def request_stop(signum: int, _frame: FrameType | None) -> None:
         stop.set()
 
-    for signum in STOP_SIGNALS:
-        signal.signal(signum, request_stop)
+    for signum in STOP_SIGNALS:  # while starting, a signal ends it at once
+        signal.signal(signum, interrupt)
+    refused = init_rclpy('recorder', args)
+    if refused is not None:
+        return refused
     executor = SingleThreadedExecutor()
     node: RecorderNode | None = None
-    code = 0
+    code, recording = 0, False
     try:
         node = RecorderNode()
         executor.add_node(node)
+        check_undeclared([node], wildcard_names(given[1:]))
+        for signum in STOP_SIGNALS:
+            signal.signal(signum, request_stop)
         freeze_built_objects()  # a full collection would stall the 1 kHz reader for tens of ms
+        recording = True
         while not stop.is_set():
             executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
         drain(executor, node.recorder)
-    except BagRecordingError as err:
-        print(f'recorder: {err}', file=sys.stderr)
-        code = 1
+    except KeyboardInterrupt:
+        print('recorder: interrupted', file=sys.stderr)
+        code = 130
     except ParameterException as err:
         print(f'recorder: {parameter_problem(err)}', file=sys.stderr)
         code = 2
+    except (BagRecordingError, ValueError) as err:  # refused at start (a bag error later is exit 1, below)
+        print(f'recorder: {one_line(err)}', file=sys.stderr)
+        code = 1 if recording else 2
     finally:
+        for signum in STOP_SIGNALS:
+            signal.signal(signum, request_stop)
         executor.shutdown()
         if node is not None:
             try:
@@ -513,6 +559,8 @@ def main(args: list[str] | None = None) -> int:
             except BagRecordingError as err:
                 print(f'recorder: {err}', file=sys.stderr)
                 code = 1
+            if code == 2:  # refused: the bag it had opened holds nothing of the user's
+                shutil.rmtree(node.recorder.writer.path, ignore_errors=True)
         with deadline(code):  # the bag is closed: a middleware hang must not keep the process alive
             if node is not None:
                 node.destroy_node()

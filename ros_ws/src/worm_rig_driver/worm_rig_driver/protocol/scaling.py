@@ -1,9 +1,9 @@
 """Raw rig readings (ADC codes, encoder counts, duties) <-> SI, from the rig parameters.
 
-The sensor scales are the ones the simulator's SensorModel uses (one source:
-``worm_model`` rig parameters; the simulator reads its tacho full scales here): the Hall current channel's ``current_lsb`` and
-the encoders' ``counts_per_rev``. What the parameter file does not hold (the
-tachogenerator conditioning) is an argued assumption here, in one place.
+The sensor scales are the ones the simulator's SensorModel uses, from one source: the
+rig file's ``sensors:`` section (worm_model rig parameters): the Hall current channel's
+``current_lsb``, the tachos' ``tacho_drive_lsb`` (worm shaft) and ``tacho_load_lsb`` (gear
+shaft), and the encoders' counts per turn.
 
 Signs follow plant.py / RigSample: positive worm rotation is the reference;
 gear quantities are referred to it; a positive load-motor current makes a
@@ -20,22 +20,14 @@ import worm_rig_driver.protocol.table as table
 
 ADC_MAX = (1 << table.ADC_BITS) - 1
 
-#: Full scale of the drive tachogenerator channel [rad/s] at the ADC's rails (assumption:
-#: conditioned to 2.5 V +- 2.5 V for +-500 rad/s, just above the drive motor's 436 rad/s
-#: no-load speed at 24 V).
-TACHO_DRIVE_FULL_SCALE = 500.0
-#: Full scale of the load tachogenerator channels [rad/s] (assumption: the load motors sit on
-#: the gear shaft, which turns 30x slower; +-20 rad/s covers 436/30 = 14.5 rad/s with margin).
-TACHO_LOAD_FULL_SCALE = 20.0
-
 
 @dataclass(frozen=True)
 class RigScaling:
     """Conversions between the firmware's raw units and SI for one rig."""
 
     current_lsb: float  #: [A/count] Hall current channel (rig.sensors.current_lsb)
-    tacho_drive_lsb: float  #: [rad/s per count]
-    tacho_load_lsb: float  #: [rad/s per count]
+    tacho_drive_lsb: float  #: [rad/s per count] (rig.sensors.tacho_drive_lsb)
+    tacho_load_lsb: float  #: [rad/s per count] (rig.sensors.tacho_load_lsb)
     counts_per_rev: int  #: [count/rev] after quadrature decoding
     supply_voltage: float  #: [V] H-bridge supply: duty 1.0 applies this
     load_torque_constant: float  #: [N m/A] K_t of one load motor
@@ -43,12 +35,11 @@ class RigScaling:
 
     @classmethod
     def from_rig(cls, rig: Rig) -> "RigScaling":
-        half = (ADC_MAX + 1) / 2
         return cls(
             current_lsb=rig.sensors.current_lsb,
-            tacho_drive_lsb=TACHO_DRIVE_FULL_SCALE / half,
-            tacho_load_lsb=TACHO_LOAD_FULL_SCALE / half,
-            counts_per_rev=rig.sensors.encoder_pulses_per_rev * rig.sensors.encoder_decoding,
+            tacho_drive_lsb=rig.sensors.tacho_drive_lsb,
+            tacho_load_lsb=rig.sensors.tacho_load_lsb,
+            counts_per_rev=rig.sensors.counts_per_rev,
             supply_voltage=rig.supply_voltage,
             load_torque_constant=rig.load_motor.torque_constant,
             load_motor_count=rig.load_motor_count,

@@ -25,15 +25,14 @@ from typing import Final, TextIO
 from tqdm import tqdm
 
 from worm_model.cli.errors import run_tool
-from worm_model.cli.options import Parser, existing_file, integer, number
+from worm_model.cli.options import Parser, existing_file, existing_bag, integer, number, output_path
 from worm_model.files.writing import check_output
-from worm_model.physics.envelope import Envelope
 from worm_model.physics.parameters import ParameterError, load_rig
 from worm_model.rig_data.schema import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, RigDataError
 from worm_model.bags.reader import BagMessage, BagReader
 from worm_model.bags.typestore import BagRecordingError
 from worm_model.bags.message_yaml import message_to_yaml
-from worm_model.rig_data.bags import DEFAULT_TOPIC, bag_to_csv, csv_to_bag
+from worm_model.rig_data.bags import DEFAULT_TOPIC, EXPORT_OUTPUT, IMPORT_OUTPUT, bag_to_csv, csv_to_bag
 from worm_model.bags.seq_check import StreamCheck
 
 EXIT_BAD_INPUT: Final[int] = 2
@@ -142,8 +141,8 @@ def echo(path: Path, topic: str, count: int | None, out: TextIO, allow_truncated
 def export(path: Path, csv_path: Path, topic: str | None, err: TextIO, allow_truncated: bool = False,
            force: bool = False) -> int:
     """``bag export``: the RigSample stream as a ``worm_rig_data`` CSV."""
-    check_output(csv_path, force)
-    data = bag_to_csv(path, csv_path, topic, allow_truncated)
+    check_output(csv_path, force, inputs=[path], output=EXPORT_OUTPUT)
+    data = bag_to_csv(path, csv_path, topic, allow_truncated, force)
     skipped = [f'{n} {why}' for why, n in data.skipped.items()]
     skipped += [f'an unknown number after the cut of a truncated file ({d})' for d in data.damage]
     err.write(f'bag export: {len(data)} rows from {data.source} to {csv_path} '
@@ -152,10 +151,10 @@ def export(path: Path, csv_path: Path, topic: str | None, err: TextIO, allow_tru
 
 
 def import_csv(csv_path: Path, bag: Path, storage: str, topic: str, start: float,
-               err: TextIO, rig: Path | None = None) -> int:
-    """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample (values checked against the rig)."""
-    check_output(bag, folder=True, option='--out')
-    n = csv_to_bag(csv_path, bag, storage, topic, round(start * 1e9), Envelope.of(load_rig(rig)))
+               err: TextIO, rig: Path | None = None, force: bool = False) -> int:
+    """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample (its units checked against the rig)."""
+    check_output(bag, force, folder=True, inputs=[csv_path, rig], output=IMPORT_OUTPUT)
+    n = csv_to_bag(csv_path, bag, storage, topic, round(start * 1e9), rig=load_rig(rig), force=force)
     err.write(f'bag import: {n} RigSample messages on {topic} from {csv_path} to {bag} ({storage})\n')
     return 0
 
@@ -174,12 +173,12 @@ def _parser() -> argparse.ArgumentParser:
                             'storage (not the count metadata.yaml claims), a sequence-number '
                             'check of every stream with a seq field, and warnings (e.g. '
                             'metadata.yaml and storage disagreeing).')
-    p.add_argument('bag', type=Path, help='bag directory, or one .db3/.mcap(.zstd) file')
+    p.add_argument('bag', type=existing_bag, help='bag directory, or one .db3/.mcap(.zstd) file')
 
     p = commands.add_parser('echo', help='print a topic\'s messages as YAML',
                             description='Print the messages of one topic decoded, as YAML, each '
                             'followed by a "---" line (the format of ros2 topic echo).')
-    p.add_argument('bag', type=Path, help='bag directory, or one .db3/.mcap(.zstd) file')
+    p.add_argument('bag', type=existing_bag, help='bag directory, or one .db3/.mcap(.zstd) file')
     p.add_argument('topic', help='topic to print, e.g. /rig/sample')
     p.add_argument('-n', '--count', type=integer(0), default=None, metavar='N',
                    help='print only the first N messages (default: all)')
@@ -188,14 +187,15 @@ def _parser() -> argparse.ArgumentParser:
     columns = ', '.join([*REQUIRED_COLUMNS, *OPTIONAL_COLUMNS])
     p = commands.add_parser('export', help='RigSample stream -> worm_rig_data CSV',
                             description='Write the bag\'s worm_msgs/msg/RigSample stream as a CSV '
-                            f'with the columns {columns} (units in the README). t [s] counts from '
+                            f'with the columns {columns} (units in docs/bags-and-tools.md). t [s] counts from '
                             'the first sample\'s header.stamp; current_load is the sum of the two '
                             'load-motor currents; tau_load is RigSample.tau_load. Samples with a '
                             'NaN/inf required channel, or a stamp not after the previous one, are '
                             'left out and counted on stderr.')
-    p.add_argument('bag', type=Path, help='bag directory, or one .db3/.mcap(.zstd) file')
-    p.add_argument('--out', type=Path, required=True, metavar='FILE.csv',
-                   help='CSV file to write (an existing one is replaced only with --force)')
+    p.add_argument('bag', type=existing_bag, help='bag directory, or one .db3/.mcap(.zstd) file')
+    p.add_argument('--out', type=output_path, required=True, metavar='FILE.csv',
+                   help='CSV file to write (an existing one is replaced only with --force, and only if it is a '
+                        'worm_rig_data CSV; never the bag or a file inside it)')
     p.add_argument('--force', action='store_true', help='replace an existing --out file')
     p.add_argument('--allow-truncated', action='store_true', help=TRUNCATED_HELP)
     p.add_argument('--topic', default=None,
@@ -207,9 +207,11 @@ def _parser() -> argparse.ArgumentParser:
                             'index, current_load split equally over the two load motors, channels '
                             'the CSV lacks NaN (encoder counts 0). Message definitions are '
                             'embedded, so ros2 bag, Foxglove and PlotJuggler decode it.')
-    p.add_argument('csv', type=Path, help='CSV file in the worm_rig_data schema')
-    p.add_argument('--out', type=Path, required=True, metavar='BAG',
-                   help='bag directory to create (must not exist)')
+    p.add_argument('csv', type=existing_file, help='CSV file in the worm_rig_data schema')
+    p.add_argument('--out', type=output_path, required=True, metavar='BAG',
+                   help='bag directory to create (an existing one is replaced only with --force, and only if '
+                        'bag import wrote it)')
+    p.add_argument('--force', action='store_true', help='replace an existing --out bag that bag import wrote')
     p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap',
                    help='storage of the new bag (default: mcap, as rosbag2)')
     p.add_argument('--topic', default=DEFAULT_TOPIC, help=f'topic to write (default: {DEFAULT_TOPIC})')
@@ -232,7 +234,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return echo(args.bag, args.topic, args.count, out, args.allow_truncated)
         if args.command == 'export':
             return export(args.bag, args.out, args.topic, err, args.allow_truncated, args.force)
-        return import_csv(args.csv, args.out, args.storage, args.topic, args.start, err, args.rig)
+        return import_csv(args.csv, args.out, args.storage, args.topic, args.start, err, args.rig, args.force)
 
     return run_tool(f'bag {args.command}', run, (BagRecordingError, RigDataError, ParameterError))
 

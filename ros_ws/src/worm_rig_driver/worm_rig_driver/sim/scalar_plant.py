@@ -1,4 +1,4 @@
-"""The plant of ONE rig in plain float math: the fast path of the live simulator (issue 13).
+"""The plant of ONE rig in plain float math: the fast path of the live simulator.
 
 :class:`ScalarPlant` is :class:`worm_rig_driver.sim.plant.RigPlant` for n = 1 with
 every quantity a Python float instead of a 1-element numpy array. The model, the

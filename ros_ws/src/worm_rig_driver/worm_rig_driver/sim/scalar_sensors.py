@@ -1,4 +1,4 @@
-"""The sensors of ONE rig in plain float math: the fast path of sensors.SensorModel (issue 13).
+"""The sensors of ONE rig in plain float math: the fast path of sensors.SensorModel.
 
 :class:`ScalarSensors` reads one sample period exactly as
 SensorModel.measure_period does for n = 1 (see sensors.py for the hardware: ADC
@@ -27,7 +27,6 @@ from worm_rig_driver.sim.effects import EffectStack, SenseContext
 from worm_rig_driver.sim.sensors import (
     STATUS_DRIVE_LIMIT,
     STATUS_SIMULATED,
-    TACHO_RIPPLE_ORDER,
     Measurement,
     SensorModel,
 )
@@ -74,6 +73,7 @@ class ScalarSensors:
         self._instants = tuple(where(signal) for signal in ("current_drive", "current_load_1", "current_load_2",
                                                              "tacho_drive", "tacho_load_1", "tacho_load_2"))
         self._ripple = sensors.tacho_ripple
+        self._ripple_order = model.ripple_order
         self._half = model.adc.codes // 2
         self._lsb = (sensors.current_lsb,) * 3 + tuple(model.tacho_lsb[k] for k in
                                                       ("tacho_drive", "tacho_load_1", "tacho_load_2"))
@@ -140,16 +140,17 @@ class ScalarSensors:
         load_1 = a[1] + f1 * (b[1] - a[1]) if f1 else a[1]
         a, b = history[k2], history[k2 + 1]
         load_2 = a[1] + f2 * (b[1] - a[1]) if f2 else a[1]
-        # tachos: omega (1 + ripple sin(TACHO_RIPPLE_ORDER theta)) of their own shaft
+        # tachos: omega (1 + ripple sin(p theta)) of their own shaft, p the ripple order
+        order = self._ripple_order
         a, b = history[k3], history[k3 + 1]
         omega, theta = (a[2] + f3 * (b[2] - a[2]), a[3] + f3 * (b[3] - a[3])) if f3 else (a[2], a[3])
-        tacho_drive = omega * (1.0 + ripple * math.sin(TACHO_RIPPLE_ORDER * theta))
+        tacho_drive = omega * (1.0 + ripple * math.sin(order * theta))
         a, b = history[k4], history[k4 + 1]
         omega, theta = (a[4] + f4 * (b[4] - a[4]), a[5] + f4 * (b[5] - a[5])) if f4 else (a[4], a[5])
-        tacho_load_1 = omega * (1.0 + ripple * math.sin(TACHO_RIPPLE_ORDER * theta))
+        tacho_load_1 = omega * (1.0 + ripple * math.sin(order * theta))
         a, b = history[k5], history[k5 + 1]
         omega, theta = (a[4] + f5 * (b[4] - a[4]), a[5] + f5 * (b[5] - a[5])) if f5 else (a[4], a[5])
-        tacho_load_2 = omega * (1.0 + ripple * math.sin(TACHO_RIPPLE_ORDER * theta))
+        tacho_load_2 = omega * (1.0 + ripple * math.sin(order * theta))
         return current_drive, load_1, load_2, tacho_drive, tacho_load_1, tacho_load_2
 
     def _sensed(self, analog: tuple[float, ...], voltage_drive: float, tick: float) -> tuple[float, ...]:

@@ -6,6 +6,9 @@ multiplexers into the 10-bit ADC of the ATmega2560. The ADC converts one
 channel at a time, so within one sample period every channel is sampled at its
 own instant (:class:`AdcChain`): the firmware's tick latches the encoders and
 starts the sequence, channel k is held 1.5 ADC clocks into its conversion.
+Every number of the chain (noise, resolutions, ripple, ADC timing) is the rig
+file's ``sensors:`` section (worm_model.physics.parameters.Sensors), which the
+estimators read too.
 Each reading is: true signal -> sensor effects (gain, offset, PWM ripple; see
 effects.py) -> noise -> 10-bit quantisation with the converter's range limits.
 
@@ -22,14 +25,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from worm_model.physics.parameters import Rig
+from worm_model.physics.parameters import ADC_SEQUENCE, Rig, Sensors, load_rig
 
-import worm_rig_driver.protocol.scaling as scaling
+from worm_rig_driver.protocol.table import ADC_BITS
 from worm_rig_driver.sim.effects import EffectStack, SenseContext
 from worm_rig_driver.sim.plant import PlantOutputs, PlantState
-
-#: Commutator segments of the tachogenerators (assumption: a small 7-segment DC tacho).
-TACHO_RIPPLE_ORDER = 7
 
 STATUS_DRIVE_LIMIT = 1
 STATUS_SIMULATED = 8
@@ -44,56 +44,48 @@ class AdcChannel:
     mux_input: int  # 0..7, the 3-bit address the firmware sets
 
 
-#: Conversion order of the firmware (firmware/adc_mux.c): for each motor its current (multiplexer A,
-#: on one ADC input) then its tacho (multiplexer B, on the other), both multiplexers on address i.
-DEFAULT_CHANNELS = (
-    AdcChannel("current_drive", 0, 0), AdcChannel("tacho_drive", 1, 0),
-    AdcChannel("current_load_1", 0, 1), AdcChannel("tacho_load_1", 1, 1),
-    AdcChannel("current_load_2", 0, 2), AdcChannel("tacho_load_2", 1, 2),
-)
+#: Multiplexer (0: A, the currents, on one ADC input; 1: B, the tachos, on the other) and input of each
+#: signal (firmware/board.h): motor i on address i of both.
+MUX_INPUTS = {"current_drive": (0, 0), "tacho_drive": (1, 0), "current_load_1": (0, 1), "tacho_load_1": (1, 1),
+              "current_load_2": (0, 2), "tacho_load_2": (1, 2)}
+#: The channels in the firmware's conversion order (worm_model.physics.parameters.ADC_SEQUENCE,
+#: firmware/adc_mux.c): for each motor its current, then its tacho.
+DEFAULT_CHANNELS = tuple(AdcChannel(signal, *MUX_INPUTS[signal]) for signal in ADC_SEQUENCE)
 
 
 @dataclass(frozen=True)
 class AdcChain:
-    """Multiplexers + the ATmega2560's 10-bit successive-approximation ADC.
+    """Multiplexers + the ATmega2560's 10-bit successive-approximation ADC: which channel is converted when.
 
-    Timing (ATmega2560 datasheet, ADC chapter): a conversion takes 13 ADC clock
-    cycles and the input is held 1.5 cycles after its start; at 16 MHz the
-    prescaler 128 gives a 125 kHz ADC clock (inside the 50-200 kHz the datasheet
-    asks for 10-bit resolution), so 104 us per channel. The SN74HC4051's
-    switching time (~tens of ns) is negligible against that.
+    Timing: the rig file's (rig.sensors.adc_clock_hz, adc_conversion_cycles, adc_hold_cycles;
+    ATmega2560 datasheet, ADC chapter: a conversion takes 13 ADC clock cycles and the input is
+    held 1.5 cycles after its start; the firmware's prescaler 128 at 16 MHz gives a 125 kHz ADC
+    clock, so 104 us per channel), the channels converted one after the other in ``channels``
+    order. The SN74HC4051's switching time (~tens of ns) is negligible against that. The
+    firmware starts the next conversion from the ADC interrupt; its few microseconds of latency
+    are neglected.
 
-    The firmware starts the next conversion from the ADC interrupt; its few
-    microseconds of latency are neglected.
-
-    Scaling (the driver's, worm_rig_driver.protocol.scaling, so that simulator and driver
-    agree): each Hall channel reads (code - 512) x rig.sensors.current_lsb over
-    codes 0..1023 (zero current at mid-scale); each tacho channel spans +-its full
-    scale over the codes (scaling.TACHO_DRIVE_FULL_SCALE on the worm shaft,
-    TACHO_LOAD_FULL_SCALE on the gear shaft), unless given here.
+    Scaling (the driver's too, worm_rig_driver.protocol.scaling, so that simulator and driver
+    agree): each Hall channel reads (code - 512) x rig.sensors.current_lsb over codes 0..1023
+    (zero current at mid-scale); each tacho channel (code - 512) x its shaft's lsb
+    (rig.sensors.tacho_drive_lsb on the worm shaft, tacho_load_lsb on the gear shaft).
     """
 
-    bits: int = 10
-    clock_hz: float = 16e6 / 128
-    conversion_cycles: int = 13
-    hold_cycles: float = 1.5
+    bits: int = ADC_BITS
     channels: tuple[AdcChannel, ...] = DEFAULT_CHANNELS
-    tacho_drive_full_scale: float | None = None  # [rad/s]; None: scaling.TACHO_DRIVE_FULL_SCALE
-    tacho_load_full_scale: float | None = None  # [rad/s]; None: scaling.TACHO_LOAD_FULL_SCALE
 
     @property
     def codes(self) -> int:
         return 2 ** self.bits
 
-    def sample_times(self) -> dict[str, float]:
-        """Signal -> instant [s] after the tick at which its channel is held."""
-        cycle = 1.0 / self.clock_hz
-        return {ch.signal: (k * self.conversion_cycles + self.hold_cycles) * cycle
-                for k, ch in enumerate(self.channels)}
+    def sample_times(self, sensors: Sensors | None = None) -> dict[str, float]:
+        """Signal -> instant [s] after the tick at which its channel is held, with the ADC timing of
+        ``sensors`` (None: the bundled rig's)."""
+        return (sensors or load_rig().sensors).sample_times(tuple(ch.signal for ch in self.channels))
 
-    def sequence_time(self) -> float:
-        """[s] from the tick to the end of the last conversion."""
-        return len(self.channels) * self.conversion_cycles / self.clock_hz
+    def sequence_time(self, sensors: Sensors | None = None) -> float:
+        """[s] from the tick to the end of the last conversion (``sensors``' timing; None: the bundled rig's)."""
+        return (sensors or load_rig().sensors).sequence_time(len(self.channels))
 
 
 @dataclass
@@ -164,7 +156,7 @@ class SensorModel:
         rig: rig parameters (noise, resolution, encoder, sample rate).
         rng: the only source of randomness (the sensor noise).
         effects: live effects whose `sense` hook changes the analogue signals.
-        adc: multiplexer/ADC timing and scaling.
+        adc: the multiplexers' channel order and the ADC's resolution (timing and scaling: rig.sensors).
 
     Raises:
         ValueError: the ADC sequence does not fit in one sample period.
@@ -179,16 +171,17 @@ class SensorModel:
         sensors = rig.sensors
         self.counts_per_rev = sensors.encoder_pulses_per_rev * sensors.encoder_decoding
         self.sample_period = 1.0 / sensors.sample_rate_hz
-        if adc.sequence_time() > self.sample_period:
-            raise ValueError(f"the ADC sequence ({len(adc.channels)} channels x {adc.conversion_cycles} cycles at "
-                             f"{adc.clock_hz:g} Hz = {adc.sequence_time() * 1e6:.0f} us) does not fit in the "
+        sequence = adc.sequence_time(sensors)
+        if sequence > self.sample_period:
+            raise ValueError(f"the ADC sequence ({len(adc.channels)} channels x {sensors.adc_conversion_cycles} "
+                             f"cycles at {sensors.adc_clock_hz:g} Hz = {sequence * 1e6:.0f} us) does not fit in the "
                              f"sample period ({self.sample_period * 1e6:.0f} us)")
-        self.sample_time = adc.sample_times()
-        drive = adc.tacho_drive_full_scale or scaling.TACHO_DRIVE_FULL_SCALE
-        load = adc.tacho_load_full_scale or scaling.TACHO_LOAD_FULL_SCALE
-        half = adc.codes // 2
+        self.sample_time = adc.sample_times(sensors)
         #: [rad/s] per ADC code of the drive tacho and of the gear-shaft (load) tachos
-        self.tacho_lsb = {"tacho_drive": drive / half, "tacho_load_1": load / half, "tacho_load_2": load / half}
+        self.tacho_lsb = {"tacho_drive": sensors.tacho_drive_lsb, "tacho_load_1": sensors.tacho_load_lsb,
+                          "tacho_load_2": sensors.tacho_load_lsb}
+        #: tacho ripple periods per shaft turn
+        self.ripple_order = sensors.tacho_ripple_order
 
     # --- one channel -------------------------------------------------------------------------------
     def _adc(self, signal: np.ndarray, lsb: float) -> np.ndarray:
@@ -215,14 +208,14 @@ class SensorModel:
     def true_signals(self, trajectory: Trajectory) -> dict[str, np.ndarray]:
         """Each analogue channel's true value at its own sampling instant (before effects and noise).
 
-        Tachos: omega (1 + ripple sin(TACHO_RIPPLE_ORDER theta)) of their own shaft.
+        Tachos: omega (1 + ripple sin(p theta)) of their own shaft, p = rig.sensors.tacho_ripple_order.
         """
         t = self.sample_time
-        ripple = self.rig.sensors.tacho_ripple
+        ripple, order = self.rig.sensors.tacho_ripple, self.ripple_order
 
         def tacho(omega_name: str, theta_name: str, at: float) -> np.ndarray:
             omega, theta = trajectory.at(omega_name, at), trajectory.at(theta_name, at)
-            return omega * (1.0 + ripple * np.sin(TACHO_RIPPLE_ORDER * theta))
+            return omega * (1.0 + ripple * np.sin(order * theta))
 
         return {
             "current_drive": trajectory.at("current_drive", t["current_drive"]),

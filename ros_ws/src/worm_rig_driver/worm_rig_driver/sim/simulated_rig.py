@@ -5,7 +5,7 @@ batch work such as calibration (n rigs side by side, as fast as numpy goes).
 Deterministic for a given seed: the seed drives the sensor noise only; the plant
 and the effects are deterministic.
 
-Two implementations of the same model (issue 13): the vectorised one (plant.RigPlant
+Two implementations of the same model: the vectorised one (plant.RigPlant
 + sensors.SensorModel, numpy over n rigs) and, for one rig, a scalar one in plain
 float math (scalar_plant.ScalarPlant + scalar_sensors.ScalarSensors, ~10 us instead
 of ~300 us per sample: for n = 1 numpy's cost per call, not the physics, dominated). n = 1 takes the scalar

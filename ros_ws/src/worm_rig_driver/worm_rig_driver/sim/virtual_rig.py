@@ -45,7 +45,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from worm_model.cli.errors import InputError, run_tool
-from worm_model.cli.options import Parser, existing_file, integer, number
+from worm_model.cli.options import Parser, existing_file, integer, number, output_path
+from worm_model.files.writing import unwritable
 from worm_model.physics.parameters import load_rig
 
 import worm_rig_driver.protocol.table as table
@@ -383,7 +384,7 @@ def _main(argv: list[str] | None) -> int:
         description="The simulated worm-gear rig behind a pseudo-terminal, speaking the rig firmware's serial "
                     "protocol (docs/protocol.md) byte for byte, in real time. Run driver_node with "
                     "port:=<LINK> against it.")
-    parser.add_argument("--link", default="/tmp/worm_rig",
+    parser.add_argument("--link", type=output_path, default="/tmp/worm_rig",
                         help="path of the symlink to the pty's slave end, the 'serial port' to give driver_node")
     parser.add_argument("--rig", type=existing_file, default=None,
                         help="rig parameter YAML (default: the bundled NMRV030 rig)")
@@ -400,8 +401,8 @@ def _main(argv: list[str] | None) -> int:
         raise InputError(f"--link {link}", "exists and is not a symlink: refusing to replace it")
     if not link.absolute().parent.is_dir():
         raise InputError(f"--link {link}", f"folder {link.absolute().parent} does not exist")
-    if not os.access(link.absolute().parent, os.W_OK):
-        raise InputError(f"--link {link}", f"folder {link.absolute().parent} is not writable")
+    if problem := unwritable(link.absolute().parent):  # tried: permissions do not tell for root
+        raise InputError(f"--link {link}", f"folder {link.absolute().parent}: cannot write there ({problem})")
     rig = load_rig(args.rig)
     sim = SimulatedRig(rig, n=1, seed=args.seed, substeps=args.substeps, effects=args.effects)
     firmware = VirtualFirmware(sim)

@@ -1,0 +1,62 @@
+"""The observer's stream, corrected: for a model file's identified sensor errors, and for a calibration's bias.
+
+Both wrap a stream (a :class:`~torque_estimator.estimation.observer.kalman.LoadObserver`, or another
+wrapper) and are streams themselves (:class:`~torque_estimator.estimation.base.EstimateStream`:
+``update`` and ``skip``); other attributes (``load``, ``jumps``, ``restarts``, ...) are the wrapped
+observer's. ObserverEstimator.stream stacks them. Units SI; τ_d [N·m] on the gear shaft. No ROS.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Any
+
+from torque_estimator.estimation.base import EstimateStream
+from torque_estimator.estimation.calibration_bias import CalibrationBias
+from torque_estimator.estimation.extended_model import SensorCorrection
+from torque_estimator.estimation.observer.kalman import ObserverEstimate
+
+
+class CorrectedStream:
+    """A stream fed the drive current corrected for the identified sensor errors, its estimate taken back
+    to the true load (ObserverEstimator's ``model_file``, extended_model.SensorCorrection)."""
+
+    def __init__(self, stream: EstimateStream, correction: SensorCorrection) -> None:
+        self.stream = stream
+        self.correction = correction
+        self._gain = 1.0 / (1.0 + correction.drive_gain)
+
+    def update(self, voltage: float, current: float, omega: float, theta: float | None = None) -> ObserverEstimate:
+        c = self.correction
+        est = self.stream.update(voltage, (current - c.drive_offset) * self._gain, omega, theta)
+        torque = est.torque - (c.load_gain * est.torque + c.load_offset)
+        return replace(est, torque=torque)
+
+    def skip(self, samples: int) -> None:
+        self.stream.skip(samples)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.stream, name)
+
+
+class BiasedStream:
+    """A stream whose estimate gets the calibration's bias at its own speed and torque (ObserverEstimator)."""
+
+    def __init__(self, stream: EstimateStream, bias: CalibrationBias) -> None:
+        self.stream = stream
+        self.bias = bias
+
+    def update(self, voltage: float, current: float, omega: float, theta: float | None = None) -> ObserverEstimate:
+        est = self.stream.update(voltage, current, omega, theta)
+        if not math.isfinite(est.torque):
+            return est
+        return replace(est, torque=est.torque + self.bias(est.omega_worm, est.torque))
+
+    def skip(self, samples: int) -> None:
+        self.stream.skip(samples)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.stream, name)
+
+
+__all__ = ["BiasedStream", "CorrectedStream"]
