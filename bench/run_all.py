@@ -66,6 +66,7 @@ def main() -> int:
     ok &= run("momentum_bench.py", dict(os.environ), MOMENTUM_METRICS, timeout=300, args=("--metrics-only",))
     # model_node's callback in-process (rclpy node, so the graph benchmark's own ROS_DOMAIN_ID)
     ok &= run("model_node_bench.py", env, ("model_node_latency_p99: nan us",), timeout=120)
+    ok &= run("health_bench.py", env, ("health_monitor_cpu_cores: nan cores",), timeout=300)  # the live health monitor
     return 0 if ok else 1
 
 

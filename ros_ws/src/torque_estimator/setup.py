@@ -31,6 +31,8 @@ setup(
             "replay = torque_estimator.offline.replay:main",
             "identify = torque_estimator.identification.identify:main",
             "estimate = torque_estimator.offline.estimate:main",
+            "health_check = torque_estimator.health.health_check:main",
+            "health_monitor = torque_estimator.health.monitor_node:main",
         ],
         # the estimator sim_node / driver_node run beside their speed loop (worm_rig_driver.drive.feedforward_plugin)
         "worm_rig_driver.feedforward": [

@@ -33,6 +33,10 @@ helpers beside the CLIs that talk to a live graph):
                     ``scenario`` timelines they and the demo play; the ``evaluate`` CLI
 ``demo``            ``make demo``: the demo's scenario played on the live graph
                     (``scenario_node``), ``run_analysis``, ``plots``, the ``demo`` CLI
+``health``          watching the gearbox: the ``health_check`` CLI (a short reference
+                    run against the gearbox's baseline and trend), ``health_monitor``
+                    (the live window on /diagnostics), the simulated checks and the
+                    study of how soon and how often wrong (worm_model.health: the core)
 ``graph``           running the node graph: ``runner`` (start nodes from one
                     parameter file), the ``run_graph`` CLI
 ``nodes``           estimator_node, controller_node, and ``composed`` (several nodes

@@ -24,7 +24,14 @@ and the momentum observer's (current and speed only) noise on a constant load ag
 steady noise, and the least noise any linear estimator that reaches 90 % of a step 5 samples after it
 has on these sensors (momentum.linear_noise_bound: why it detects steps instead)
     noise: method=momentum std=<x> predicted=<x> N m ratio=<x> linear_5_sample_floor=<x> N m
-and the fast road (evaluation.identified): on the simulated rig with every default effect
+and the gearbox's health (health.study): detection of a 10 % and a 5 % rise of mu with the oil
+temperature measured and estimated, false alarms over 1000 healthy checks, the live monitor on a
+lubricant loss and a cold start, the real drive's check (health.real_drive), as lines
+    health: change=mu+10% detected_in_checks=<n> ... temperature=measured
+    health: false_alarms=<n> of <m> temperature=measured
+    health: live lubricant_loss=mu+30% warn_after_s=<x> ...
+and health_trend.png (a simulated gearbox's life with its alarm bands), health_live.png (the live
+monitor on the two scenarios); then the fast road (evaluation.identified): on the simulated rig with every default effect
 on and the rig file off (mu x1.3, K_t x1.05, drags x2), one `identify` run against the
 k-NN grid calibrated on that rig, the extended model and the observer with the identified
 parameters, on the same held-out points, ending with
@@ -75,7 +82,7 @@ TRANSIENT_SEEDS = 12
 #: samples after a load step by which the momentum observer is asked to have 90 % of it (5 ms at 1 kHz)
 MOMENTUM_STEP_SAMPLES = 5
 from torque_estimator.evaluation.plots import held_out_deviation, sweeps
-from worm_model.cli.progress import ProgressBar
+from worm_model.cli.progress import Progress, ProgressBar
 
 
 def _number_list(kind: Callable[[str], float], minimum: float, what: str) -> Callable[[str], list[Any]]:
@@ -144,6 +151,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="skip the real worm drive (the T-RO 2021 measurements, ~1 min): its table, "
                         "real_drive_torque.png, its `real:` line and the momentum observer's `start_stop:` lines")
     p.add_argument("--no-residuals", action="store_true", help="skip the residuals tool's case matrix")
+    p.add_argument("--no-health", action="store_true",
+                   help="skip the gearbox health study (~1800 simulated checks, the live scenarios: ~10 min)")
     p.add_argument("--residual-cases", choices=("full", "small"), default="full",
                    help="the residuals tool's case matrix: full (two rigs, both friction models; every effect alone "
                         "and in pairs with the declared values nominal, high and low, copied from a catalogue, or "
@@ -221,6 +230,18 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
               "evaluation.start_stop)")
         print("\n".join(m.line() for m in start_stop.run()))
         pngs.append(real_drive.plot(study, out / "real_drive_torque.png"))
+    if not args.no_health:  # the gearbox's health: checks, trend, live monitor (health.study)
+        from torque_estimator.health.study import evaluate_lines as health_lines  # noqa: PLC0415
+
+        with Progress(enabled=not args.quiet) as progress:
+            def on_progress(label: str, done: int, total: int) -> None:
+                if progress.name != label:
+                    progress.stage(label, total)
+                progress.update_to(done)
+
+            lines = health_lines(rig, args.seed, out=out, progress=on_progress)
+        print("\n".join(lines))
+        pngs += [out / "health_trend.png", out / "health_live.png"]
     if not args.no_residuals:  # the residuals tool's case matrix (issue 15); ends with its `residuals:` line
         cases = full_matrix() if args.residual_cases == "full" else small_matrix()
         with ProgressBar(len(cases), "residuals cases", enabled=not args.quiet) as bar:

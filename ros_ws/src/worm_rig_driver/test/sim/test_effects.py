@@ -55,6 +55,9 @@ EXPECTED_HOOKS = {
     "sensor_offset": {"sense"},
     "inertia_error": {"inertia"},
     "pwm": {"drive_voltage", "sense"},
+    "wear": {"friction", "worm_torque", "gear_torque", "backlash", "advance", "observe"},
+    "lubricant_loss": {"friction", "advance"},
+    "seal_drag": {"worm_torque", "gear_torque", "advance"},
 }
 
 
