@@ -41,8 +41,8 @@ def live_run(graph_file: Path, calibration: Path, feedforward: bool, bag: Path, 
         try:
             recorder.subscribe_all()
             recorder.start_discovery(0.5)
-            speed_pub = node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND)
-            load_pub = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
+            speed_pub = node.create_publisher(Float64, "controller/speed_setpoint", COMMAND)
+            load_pub = node.create_publisher(LoadCommand, "rig/load_command", COMMAND)
             deadline = time.monotonic() + 60.0
             # Start the scenario only once every stream the analysis reads is being recorded: topics
             # are subscribed as discovery finds them, and a late /rig/samples or /sim/truth_samples would

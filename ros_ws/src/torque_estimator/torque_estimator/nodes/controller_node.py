@@ -55,9 +55,9 @@ from torque_estimator.control.feedforward import FeedforwardGate
 
 
 #: feedforward_source -> (message type, the estimator's topic for it)
-SOURCES = {"torque_estimate": (TorqueEstimate, "/torque_estimate"),
-           "joint_state": (JointState, "/torque_estimate/joint_states"),
-           "wrench": (WrenchStamped, "/torque_estimate/wrench")}
+SOURCES = {"torque_estimate": (TorqueEstimate, "torque_estimate"),
+           "joint_state": (JointState, "torque_estimate/joint_states"),
+           "wrench": (WrenchStamped, "torque_estimate/wrench")}
 
 
 class ControllerNode(Node):
@@ -102,12 +102,12 @@ class ControllerNode(Node):
                         "Topic of that message; empty = the estimator's: " +
                         ", ".join(f"{k}: {v[1]}" for k, v in SOURCES.items()) + ".")
         self.joint_name = declare(self, "joint_name", "gear", "Joint whose effort a JointState source gives.")
-        self.pub = self.create_publisher(SpeedCommand, "/rig/speed_command", STREAM)
+        self.pub = self.create_publisher(SpeedCommand, "rig/speed_command", STREAM)
         msg_type, default_topic = SOURCES[source]
         handler = {"torque_estimate": self.on_estimate, "joint_state": self.on_joint_state,
                    "wrench": self.on_wrench}[source]
         self.create_subscription(msg_type, topic or default_topic, handler, STREAM)
-        subscribe_command(self, Float64, "/controller/speed_setpoint", self.on_setpoint)
+        subscribe_command(self, Float64, "controller/speed_setpoint", self.on_setpoint)
         self.create_timer(self.command_period, self.on_timer)
         self.estimate: TorqueEstimate | None = None
         self.last_sent = -math.inf  # [s] node clock

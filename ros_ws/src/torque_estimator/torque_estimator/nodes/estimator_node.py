@@ -72,10 +72,10 @@ class EstimatorNode(Node):
         self.method = values["method"]
         values.update({o.name: self._declare(o) for o in METHODS[self.method].options})
         period = 1.0 / declare(self, "sample_rate", 1000.0, "Rig sample rate [Hz].", low=1.0, high=100000.0)
-        joint_topic = declare(self, "joint_state_topic", "/torque_estimate/joint_states",
+        joint_topic = declare(self, "joint_state_topic", "torque_estimate/joint_states",
                               "Topic of the estimate as sensor_msgs/JointState (effort = -tau_d).")
         self.joint_name = declare(self, "joint_name", "gear", "Name of the output joint in that JointState.")
-        wrench_topic = declare(self, "wrench_topic", "/torque_estimate/wrench",
+        wrench_topic = declare(self, "wrench_topic", "torque_estimate/wrench",
                                "Topic of the estimate as geometry_msgs/WrenchStamped (torque.z = -tau_d).")
         self.wrench_frame = declare(self, "wrench_frame", "gear_output",
                                     "frame_id of that wrench: its z axis is the output shaft, positive rotation "
@@ -95,10 +95,10 @@ class EstimatorNode(Node):
             self.problem = str(err)
             self.get_logger().error(f"no estimates: {err}")
 
-        self.pub = self.create_publisher(TorqueEstimate, "/torque_estimate", STREAM)
+        self.pub = self.create_publisher(TorqueEstimate, "torque_estimate", STREAM)
         self.pub_joint = self.create_publisher(JointState, joint_topic, STREAM)
         self.pub_wrench = self.create_publisher(WrenchStamped, wrench_topic, STREAM)
-        self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
+        self.create_subscription(RigSamples, "rig/samples", self.on_samples, STREAM)
         self.received = 0
         self.malformed = 0  # /rig/samples messages refused
         self.flag_counts = {flag.name: 0 for flag in EstimateFlags if flag}

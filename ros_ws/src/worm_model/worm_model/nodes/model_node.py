@@ -44,8 +44,8 @@ class ModelNode(Node):
                          "the newest.", low=0.001, high=10.0)
         self.rig = load_rig(rig_file or None)
         self.model = LiveModel(self.rig, use_acceleration, tau)
-        self.pub = self.create_publisher(GearboxForces, "/gearbox/forces", STREAM)
-        self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
+        self.pub = self.create_publisher(GearboxForces, "gearbox/forces", STREAM)
+        self.create_subscription(RigSamples, "rig/samples", self.on_samples, STREAM)
         self.queue: list[RigSamples] = []
         self.create_timer(period, self.process)
         self.received = 0

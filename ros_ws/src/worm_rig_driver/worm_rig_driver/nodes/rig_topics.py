@@ -82,11 +82,11 @@ class RigTopics:
         self.batch_size = batch_size
         self.decimation = decimation
         self.counts_per_rev = counts_per_rev
-        self.pub_samples = node.create_publisher(RigSamples, "/rig/samples", STREAM)
-        self.pub_sample = node.create_publisher(RigSample, "/rig/sample", STREAM)
-        self.pub_currents = node.create_publisher(MotorCurrents, "/rig/currents", STREAM)
-        self.pub_joints = node.create_publisher(JointState, "/rig/joint_states", STREAM)
-        self.pub_encoders = node.create_publisher(EncoderCounts, "/rig/encoders", STREAM)
+        self.pub_samples = node.create_publisher(RigSamples, "rig/samples", STREAM)
+        self.pub_sample = node.create_publisher(RigSample, "rig/sample", STREAM)
+        self.pub_currents = node.create_publisher(MotorCurrents, "rig/currents", STREAM)
+        self.pub_joints = node.create_publisher(JointState, "rig/joint_states", STREAM)
+        self.pub_encoders = node.create_publisher(EncoderCounts, "rig/encoders", STREAM)
         self._batch = _Batch()
         self.published = 0  # samples published on /rig/samples
 
@@ -191,9 +191,9 @@ def declare_rig_feedforward(node: Node, rig: Rig, sample_period: float) -> RigFe
 def subscribe_commands(node: Node, on_speed: Callable[[SpeedCommand], None],
                        on_drive: Callable[[DriveCommand], None], on_load: Callable[[LoadCommand], None]) -> None:
     """The rig's command subscriptions, with the QoS every rig uses."""
-    node.create_subscription(SpeedCommand, "/rig/speed_command", on_speed, STREAM)
-    node.create_subscription(DriveCommand, "/rig/drive_command", on_drive, STREAM)
-    subscribe_command(node, LoadCommand, "/rig/load_command", on_load)
+    node.create_subscription(SpeedCommand, "rig/speed_command", on_speed, STREAM)
+    node.create_subscription(DriveCommand, "rig/drive_command", on_drive, STREAM)
+    subscribe_command(node, LoadCommand, "rig/load_command", on_load)
 
 
 def log_refusal(node: Node, what: str, reason: str) -> None:

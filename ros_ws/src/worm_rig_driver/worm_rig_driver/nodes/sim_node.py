@@ -94,7 +94,7 @@ class SimNode(Node):
         self.loop = RigLoop(self.rig, self.period, command_timeout, DEFAULT_GAINS, feedforward=feedforward)
         self.topics = RigTopics(self, frame_id, self.period, batch_size, decimation, self.sim.sensors.counts_per_rev)
         self.decimation = decimation
-        self.pub_truth = self.create_publisher(SimTruth, "/sim/truth", STREAM) if self.publish_truth else None
+        self.pub_truth = self.create_publisher(SimTruth, "sim/truth", STREAM) if self.publish_truth else None
         self.pub_truths = self.create_publisher(SimTruths, SIM_TRUTHS_TOPIC, STREAM) if self.publish_truth else None
         self._truths: dict[str, list] | None = None  # the open /sim/truth_samples batch (None: not collecting)
         self._truths_first = (0, 0)  # its (first_seq, first stamp [ns])
