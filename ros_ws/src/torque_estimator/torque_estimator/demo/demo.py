@@ -2,9 +2,10 @@
 
   1. calibrate: 17 speeds x 16 load torques, both directions, quasi-static;
   2. evaluate the k-NN estimator on 17 held-out operating points;
-  3. run the live graph over DDS (sim_node, model_node, estimator_node,
-     controller_node as separate processes) through load steps into all three
-     modes, feedforward off and then on, recording every topic to MCAP;
+  3. run the live graph over DDS (sim_node, whose load observer's estimate is the
+     graph's torque_estimate, in a process of its own; model_node and
+     controller_node in another) through load steps into all three modes,
+     feedforward off and then on, recording every topic to MCAP;
   4. print the figures and write PNG plots.
 """
 from __future__ import annotations

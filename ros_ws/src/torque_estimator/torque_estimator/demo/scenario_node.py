@@ -29,8 +29,7 @@ ANALYSED_TOPICS = ("/rig/samples", "/sim/truth_samples", "/torque_estimate", "/r
 
 def live_run(graph_file: Path, calibration: Path, feedforward: bool, bag: Path, log_dir: Path) -> float:
     """Run the scenario on the live graph, recording every topic to `bag`; returns the start stamp [s]."""
-    overrides = {"estimator_node": [f"calibration_file:={calibration}"],
-                 "sim_node": [f"feedforward_calibration:={calibration}"],
+    overrides = {"sim_node": [f"feedforward_calibration:={calibration}"],  # the rig's estimate is the graph's
                  "controller_node": [f"feedforward:={str(feedforward).lower()}", "speed_setpoint:=0.0"]}
     with Graph(graph_file, overrides, log_dir=log_dir, **rig_computer(graph_file)) as graph:
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)

@@ -9,6 +9,14 @@ runs (the rig file, or the model file's identified rig): the same ratio and K_t 
 compensation. Joints with equal settings share one built estimator (the maps are read-only;
 each LiveEstimator keeps its own state).
 
+Cost: a quasi-static map (knn, extended_model) costs about as much for one sample as for a few
+hundred, and its estimate is read only where it is published. So every sample goes through each
+joint's filters (LiveEstimator.filter: the estimate's state, every sample), and the map runs when
+the caller asks for estimates (``estimate=True``: estimator_node every ``publish_every``-th
+message), once for all the joints that share it (live.estimate_filtered); the values are those
+LiveEstimator.update gives for the same samples. A streaming estimator (the observer) follows
+every sample itself.
+
 No ROS; the caller hands over the message's fields.
 """
 from __future__ import annotations
@@ -19,7 +27,7 @@ from collections.abc import Mapping, Sequence
 from worm_model.rig_data.joint_states import JointConversion, JointStateReader
 
 from torque_estimator.estimation.base import EstimateFlags
-from torque_estimator.estimation.live import LiveEstimate, LiveEstimator
+from torque_estimator.estimation.live import Filtered, LiveEstimate, LiveEstimator, estimate_filtered
 from torque_estimator.estimation.settings import BuiltEstimator, build_estimator
 from torque_estimator.joints.settings import JointSetup
 
@@ -63,29 +71,48 @@ class JointEstimators:
         return [1.5 * b.rig.max_load_torque for b in self.built]
 
     def update(self, stamp_ns: int, names: Sequence[str], position: Sequence[float], velocity: Sequence[float],
-               effort: Sequence[float], voltage: Mapping[str, float] | None = None
+               effort: Sequence[float], voltage: Mapping[str, float] | None = None, estimate: bool = True
                ) -> list[tuple[int, LiveEstimate] | None]:
         """One message (header stamp [ns], its arrays; ``voltage`` [V] by joint name where known): per joint,
-        (seq, estimate) of its sample, or None where the message gave it none (refused: the reader counts why)."""
+        (seq, estimate) of its sample, or None where the message gave it none (refused: the reader counts
+        why) or ``estimate`` is False and the joint's estimator is a map (filtered only: module docstring)."""
         out: list[tuple[int, LiveEstimate] | None] = []
+        filtered: dict[int, tuple[int, Filtered]] = {}
         for k, sample in enumerate(self.reader.read(stamp_ns, names, position, velocity, effort, voltage)):
+            out.append(None)
             if sample is None:
-                out.append(None)
+                continue
+            live = self.live[k]
+            if live.quasi_static:
+                f = live.filter(sample.omega_worm, sample.current_drive, sample.theta_worm, sample.seq)
+                if estimate:
+                    filtered[k] = (sample.seq, f)
                 continue
             voltage_k = sample.voltage_drive if math.isfinite(sample.voltage_drive) else None
-            est = self.live[k].update(sample.omega_worm, sample.current_drive, voltage_k, sample.theta_worm,
-                                      sample.seq)
-            if est.flags:
-                counts = self.flag_counts[k]
-                for bit, name in self._flag_bits:
-                    if est.flags & bit:
-                        counts[name] += 1
-            out.append((sample.seq, est))
+            out[k] = (sample.seq, self._count(k, live.update(sample.omega_worm, sample.current_drive, voltage_k,
+                                                             sample.theta_worm, sample.seq)))
+        if filtered:
+            groups: dict[int, list[int]] = {}
+            for k in filtered:
+                groups.setdefault(id(self.built[k].estimator), []).append(k)
+            for members in groups.values():
+                estimates = estimate_filtered(self.built[members[0]].estimator, [filtered[k][1] for k in members])
+                for k, est in zip(members, estimates):
+                    out[k] = (filtered[k][0], self._count(k, est))
         return out
 
+    def _count(self, k: int, est: LiveEstimate) -> LiveEstimate:
+        if est.flags:
+            counts = self.flag_counts[k]
+            for bit, name in self._flag_bits:
+                if est.flags & bit:
+                    counts[name] += 1
+        return est
+
     def report(self) -> dict[str, int]:
-        """Per joint (``<joint>.<count>``): samples estimated, refusals by reason, seq gaps bridged and the
-        samples in them, stream restarts, flagged estimates by flag; and the malformed messages."""
+        """Per joint (``<joint>.<count>``): samples taken, refusals by reason, seq gaps bridged and the
+        samples in them, stream restarts, flagged estimates by flag (of the estimates computed); and the
+        malformed messages."""
         values: dict[str, int] = {"messages": self.reader.messages, "malformed_messages": self.reader.malformed_messages}
         for k, name in enumerate(self.names):
             live = self.live[k]

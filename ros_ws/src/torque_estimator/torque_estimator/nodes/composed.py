@@ -29,6 +29,7 @@ NODE_CLASSES: dict[str, str] = {
     "model_node": "worm_model.nodes.model_node:ModelNode",
     "estimator_node": "torque_estimator.nodes.estimator_node:EstimatorNode",
     "controller_node": "torque_estimator.nodes.controller_node:ControllerNode",
+    "joint_state_merger": "worm_rig_driver.nodes.joint_state_merger:JointStateMergerNode",
 }
 
 
