@@ -84,7 +84,8 @@ from worm_model.cli.progress import ProgressBar
 #: The nodes' parameter defaults (model_node.py; estimator_node.py: every method's options, from
 #: estimation.settings), for what the file leaves out.
 NODE_DEFAULTS: dict[str, dict[str, Any]] = {
-    "model_node": {"rig_file": "", "use_acceleration": True, "acceleration_filter": 0.01, "publish_period": 0.02},
+    "model_node": {"input": "rig_samples", "rig_file": "", "use_acceleration": True, "acceleration_filter": 0.01,
+                   "publish_period": 0.02},
     "estimator_node": {**{name: option.default for name, option in ALL_OPTIONS.items()}, "sample_rate": 1000.0,
                        "input": "rig_samples", "joint_name": "gear", "wrench_frame": "gear_output"},
 }
