@@ -18,8 +18,8 @@ Input (``input``), every topic relative to the node's namespace (``-r __ns:=/arm
   ``joint_side`` shaft, effort as ``effort_is`` (worm_model.rig_data.joint_states: the rig file's
   ratio and K_t convert; stamps from the header, ``sample_rate`` the publisher's rate). What must
   not be estimated from (a joint absent, a missing field, NaN, a repeated, earlier or early
-  stamp) is refused and counted per joint on /diagnostics. Every ``publish_every``-th message
-  gives, per joint ``j``, torque_estimate/<j> (TorqueEstimate, frame_id ``j``) and while subscribed
+  stamp) is refused and counted per joint on /diagnostics. The message stamped at every
+  ``publish_every``-th sample period (a phase of the stamps' clock) gives, per joint ``j``, torque_estimate/<j> (TorqueEstimate, frame_id ``j``) and while subscribed
   torque_estimate/<j>/wrench, and one torque_estimate/joint_states with every joint's effort. A
   method that reads the drive voltage (the observer) needs ``voltage_topics`` (std_msgs/Float64
   [V], the newest value used, per joint); without them the node refuses to start (exit 2). The
@@ -161,8 +161,10 @@ class EstimatorNode(Node):
                                f"Per joint (parallel to joint_names), its {single} ('' for none); empty: "
                                f"{single} for every joint.")
                  for name, single in PER_JOINT_FILES.items()}
-        self.publish_every = declare(self, "publish_every", 5, "Publish the estimates of every n-th JointState (5: "
-                                     "200 Hz from 1 kHz); every message is estimated.", low=1, high=100000)
+        self.publish_every = declare(self, "publish_every", 5, "Publish the estimates of the JointStates stamped at "
+                                     "every n-th sample period of the stamps' clock (5: 200 Hz from 1 kHz); every "
+                                     "message is estimated.", low=1, high=100000)
+        self.period_ns = self.period * 1e9
         setups = joint_setups(values, names, volts, files)  # ValueError: one line, exit 2
         self.joints: JointEstimators | None = None
         try:
@@ -226,7 +228,9 @@ class EstimatorNode(Node):
         if self.joints is None:
             return
         stamp = Time.from_msg(msg.header.stamp).nanoseconds
-        publish = self.messages % self.publish_every == 0
+        # the messages at every publish_every-th period of the stamps' clock: a phase of the clock, not of
+        # this node's start, so every estimator of one JointState publishes the same stamps
+        publish = round(stamp / self.period_ns) % self.publish_every == self.publish_every - 1
         estimates = self.joints.update(stamp, msg.name, msg.position, msg.velocity, msg.effort, self.voltages,
                                        estimate=publish)
         if publish:
