@@ -233,14 +233,18 @@ def test_joint_states_estimate_as_the_rig_samples_do(start_graph, tmp_path: Path
                     "b": {"not_finite": 0, "absent": 1, "repeated": 0, "out_of_order": 1}}[joint]
         assert refused == expected, (joint, refused)
     # the standard outputs: both joints, each -tau_d of its estimate, or NaN where that estimate is flagged
+    # (and while it settles after one: worm_rig_driver.robot.standard_outputs), the load most of the time
     by_stamp = {stamp(m): m for m in got["joint_a"]}
     standard = [j for j in got["standard"] if stamp(j) in by_stamp]
     assert len(standard) >= 0.8 * SAMPLES / 5 and all(j.name == ["a", "b"] for j in standard)
     for j in standard:
         est = by_stamp[stamp(j)]
-        trusted = not est.flags & (TorqueEstimate.FLAG_TRANSIENT | TorqueEstimate.FLAG_INVALID_INPUT
-                                   | TorqueEstimate.FLAG_OUT_OF_CALIBRATION)
-        assert (j.effort[0] == -est.torque) if trusted else math.isnan(j.effort[0]), (est, j.effort)
+        if est.flags & (TorqueEstimate.FLAG_TRANSIENT | TorqueEstimate.FLAG_INVALID_INPUT
+                        | TorqueEstimate.FLAG_OUT_OF_CALIBRATION):
+            assert math.isnan(j.effort[0]), (est, j.effort)
+        else:
+            assert math.isnan(j.effort[0]) or j.effort[0] == -est.torque, (est, j.effort)
+    assert sum(math.isfinite(j.effort[0]) for j in standard) > 0.8 * len(standard)
 
 
 def stamp(msg) -> int:

@@ -63,6 +63,11 @@ class JointEstimators:
                                         for s, b in zip(self.setups, self.built)], sample_period)
         self.names = [s.name for s in self.setups]
         self.flag_counts = [dict.fromkeys((f.name for f in COUNTED_FLAGS), 0) for _ in self.setups]
+        #: per joint, the last message's (flags, tau_d [N m] or None where not computed), (None, None) where the
+        #: message gave the joint no sample: what the standard outputs judge every sample by
+        self.judged: list[tuple[int | None, float | None]] = [(None, None)] * len(self.setups)
+        #: per joint, whether its estimator started again at the last message's sample (a new session)
+        self.restarted: list[bool] = [False] * len(self.setups)
         self._flag_bits = [(int(f), f.name) for f in COUNTED_FLAGS]
 
     @property
@@ -78,19 +83,27 @@ class JointEstimators:
         why) or ``estimate`` is False and the joint's estimator is a map (filtered only: module docstring)."""
         out: list[tuple[int, LiveEstimate] | None] = []
         filtered: dict[int, tuple[int, Filtered]] = {}
+        judged = self.judged
         for k, sample in enumerate(self.reader.read(stamp_ns, names, position, velocity, effort, voltage)):
             out.append(None)
+            judged[k] = (None, None)
+            self.restarted[k] = False
             if sample is None:
                 continue
             live = self.live[k]
+            restarts = live.restarts
             if live.quasi_static:
                 f = live.filter(sample.omega_worm, sample.current_drive, sample.theta_worm, sample.seq)
+                judged[k] = (f.flags, None)  # the map's own flags and torque: where it runs (below)
+                self.restarted[k] = live.restarts != restarts
                 if estimate:
                     filtered[k] = (sample.seq, f)
                 continue
             voltage_k = sample.voltage_drive if math.isfinite(sample.voltage_drive) else None
             out[k] = (sample.seq, self._count(k, live.update(sample.omega_worm, sample.current_drive, voltage_k,
                                                              sample.theta_worm, sample.seq)))
+            judged[k] = (out[k][1].flags, out[k][1].torque)
+            self.restarted[k] = live.restarts != restarts
         if filtered:
             groups: dict[int, list[int]] = {}
             for k in filtered:
@@ -99,6 +112,7 @@ class JointEstimators:
                 estimates = estimate_filtered(self.built[members[0]].estimator, [filtered[k][1] for k in members])
                 for k, est in zip(members, estimates):
                     out[k] = (filtered[k][0], self._count(k, est))
+                    judged[k] = (est.flags, est.torque)
         return out
 
     def _count(self, k: int, est: LiveEstimate) -> LiveEstimate:

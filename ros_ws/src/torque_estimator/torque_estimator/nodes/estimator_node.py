@@ -133,7 +133,7 @@ class EstimatorNode(Node):
             built = build_estimator(self.settings)
             self.estimator = built.live(self.period)
             self.topics = EstimateTopics(self, self.method, [joint_name], [1.5 * built.rig.max_load_torque],
-                                         wrench_frame=wrench_frame)
+                                         sample_period=self.period, wrench_frame=wrench_frame)
             self.get_logger().info(
                 f"{self.method} estimator on {len(built.database)} calibration points from "
                 f"{self.settings.calibration_file}" if built.database is not None else
@@ -170,7 +170,7 @@ class EstimatorNode(Node):
         try:
             self.joints = JointEstimators(setups, self.period, side, effort_is)
             self.topics = EstimateTopics(self, self.method, [s.name for s in setups], self.joints.max_loads,
-                                         per_joint=True)
+                                         sample_period=self.period, per_joint=True)
             self.get_logger().info(f"{self.method} estimators for joints {', '.join(s.name for s in setups)} of "
                                    f"{self.resolve_topic_name(topic)} ({side} side, effort as {effort_is})")
         except (CalibrationError, ParameterError) as err:
@@ -213,6 +213,9 @@ class EstimatorNode(Node):
         restarts = self.estimator.restarts
         for k in range(n):
             est = self.estimator.update(omega[k], current[k], voltage[k], theta[k], batch.first_seq + k)
+            if self.estimator.restarts != restarts:
+                self.topics.restart(0)
+            self.topics.observe(0, est.flags, est.torque)
             if est.flags:
                 for flag in EstimateFlags(est.flags):
                     self.flag_counts[flag.name] += 1
@@ -233,6 +236,11 @@ class EstimatorNode(Node):
         publish = round(stamp / self.period_ns) % self.publish_every == self.publish_every - 1
         estimates = self.joints.update(stamp, msg.name, msg.position, msg.velocity, msg.effort, self.voltages,
                                        estimate=publish)
+        for k, (flags, torque) in enumerate(self.joints.judged):
+            if flags is not None:  # the joint had a sample in this message
+                if self.joints.restarted[k]:
+                    self.topics.restart(k)
+                self.topics.observe(k, flags, torque)
         if publish:
             self.topics.publish(stamp, msg.header.frame_id, estimates)
 

@@ -14,7 +14,8 @@ Several joints of a robot (estimator_node on a JointState): per joint ``j``
 axis), and one ``torque_estimate/joint_states`` carrying every joint's effort.
 
 Effort and torque.z are the torque the load applies in the joint's positive direction, -tau_d, for
-trusted estimates only: NaN otherwise (worm_rig_driver.robot.standard_outputs says which and why).
+trusted estimates only: NaN otherwise (worm_rig_driver.robot.standard_outputs says which and why;
+every sample's estimate is judged, published or not: :meth:`EstimateTopics.observe`).
 TorqueEstimate carries every estimate as it is, flags included. Sensor-data QoS.
 Publishers may be used from the rig's sample thread (rclpy allows it).
 """
@@ -63,13 +64,14 @@ class EstimateTopics:
         method: the estimator's name (TorqueEstimate.method).
         joints: the joints' names (one for a rig's gear shaft).
         max_loads: per joint, the |tau_d| [N m] beyond which an estimate is implausible (StandardEffort).
+        sample_period: [s] between the samples observed.
         per_joint: per-joint TorqueEstimate and wrench topics (several joints of a robot); False: the
             single joint's topics without its name.
         wrench_frame: frame_id of the single joint's wrench (per joint: the joint's name).
     """
 
     def __init__(self, node: Node, method: str, joints: Sequence[str], max_loads: Sequence[float], *,
-                 per_joint: bool = False, wrench_frame: str = "gear_output") -> None:
+                 sample_period: float = 1e-3, per_joint: bool = False, wrench_frame: str = "gear_output") -> None:
         if len(joints) != len(max_loads) or not joints or (len(joints) > 1 and not per_joint):
             raise ValueError(f"joints {list(joints)} and max_loads {list(max_loads)}: one each, several only per joint")
         if per_joint:
@@ -79,7 +81,7 @@ class EstimateTopics:
         self.method = method
         self.per_joint = per_joint
         self.joints = list(joints)
-        self.efforts = [StandardEffort(m) for m in max_loads]
+        self.efforts = [StandardEffort(m, sample_period) for m in max_loads]
         self.frames = list(joints) if per_joint else [wrench_frame]
         self.pub_estimates = [node.create_publisher(TorqueEstimate, f"torque_estimate/{j}" if per_joint
                                                     else "torque_estimate", STREAM) for j in joints]
@@ -87,9 +89,19 @@ class EstimateTopics:
                                                    else "torque_estimate/wrench", STREAM) for j in joints]
         self.pub_joints = node.create_publisher(JointState, "torque_estimate/joint_states", STREAM)
 
+    def observe(self, joint: int, flags: int, torque: float | None = None) -> None:
+        """Every sample's estimate of joint index ``joint`` (its flags, and tau_d [N m] where computed; None:
+        not), published or not: what the standard outputs trust (StandardEffort.observe)."""
+        self.efforts[joint].observe(flags, torque)
+
+    def restart(self, joint: int) -> None:
+        """Joint index ``joint``'s estimator started again (a new rig session): StandardEffort.restart."""
+        self.efforts[joint].restart()
+
     def publish(self, stamp_ns: int, frame_id: str, estimates: Sequence[tuple[int, Estimate] | None]) -> None:
-        """Publish one estimate per joint (``(seq, estimate)``, None for a joint without one now) stamped
-        ``stamp_ns`` (the sample's); frame_id of the single joint's TorqueEstimate (per joint: its name)."""
+        """Publish one estimate per joint (``(seq, estimate)``, None for a joint without one now: NaN in the
+        joint states) stamped ``stamp_ns`` (the sample's), each observed already (:meth:`observe`); frame_id
+        of the single joint's TorqueEstimate (per joint: its name)."""
         stamp = Time(nanoseconds=stamp_ns).to_msg()
         efforts = []
         listening = self.pub_joints.get_subscription_count() > 0
@@ -107,7 +119,7 @@ class EstimateTopics:
             if not (listening or wrench_listening):
                 efforts.append(float("nan"))
                 continue
-            effort = self.efforts[k].effort(est.torque, est.flags)
+            effort = self.efforts[k].effort(est.torque)
             efforts.append(effort)
             if wrench_listening:
                 wrench = WrenchStamped()

@@ -220,15 +220,17 @@ class RigEstimate:
         self.feedforward = feedforward if publish else None
         self.frame_id = frame_id
         self.topics = (EstimateTopics(node, feedforward.method, [joint_name], [1.5 * rig.max_load_torque],
-                                      wrench_frame=wrench_frame) if self.feedforward is not None else None)
+                                      sample_period=1.0 / rig.sensors.sample_rate_hz, wrench_frame=wrench_frame)
+                       if self.feedforward is not None else None)
 
     def after_sample(self, rig_topics: "RigTopics", seq: int, stamp_ns: int) -> None:
-        """Sample ``seq`` (stamped ``stamp_ns``) went to rig_topics and to the feedforward: publish its estimate
-        if it closed a batch."""
-        if self.topics is None or rig_topics.pending:
+        """Sample ``seq`` (stamped ``stamp_ns``) went to rig_topics and to the feedforward: judge its estimate
+        for the standard outputs, and publish it if the sample closed a batch."""
+        estimate = self.feedforward.last if self.topics is not None else None
+        if estimate is None:
             return
-        estimate = self.feedforward.last
-        if estimate is not None:
+        self.topics.observe(0, estimate.flags, estimate.torque)
+        if not rig_topics.pending:
             self.topics.publish(stamp_ns, self.frame_id, [(seq, estimate)])
 
     def report(self) -> dict[str, int]:
