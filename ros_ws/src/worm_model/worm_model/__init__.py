@@ -19,7 +19,8 @@ outside ``ros/`` and ``nodes/``):
               of CSV files, bags and EPOS Studio exports (``read_rig_data``); the ``bag``
               command
 ``residuals`` closing the loop with measured data: fit, residual, effects, report
-``calc``      ``worm_calc``: one operating point through the model
+``calc``      ``worm_calc``: one operating point through the model; ``rig_from_datasheet``:
+              a rig file from a gear catalogue and a motor datasheet
 ``figures``   ``report``: the paper's Figures 6-11 from a calibration
 ``ros``       what every node of the project shares (QoS, parameters, diagnostics,
               lifecycle, ament lookup)
