@@ -3,10 +3,10 @@
     python bench/graph_bench.py [--window 60] [--skip-load] [--separate-window 20]
                                  (run_all.py runs it with its own ROS_DOMAIN_ID)
 
-The graph of sim_graph.yaml (its estimator method, the observer; calibration written
-first) runs as a rig computer runs it: sim_node in a process of its own, model_node,
-estimator_node and controller_node together in another, both at SCHED_FIFO 40
-(`run_graph sim_graph.yaml --together model_node,estimator_node,controller_node
+The graph of sim_graph.yaml (the rig's load observer, with the calibration written
+first, feeds forward and is the graph's torque_estimate) runs as a rig computer runs it:
+sim_node in a process of its own, model_node and controller_node together in another,
+both at SCHED_FIFO 40 (`run_graph sim_graph.yaml --together model_node,controller_node
 --priority 40`; graph.runner.rig_computer), the recorder (`ros2 run worm_rig_driver
 recorder`, the graph's streams /rig/samples, /torque_estimate, /gearbox/forces,
 /rig/speed_command) beside it at normal priority. Twice (the second time while a CPU
@@ -14,7 +14,7 @@ hog started here holds one core busy at normal priority): commands 150 rad/s and
 resistive load of +0.15 N m, lets it settle, then measures for --window seconds and
 prints to stdout:
 
-  graph_cpu_cores: <x> cores          CPU of sim_node + model_node + estimator_node + controller_node
+  graph_cpu_cores: <x> cores          CPU of every process of the graph (sim_node, model_node, controller_node)
   graph_cpu_<process>: <x> cores      each process of the graph (process CPU time over the window / window)
   graph_latency_p50: <x> ms           newest rig sample a speed command was computed from (its stamp)
   graph_latency_p99: <x> ms           -> that command in force at the rig, per command, read from the
@@ -52,7 +52,6 @@ LOAD = 0.15  # [N m], resistive at positive speed
 START_TIMEOUT = 45.0  # [s]
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
-NODES = ("sim_node", "model_node", "estimator_node", "controller_node")
 RECORDED = ("/rig/samples", "/torque_estimate", "/gearbox/forces", "/rig/speed_command", "/diagnostics")
 HZ = os.sysconf("SC_CLK_TCK")
 
@@ -92,7 +91,7 @@ def _cpu_over(pids: dict[str, int], wait) -> dict[str, float]:
 
 
 def run_phase(calibration: Path, work: Path, window: float, hog: bool, together: list[list[str]],
-              method: str, priority: int = 0) -> dict[str, float]:
+              priority: int = 0) -> dict[str, float]:
     """One measurement; returns the figures by name (without suffix)."""
     import rclpy
     from rclpy.context import Context
@@ -118,8 +117,8 @@ def run_phase(calibration: Path, work: Path, window: float, hog: bool, together:
     def spin_for(seconds: float) -> None:
         executor.spin_until_future_complete(Future(executor=executor), timeout_sec=seconds)
 
-    overrides = parse_overrides([f"estimator_node.calibration_file={calibration}",
-                                 f"controller_node.speed_setpoint={SPEED_SETPOINT}", f"estimator_node.method={method}"])
+    overrides = parse_overrides([f"sim_node.feedforward_calibration={calibration}",
+                                 f"controller_node.speed_setpoint={SPEED_SETPOINT}"])
     graph = Graph(GRAPH_FILE, overrides, work / f"logs_{tag}", together=together, priority=priority)
     recorder = hog_proc = None
     try:
@@ -222,7 +221,7 @@ def main(argv: list[str] | None = None) -> int:
         runs.append(("_separate", False, {"together": [], "priority": 0}, args.separate_window))
     for suffix, hog, options, window in runs:
         try:
-            figures = run_phase(calibration, work, window, hog, options["together"], "observer", options["priority"])
+            figures = run_phase(calibration, work, window, hog, options["together"], options["priority"])
         except Exception as err:  # a benchmark reports, it does not assert
             info(f"failed: {err!r}")
             figures = {}

@@ -18,6 +18,8 @@ HERE = Path(__file__).resolve().parent
 GRAPH_METRICS = tuple(f"graph_{name}{suffix}: nan {unit}".rstrip() for suffix in ("", "_under_load", "_separate")
                       for name, unit in (("cpu_cores", "cores"), ("latency_p50", "ms"), ("latency_p99", "ms"),
                                          ("lost_samples", ""), ("sim_skipped_samples", "")))
+JOINT_STATE_METRICS = ("joint_state_estimator_cpu_cores: nan cores", "joint_state_estimator_lost_messages: nan",
+                       "joint_state_estimator_max_abs_diff: nan N m", "joint_state_publisher_cpu_cores: nan cores")
 SERIAL_METRICS = ("decoder_throughput: nan frames/s", "driver_cpu_at_1khz: nan %", "driver_reconnect_time: nan s")
 RECORDER_METRICS = ("recorder_published: nan count", "recorder_recorded: nan count",
                     "recorder_lost_messages: nan count")
@@ -54,6 +56,7 @@ def main() -> int:
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     print(f"[run_all] graph benchmark on ROS_DOMAIN_ID={env['ROS_DOMAIN_ID']}", file=sys.stderr, flush=True)
     ok = run("graph_bench.py", env, GRAPH_METRICS, timeout=600)
+    ok &= run("joint_state_bench.py", env, JOINT_STATE_METRICS, timeout=300)
     ok &= run("core_bench.py", dict(os.environ), ("calibration_grid_time: nan s",), timeout=600)
     ok &= run("identify_bench.py", dict(os.environ), ("calibration_rig_time: nan s", "identification_rig_time: nan s",
                                                       "identification_fit_time: nan s"), timeout=300)

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from torque_estimator.graph.runner import Graph
+from torque_estimator.graph.runner import Graph, process_file_name
 from worm_model.ros.testing import local_domain
 
 
@@ -54,6 +54,7 @@ def start_graph(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactor
     unclean = {logs: c for logs, c in codes.items() if any(code != 0 for code in c.values())}
     # a node killed after the grace period printed its threads' stacks (SIGUSR1) into its log: show them,
     # pytest's temporary folders do not outlive three runs
-    tails = "".join(f"\n--- {logs}/{name}.log (end) ---\n" + (Path(logs) / f"{name}.log").read_text(
-        errors="replace")[-4000:] for logs, c in unclean.items() for name, code in c.items() if code != 0)
+    tails = "".join(f"\n--- {logs}/{name}.log (end) ---\n" + (Path(logs) / f"{process_file_name(name.split('+'))}.log")
+                    .read_text(errors="replace")[-4000:] for logs, c in unclean.items() for name, code in c.items()
+                    if code != 0)
     assert not unclean, f"nodes did not exit cleanly (exit codes by log folder): {unclean}{tails}"

@@ -152,7 +152,8 @@ controller_node:
 def test_feedforward_at_the_rig_meets_a_load_step_within_a_few_samples(start_graph: Callable[[str, str], Graph]
                                                                        ) -> None:
     """sim_node runs the observer beside its PI (feedforward_estimator) and controller_node asks for it
-    (feedforward_at_rig); no estimator_node runs, so any feedforward is the rig's own. After a resistive load
+    (feedforward_at_rig); the rig does not publish that estimate (publish_estimate false) and no
+    estimator_node runs, so any feedforward is the rig's own. After a resistive load
     step the drive voltage has made most of its way to the new steady value within a few samples: the
     feedforward moved it, where the PI alone (feedforward_at_rig set false at run time, as `ros2 param set` does)
     has barely started. Judged on the rig's own samples (the applied load's step, their seqs)."""
@@ -166,6 +167,7 @@ sim_node:
   ros__parameters:
     command_timeout: 0.1
     feedforward_estimator: observer
+    publish_estimate: false
 controller_node:
   ros__parameters:
     speed_setpoint: 150.0

@@ -1,9 +1,10 @@
 """System tests of the whole node graph over real DDS, every node its own process.
 
-The graph of ros_ws/src/torque_estimator/config/sim_graph.yaml (sim_node,
-model_node, estimator_node, controller_node) is started once for this module
-with torque_estimator.graph.runner.Graph, on a calibration database written by
-`python -m torque_estimator.calibration.calibrate`, with the speed set-point at 150 rad/s.
+The graph of ros_ws/src/torque_estimator/config/sim_graph.yaml (sim_node, whose load
+observer feeds forward and publishes the graph's /torque_estimate, model_node,
+controller_node) is started once for this module with torque_estimator.graph.runner.Graph,
+on a calibration database written by `python -m torque_estimator.calibration.calibrate`
+(the rig's feedforward_calibration), with the speed set-point at 150 rad/s.
 A probe node in this process (EventsExecutor, spun in the main thread only
 while a test measures) subscribes, publishes load commands and bad samples.
 
@@ -202,7 +203,7 @@ class RunningGraph:
 def graph(ros_env: dict[str, str], probe: Probe, calibration_file: Path,
           tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningGraph]:
     log_dir = tmp_path_factory.mktemp("graph_logs")
-    overrides = parse_overrides([f"estimator_node.calibration_file={calibration_file}",
+    overrides = parse_overrides([f"sim_node.feedforward_calibration={calibration_file}",
                                  f"controller_node.speed_setpoint={SPEED_SETPOINT}"])
     g = Graph(GRAPH_FILE, overrides, log_dir)
     running = RunningGraph(g, log_dir, calibration_file)
@@ -233,7 +234,9 @@ def stamp_s(header) -> float:
 def test_every_topic_flows_at_its_configured_rate(graph: RunningGraph, probe: Probe) -> None:
     """The rig's clock: consecutive seqs, stamps exactly one sample period apart, batches of 5; one
     estimate and one forces message per batch (for its newest sample); the decimated channels every
-    10th sample; a speed command per estimate. Counted on the stream's own seqs and stamps."""
+    10th sample; a speed command every command_period (20 ms: the feedforward is the rig's, so the
+    commands carry only the set-point), each answering an estimate. Counted on the stream's own seqs
+    and stamps."""
     topics = {"/rig/samples": RigSamples, "/rig/speed_command": SpeedCommand, "/gearbox/forces": GearboxForces,
               **PER_BATCH_TOPICS, **SLOW_TOPICS, **SAMPLE_BATCH_TOPICS}
     rec, subs = probe.record(topics)
@@ -278,10 +281,12 @@ def test_every_topic_flows_at_its_configured_rate(graph: RunningGraph, probe: Pr
     gaps = [b - a for a, b in zip(forces, forces[1:])]
     assert len(forces) >= 0.6 * span / FORCES_EVERY and max(gaps) <= 25 * FORCES_EVERY, (len(forces), max(gaps))
     commands = rec.messages["/rig/speed_command"]
-    estimates = rec.messages["/torque_estimate"]
-    # one speed command per estimate (the probe, best effort, may miss some of either: 0.82 seen with
-    # four other jobs on the machine)
-    assert len(commands) >= 0.75 * len(estimates), f"{len(commands)} speed commands for {len(estimates)} estimates"
+    # a command with the first estimate at least command_period (20 ms) after the last one, each answering
+    # an estimate (its sample_seq ends a batch): 40 a second at least with the estimates every 5 ms; the
+    # probe, best effort, may miss some (0.82 of a stream seen with four other jobs on the machine)
+    answering = [c for c in commands if c.sample_seq in ends]
+    assert len(answering) >= 0.75 * (span * SAMPLE_PERIOD) / 0.025, f"{len(answering)} speed commands in {span} samples"
+    assert len(commands) <= 1.1 * (span * SAMPLE_PERIOD) / 0.02 + 5, f"{len(commands)} speed commands in {span} samples"
     truth = [m.seq for m in rec.messages["/sim/truth"]]
     assert all(s % DECIMATION == 0 for s in truth)
     firsts = {b.first_seq for b in batches}
@@ -400,7 +405,7 @@ def test_speed_commands_act_at_the_rig_after_the_sample_they_answer(graph: Runni
         probe.unsubscribe(subs)
     samples = [s for b in rec.messages["/rig/samples"] for s in unbatch(b)]
     latencies = command_latencies(samples)
-    assert len(latencies) > 50, f"only {len(latencies)} speed commands took effect in 2 s"
+    assert len(latencies) > 30, f"only {len(latencies)} speed commands took effect in 2 s"
     assert min(latencies) >= 0, "a command drove a period before the sample it was computed from"
     assert all(s.command_seq for s in samples[-100:]), "the rig left speed mode"
     assert not any(s.status & RigSample.STATUS_WATCHDOG_STOP for s in samples[-100:])
@@ -476,10 +481,10 @@ def test_estimate_follows_true_load_in_steady_state(graph: RunningGraph, probe: 
 
 
 def test_nan_samples_are_flagged_and_the_graph_keeps_running(graph: RunningGraph, probe: Probe) -> None:
-    """Batches of NaN speed/current samples injected on /rig/samples: estimator_node publishes an
-    estimate for each batch, flagged INVALID_INPUT (it does not drop them); model_node publishes forces
-    flagged INVALID_INPUT with NaN forces. Both keep their filter state, keep running and keep
-    publishing finite results for the rig's samples after the bad ones."""
+    """Batches of NaN speed/current samples injected on /rig/samples: model_node publishes forces flagged
+    INVALID_INPUT with NaN forces and counts them; it keeps its filter state, keeps running and keeps
+    publishing finite forces for the rig's samples after the bad ones, and so does the rig its estimates.
+    (An estimator_node fed NaN: tests/test_joint_state_dds.py; LiveEstimator: test_live_estimator.)"""
     first_bad = 10**12  # far beyond the sim's seqs: these samples are recognisable downstream
     bad_seqs = {first_bad + BATCH * i + BATCH - 1 for i in range(6)}  # the batches' newest samples
     pub = probe.node.create_publisher(RigSamples, "/rig/samples", PROBE_QOS)
@@ -487,8 +492,8 @@ def test_nan_samples_are_flagged_and_the_graph_keeps_running(graph: RunningGraph
                               "/diagnostics": DiagnosticArray})
     try:
         assert probe.wait_all_flowing(rec), f"no estimates or forces\n{graph.logs()}"
-        assert probe.spin_until(lambda: pub.get_subscription_count() >= 2, MATCH_TIMEOUT), (
-            f"model/estimator did not match the probe's /rig/samples publisher "
+        assert probe.spin_until(lambda: pub.get_subscription_count() >= 1, MATCH_TIMEOUT), (
+            f"model_node did not match the probe's /rig/samples publisher "
             f"({pub.get_subscription_count()} subscriptions)")
         probe.spin_for(0.3)
         for i, seq in enumerate(sorted(bad_seqs)):
@@ -513,18 +518,13 @@ def test_nan_samples_are_flagged_and_the_graph_keeps_running(graph: RunningGraph
         probe.node.destroy_publisher(pub)
     graph.assert_alive()
 
-    assert "ignored a /rig/samples message (first_seq 1000000001000): fields of unequal length" in graph.logs()
-    estimates = [m for m in rec.messages["/torque_estimate"] if m.seq in bad_seqs]
+    assert "ignored a rig/samples message (first_seq 1000000001000): fields of unequal length" in graph.logs()
     forces = [m for m in rec.messages["/gearbox/forces"] if m.seq in bad_seqs]
-    # Best effort: one sample may be dropped on a loaded machine, but not all of them.
-    assert estimates, f"no estimate for any of the {len(bad_seqs)} NaN batches\n{graph.logs()}"
     # model_node publishes forces for the newest sample of each 20 ms chunk: the NaN samples show in its
     # count of invalid inputs (and as flagged forces if one ended a chunk)
     invalid = [int(kv.value) for m in rec.messages["/diagnostics"] for s in m.status if s.name == "model_node"
                for kv in s.values if kv.key == "invalid_inputs"]
     assert invalid and max(invalid) >= BATCH, f"model_node counted {invalid} invalid inputs"
-    for m in estimates:
-        assert m.flags & TorqueEstimate.FLAG_INVALID_INPUT, f"estimate for NaN sample {m.seq}: flags {m.flags}"
     for m in forces:
         assert m.flags & GearboxForces.FLAG_INVALID_INPUT, f"forces for NaN sample {m.seq}: flags {m.flags}"
         assert math.isnan(m.normal_force), f"forces for NaN sample {m.seq}: N = {m.normal_force}"
@@ -643,8 +643,12 @@ def test_a_foreign_stack_reads_the_estimate_in_standard_types(graph: RunningGrap
     true_load = sum(t.tau_load for t in rec.messages["/sim/truth"]) / len(rec.messages["/sim/truth"])
     assert all(j.name == ["gear"] and len(j.effort) == 1 for j in joints)
     assert all(w.header.frame_id == "gear_output" and w.wrench.force.x == 0.0 for w in wrenches)
-    effort = sum(j.effort[0] for j in joints) / len(joints)
-    torque = sum(w.wrench.torque.z for w in wrenches) / len(wrenches)
+    # an estimate the observer flags (a false step alarm's few TRANSIENT samples) goes out as NaN: rare here
+    efforts = [j.effort[0] for j in joints if math.isfinite(j.effort[0])]
+    torques = [w.wrench.torque.z for w in wrenches if math.isfinite(w.wrench.torque.z)]
+    assert len(efforts) >= 0.95 * len(joints) and len(torques) >= 0.95 * len(wrenches), (len(efforts), len(joints))
+    effort = sum(efforts) / len(efforts)
+    torque = sum(torques) / len(torques)
     tolerance = 0.05 * load_database(graph.calibration_file).torque_range
     assert abs(effort + true_load) < tolerance and abs(torque + true_load) < tolerance, (effort, torque, true_load)
     assert len(joints) > 100 and len(wrenches) > 100  # the batch rate, 200 Hz

@@ -83,13 +83,13 @@ def test_every_documented_command(ros_env: dict[str, str], tmp_path: Path) -> No
              "replay": [line for line in lines if " replay " in line]}
     handled = set(nodes) | set(pubs) | set(graphs) | {line for group in known.values() for line in group}
     assert set(lines) == handled, f"documented commands with no test: {sorted(set(lines) - handled)}"
-    assert len(nodes) == 4 and len(pubs) == 2 and len(graphs) == 2 and all(len(v) == 1 for v in known.values())
+    assert len(nodes) == 3 and len(pubs) == 2 and len(graphs) == 2 and all(len(v) == 1 for v in known.values())
 
     done = subprocess.run(command(known["calibrate_out"][0], tmp_path), env=ros_env, capture_output=True, text=True,
                           timeout=120)
     assert done.returncode == 0 and (tmp_path / "calibration.json").exists(), done.stderr
 
-    # the four nodes, one `ros2 run` each, then the two `ros2 topic pub` lines and the recorder
+    # the three nodes, one `ros2 run` each, then the two `ros2 topic pub` lines and the recorder
     procs = [subprocess.Popen(command(line, tmp_path), env=ros_env, stdout=subprocess.DEVNULL,
                               stderr=subprocess.PIPE, text=True) for line in nodes]
     recorder = None
@@ -108,8 +108,8 @@ def test_every_documented_command(ros_env: dict[str, str], tmp_path: Path) -> No
             assert spin_until(lambda: bool(samples), START_TIMEOUT), "the documented nodes did not stream"
             recorder = subprocess.Popen(command(known["recorder"][0], tmp_path), env=ros_env,
                                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-            # the recorder has subscribed (model, estimator, this probe and it)
-            assert spin_until(lambda: probe.count_subscribers("/rig/samples") >= 4, START_TIMEOUT)
+            # the recorder has subscribed (model, this probe and it)
+            assert spin_until(lambda: probe.count_subscribers("/rig/samples") >= 3, START_TIMEOUT)
             published = [topic_pub(probe, line) for line in pubs]
             assert spin_until(lambda: all(pub.get_subscription_count() >= 1 for pub, _ in published), 30.0)
             for pub, msg in published:  # `ros2 topic pub` repeats at 1 Hz: twice is enough here
@@ -126,7 +126,7 @@ def test_every_documented_command(ros_env: dict[str, str], tmp_path: Path) -> No
         if recorder is not None:
             assert stop_process(recorder, grace=30.0) == 0, recorder.stderr.read()
         codes = [stop_process(p) for p in procs]
-    assert codes == [0, 0, 0, 0], codes
+    assert codes == [0, 0, 0], codes
 
     done = subprocess.run(command(known["bag"][0], tmp_path), env=ros_env, capture_output=True, text=True, timeout=60)
     assert done.returncode == 0 and "/rig/samples" in done.stdout, done.stderr

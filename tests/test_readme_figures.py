@@ -5,7 +5,7 @@ and computes it, so a page and the product cannot drift apart.
   evaluate's transient and held-out figures), the observer's noise against its bound, the momentum observer's
   section (its noise floor for a linear estimator, noise, step times, streamed held-out points), the step-size
   bound, the feedforward table (controller_bench) and what the text derives from it, the observer with a calibration;
-- docs/new-drive.md: the rig time of each road, the extended model's table angles;
+- docs/residuals.md: the rig time of each road, the extended model's table angles;
 - docs/paper-figures.md, new-drive.md, residuals.md, estimators.md: the settings and rig values they state.
 
 Every run here is seeded, so the figures are exact up to round-off: the tolerance is half a unit of the last digit
@@ -282,13 +282,13 @@ def test_the_observer_with_a_calibration(database, row: list[str]) -> None:
 
 
 # ------------------------------------------------------------------------------------------------------------
-# docs/new-drive.md: the roads' rig time, the table's angles
+# docs/residuals.md (identification on a test bench): the roads' rig time, the table's angles
 
 def test_the_rig_time_of_each_road() -> None:
     from torque_estimator.evaluation.identified import effects_all, live_grid_rig_time
     from torque_estimator.identification.excitation import MAX_DURATION, default_excitation, total_duration
 
-    text = page("new-drive.md")
+    text = page("residuals.md")
     plain, with_effects = stated(text, r"(\d+) s of rig time on the simulated rig without effects and (\d+) s with "
                                        r"every effect on")
     assert round(live_grid_rig_time(RIG, GRID)) == int(plain)
@@ -303,14 +303,14 @@ def test_the_rig_time_of_each_road() -> None:
 
 
 def test_the_extended_model_table_angles(tmp_path: Path) -> None:
-    """docs/new-drive.md: the smallest count >= 7 onto which no harmonic of the model aliases, 8 for the NMRV030
+    """docs/residuals.md: the smallest count >= 7 onto which no harmonic of the model aliases, 8 for the NMRV030
     with every simulator effect (the cogging's 420 = 7 x 60 cycles per gear turn)."""
     from torque_estimator.estimation.extended_model import ANGLES, angle_count, gear_orders
     from torque_estimator.evaluation.identified import effects_all
     from worm_model.residuals.effects import EFFECTS as VOCABULARY
     from worm_model.residuals.extended import ExtendedModel, write_with_effects
 
-    text = page("new-drive.md")
+    text = page("residuals.md")
     minimum, count, cycles, factor, factor2 = stated(
         text, r"over the smallest number of angles \(at least (\d+)\) onto which no harmonic of the model aliases: "
               r"(\d+) for this rig, whose motor cogging has (\d+) cycles per gear turn \((\d+) × (\d+)\)")
@@ -340,10 +340,11 @@ def test_settings_the_pages_state() -> None:
 
     new_drive = page("new-drive.md")
     assert float(stated(new_drive, r"by more than (\d+) % \(\[physics")[0]) / 100 == RATIO_TOLERANCE
-    bar, rise = stated(new_drive, r"lower the held-out RMS of the current by ([\d.]+) %[\s\S]*?rise by up to (\d+) %")
+    bench = page("residuals.md")
+    bar, rise = stated(bench, r"lower the held-out RMS of the current by ([\d.]+) %[\s\S]*?rise by up\s+to (\d+) %")
     assert IDENTIFY_SETTINGS.min_improvement == pytest.approx(float(bar) / 100)
     assert IDENTIFY_SETTINGS.other_signal_tolerance == pytest.approx(float(rise) / 100)
-    assert float(stated(new_drive, r"\|α\| ≤ (\d+) rad/s²")[0]) == QUASI_STATIC_ACCELERATION
+    assert float(stated(bench, r"\|α\| ≤ (\d+) rad/s²")[0]) == QUASI_STATIC_ACCELERATION
 
     residuals = page("residuals.md")
     assert float(stated(residuals, r"by at least (\d+) % \*and\* the")[0]) / 100 == pytest.approx(Settings().min_improvement)

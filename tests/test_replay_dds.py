@@ -1,8 +1,9 @@
 """System test: record the live graph over DDS, replay the bag offline, get the live results back.
 
-The graph of sim_graph.yaml (sim_node, model_node, estimator_node,
-controller_node at 150 rad/s) runs as processes; the `recorder` executable
-records /rig/samples, /torque_estimate and /gearbox/forces; then
+The graph of sim_graph.yaml (sim_node, model_node, controller_node at 150 rad/s)
+with an estimator_node added (knn, below), which publishes /torque_estimate in place
+of the rig (sim_node publish_estimate false), runs as processes; the `recorder`
+executable records /rig/samples, /torque_estimate and /gearbox/forces; then
 torque_estimator.offline.replay feeds the recorded samples to model_node's and
 estimator_node's cores, with no DDS, and the outputs are compared by seq with
 what the live nodes published (one per batch, for its newest sample).
@@ -13,7 +14,7 @@ compared: the live nodes started before the recorder and carry filter state
 from samples the bag lacks; that difference decays to round-off (see
 torque_estimator.offline.replay). After it the replay equals live to round-off.
 
-The estimator runs method=knn here, not sim_graph.yaml's observer: k-NN's
+The estimator runs method=knn here, not the rig's observer: k-NN's
 filters are linear and forget their start exponentially, so "equal to
 round-off" is a sharp check of the replay machinery. The observer's slow
 states (the load torque's random walk, the J_eff bins) keep what they saw
@@ -29,6 +30,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+import yaml
 
 from torque_estimator.graph.runner import Graph, parse_overrides
 from worm_model.ros.ament import find_executable
@@ -63,13 +65,18 @@ def recorded(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
     assert done.returncode == 0, done.stderr
     overrides = [f"estimator_node.calibration_file={calibration}", f"estimator_node.method={METHOD}",
                  "controller_node.speed_setpoint=150.0"]
+    graph_file = tmp / "graph_with_estimator_node.yaml"
+    document = yaml.safe_load(GRAPH_FILE.read_text(encoding="utf-8"))
+    document["sim_node"]["ros__parameters"]["publish_estimate"] = False  # torque_estimate is estimator_node's
+    document["estimator_node"] = {"ros__parameters": {"method": METHOD}}
+    graph_file.write_text(yaml.safe_dump(document), encoding="utf-8")
     bag, log_path = tmp / "bag", tmp / "recorder.log"
     with log_path.open("wb") as log:
         recorder = subprocess.Popen(
             [str(find_executable("recorder")), "--ros-args", "-p", f"output:={bag}",
              "-p", f"topics:=[{','.join(TOPICS)}]", "-p", "discovery_period:=0.1"],
             stdout=log, stderr=subprocess.STDOUT, env=ros_env)
-    graph = Graph(GRAPH_FILE, parse_overrides(overrides), tmp / "logs")
+    graph = Graph(graph_file, parse_overrides(overrides), tmp / "logs")
     try:
         graph.start()
         deadline = time.monotonic() + START_TIMEOUT
@@ -85,13 +92,13 @@ def recorded(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
     output = log_path.read_text(errors="replace")
     assert recorder_code == 0, output
     assert all(code == 0 for code in codes.values()), codes
-    yield bag, overrides, output
+    yield bag, overrides, output, graph_file
 
 
-def test_replay_equals_live_to_round_off(recorded: tuple[Path, list[str], str]) -> None:
-    bag, overrides, output = recorded
+def test_replay_equals_live_to_round_off(recorded: tuple[Path, list[str], str, Path]) -> None:
+    bag, overrides, output, graph_file = recorded
     assert "recorder: lost nothing" in output, output
-    params = node_parameters(GRAPH_FILE, overrides)
+    params = node_parameters(graph_file, overrides)
     result = replay(bag, params, follow_live=True)
     assert result.samples > 0.8 * RECORD_S * 1000
     assert result.speed_factor > 0  # the figure itself goes to the report/bench, not an assertion
@@ -115,18 +122,18 @@ def test_replay_equals_live_to_round_off(recorded: tuple[Path, list[str], str]) 
     assert estimates.max_abs["flags"] == 0.0
 
 
-def test_live_drops_are_the_nondeterminism(recorded: tuple[Path, list[str], str]) -> None:
+def test_live_drops_are_the_nondeterminism(recorded: tuple[Path, list[str], str, Path]) -> None:
     """Without --follow-live every recorded batch is fed (from the one live's first recorded answer is
     for, so both start alike: the observer's step detector makes later outputs depend on where it
     started); the replay departs from live only after a batch the live node missed (and equals it
     everywhere if it missed none)."""
-    bag, overrides, _output = recorded
+    bag, overrides, _output, graph_file = recorded
     with BagReader(bag) as reader:
         batch_ends = [m.decoded.first_seq + len(m.decoded.omega_worm) - 1 for m in reader.messages(["/rig/samples"])]
         live = {m.decoded.seq: m.decoded for m in reader.messages([ESTIMATE_TOPIC])}
     # batches recorded while estimator_node ran (between its first and last answer) that it did not answer
     missed = [s for s in batch_ends if min(live) < s < max(live) and s not in live]
-    params = node_parameters(GRAPH_FILE, overrides)
+    params = node_parameters(graph_file, overrides)
     replayed = replay(bag, params, start_seq=min(live)).estimates[METHOD]
     index = {seq: i for i, seq in enumerate(replayed.seq)}
     start = min(live) + WARMUP_S * 1000  # seqs count milliseconds on the rig's clock
@@ -140,9 +147,9 @@ def test_live_drops_are_the_nondeterminism(recorded: tuple[Path, list[str], str]
         f"replay departed from live at seq {departed[0]}, before any missed batch (first: {first_missed})")
 
 
-def test_replay_cli_reports_speed_factor(recorded: tuple[Path, list[str], str]) -> None:
-    bag, overrides, _output = recorded
-    args = [sys.executable, "-m", "torque_estimator.offline.replay", str(bag), "--params-file", str(GRAPH_FILE),
+def test_replay_cli_reports_speed_factor(recorded: tuple[Path, list[str], str, Path]) -> None:
+    bag, overrides, _output, graph_file = recorded
+    args = [sys.executable, "-m", "torque_estimator.offline.replay", str(bag), "--params-file", str(graph_file),
             "--follow-live", "--warmup", str(WARMUP_S), "--quiet"]
     for override in overrides:
         args += ["--set", override]
@@ -152,10 +159,11 @@ def test_replay_cli_reports_speed_factor(recorded: tuple[Path, list[str], str]) 
     print(done.stdout)
     assert float(lines["replay_speed_factor"].split()[0]) > 0
     assert float(lines["replay_estimates_max_abs_diff"].split()[0]) <= ROUND_OFF
+    # the shipped graph (the default parameter file): the live estimator is the rig's, and its calibration
     bad = subprocess.run([sys.executable, "-m", "torque_estimator.offline.replay", str(bag), "--set",
-                          "estimator_node.calibration_file=/no/such.json", "--quiet"],
+                          "sim_node.feedforward_calibration=/no/such.json", "--quiet"],
                          capture_output=True, text=True, timeout=120)
-    assert bad.returncode == 2 and "/no/such.json" in bad.stderr
+    assert bad.returncode == 2 and "/no/such.json" in bad.stderr, bad.stderr
 
 
 def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str]) -> None:

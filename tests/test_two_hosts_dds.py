@@ -1,8 +1,8 @@
 """The graph split over two hosts, as a rig computer and a workstation run it, and the link between them cut.
 
 Two network namespaces joined by a veth pair stand for the two hosts (the test creates and removes them;
-it needs root, as CI has): the rig computer runs sim_node and controller_node, the workstation runs
-model_node, estimator_node and a recorder. DDS finds its peers across the link by multicast
+it needs root, as CI has): the rig computer runs sim_node (whose load observer feeds forward and publishes
+the graph's /torque_estimate) and controller_node, the workstation runs model_node and a recorder. DDS finds its peers across the link by multicast
 (ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET). Fast DDS is kept to UDP (FASTDDS_BUILTIN_TRANSPORTS=UDPv4), the
 only transport two real hosts share: two namespaces of one machine also share /dev/shm, and whether the
 shared-memory transport pairs them depends on how a Fast DDS version tells hosts apart (Kilted's did not
@@ -11,11 +11,12 @@ here; the data stopped at the cut either way).
 The rig runs at 150 rad/s against +0.1 N m; then the link is taken down for CUT seconds and brought back.
 Judged on the streams' own stamps, in bags recorded on each side:
 
-* during the cut the controller goes on commanding and never feeds forward an estimate older than its
-  estimate_timeout (0.05 s): feedforward 0, the rig's PI alone holds the speed (README, "Faults");
+* the control path lives on the rig computer and does not notice the cut: the estimate goes on (no gap in
+  the rig's /torque_estimate), the controller goes on commanding with the feedforward at the rig, the
+  speed holds; the controller never feeds forward an estimate older than its estimate_timeout (0.05 s);
 * the workstation's recorder sees the gap: no rig sample stamped inside the cut, and its loss report
   (DDS sequence numbers) counts the samples the rig published meanwhile;
-* with the link back, estimates and feedforward resume without a node restarted (the same processes
+* with the link back the workstation's streams resume without a node restarted (the same processes
   run throughout and exit cleanly at the end).
 """
 from __future__ import annotations
@@ -42,7 +43,7 @@ pytestmark = pytest.mark.skipif(os.geteuid() != 0 or shutil.which("ip") is None,
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
 RIG_NODES = ("sim_node", "controller_node")
-STATION_NODES = ("model_node", "estimator_node")
+STATION_NODES = ("model_node",)
 SPEED = 150.0  # [rad/s]
 LOAD = 0.1  # [N m]
 ESTIMATE_TIMEOUT = 0.05  # [s] controller_node's estimate_timeout (sim_graph.yaml)
@@ -144,7 +145,8 @@ class Run:
                       "/rig/samples,/rig/speed_command,/torque_estimate")
         for node in STATION_NODES:
             self.start(node, self.hosts.station, self.graph.command(node))
-        self.recorder("station_recorder", self.hosts.station, self.station_bag, "/rig/samples,/torque_estimate")
+        self.recorder("station_recorder", self.hosts.station, self.station_bag,
+                      "/rig/samples,/torque_estimate,/gearbox/forces")
 
     def wait_for(self, what: str, done, timeout: float = START_TIMEOUT) -> None:
         deadline = time.monotonic() + timeout
@@ -180,18 +182,18 @@ def two_hosts(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory)
     hosts.create()
     try:
         run.start_all()
-        # feedforward in the rig's bag = estimates crossed the link; samples in the station's bag = back
+        # feedforward in the rig's bag = the rig's estimate; samples and forces in the station's bag = the link
         run.wait_for("the graph across the link", lambda: any(
             c.feedforward_torque > 0 for c in read(run.rig_bag, "/rig/speed_command")[-50:])
-            and read(run.station_bag, "/rig/samples"))
+            and read(run.station_bag, "/rig/samples") and read(run.station_bag, "/gearbox/forces"))
         time.sleep(2.0)  # steady at speed before the cut (the judging uses stamps, not this)
         cut = time.time()
         hosts.cut()
         time.sleep(CUT)
         hosts.connect()
         back = time.time()
-        run.wait_for("estimates after the link came back", lambda: any(
-            stamp_s(e.header.stamp) > back for e in read(run.rig_bag, "/torque_estimate")[-50:]))
+        run.wait_for("the workstation's streams after the link came back", lambda: any(
+            stamp_s(e.header.stamp) > back for e in read(run.station_bag, "/torque_estimate")[-50:]))
         time.sleep(1.5)  # some feedforward after the return, in the bag
         alive = {n: p.poll() for n, p in run.processes.items()}
         codes = run.stop()
@@ -203,7 +205,7 @@ def two_hosts(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory)
         hosts.remove()
 
 
-def test_the_rig_never_feeds_forward_a_stale_estimate_and_holds_speed_without_the_link(two_hosts) -> None:
+def test_the_control_path_on_the_rig_computer_does_not_notice_the_cut(two_hosts) -> None:
     run, cut, back = two_hosts
     commands = read(run.rig_bag, "/rig/speed_command")
     # An estimate's age when its command goes out: the command's stamp (controller's clock) less the
@@ -214,21 +216,17 @@ def test_the_rig_never_feeds_forward_a_stale_estimate_and_holds_speed_without_th
     stale = [c for t, lag, c in sent if c.feedforward_torque != 0.0 and t - stamp_s(c.feedforward_stamp) - min(
         lg + 0.05 * (t - tt) for tt, lg, _ in sent if t - 2.0 <= tt <= t) > ESTIMATE_TIMEOUT + 1e-3]
     assert not stale, f"{len(stale)} commands fed forward an estimate older than {ESTIMATE_TIMEOUT} s"
-    # the estimates the rig got: the last before the gap, the first after it (of a sample stamped a little
-    # before `back`, perhaps: the link was up before the clock was read)
-    estimates = [stamp_s(e.header.stamp) for e in read(run.rig_bag, "/torque_estimate")]
-    last = max(t for t in estimates if t < cut + CUT / 2)
-    first = min(t for t in estimates if t > cut + CUT / 2)
-    assert last > cut - 0.5, f"estimates had stopped {cut - last:.2f} s before the cut"
-    assert first - last > 0.8 * CUT, f"estimates crossed the cut link (gap {first - last:.2f} s)"
-    during = [c for c in commands if last + ESTIMATE_TIMEOUT + 0.005 < stamp_s(c.header.stamp) < first]
-    assert len(during) > 0.5 * (first - last) / 0.02, f"the controller went quiet ({len(during)} commands)"
-    assert all(c.feedforward_torque == 0.0 for c in during), "an estimate was fed forward across the cut"
-    speeds = [w for m in read(run.rig_bag, "/rig/samples") if last + 0.5 < stamp_s(m.header.stamp) < first
+    # the rig's estimate on the rig computer: no gap across the cut (200 a second)
+    estimates = sorted(stamp_s(e.header.stamp) for e in read(run.rig_bag, "/torque_estimate"))
+    around = [t for t in estimates if cut - 0.5 < t < back + 0.5]
+    assert around and max(b - a for a, b in zip(around, around[1:])) < 0.1, "the rig's estimate stopped at the cut"
+    during = [c for c in commands if cut < stamp_s(c.header.stamp) < back]
+    assert len(during) > 0.5 * (back - cut) / 0.025, f"the controller went quiet ({len(during)} commands)"
+    assert all(c.feedforward_at_rig for c in during) and sum(c.feedforward_torque > 0 for c in during) > \
+        0.9 * len(during), "the feedforward did not go on through the cut"
+    speeds = [w for m in read(run.rig_bag, "/rig/samples") if cut < stamp_s(m.header.stamp) < back
               for w in m.omega_worm]
-    assert speeds and abs(sum(speeds) / len(speeds) - SPEED) < 3.0, "the PI alone did not hold the speed"
-    after = [c for c in commands if stamp_s(c.header.stamp) > back]
-    assert any(c.feedforward_torque > 0 for c in after), "no feedforward after the link came back"
+    assert speeds and abs(sum(speeds) / len(speeds) - SPEED) < 3.0, "the speed was not held"
 
 
 def test_the_workstation_recorder_reports_the_gap_and_resumes(two_hosts) -> None:
@@ -242,6 +240,6 @@ def test_the_workstation_recorder_reports_the_gap_and_resumes(two_hosts) -> None
     log = run.log("station_recorder")
     lost = [line for line in log.splitlines() if "recorder: LOST" in line]
     assert lost, f"the recorder did not report the gap:\n{log[-2000:]}"
-    # ~ the cut's samples: 200 batches/s on /rig/samples, 1000 estimates/s... any count > half the batches
+    # ~ the cut's messages: 200 batches/s on /rig/samples, as many estimates... any count > half the batches
     n = int(lost[0].split("recorder: LOST ")[1].split()[0])
     assert n > 0.5 * 200 * (back - cut), lost[0]

@@ -25,6 +25,7 @@ setup(
         "console_scripts": [
             "model_node = worm_model.nodes.model_node:main",
             "worm_calc = worm_model.calc.worm_calc:main",
+            "rig_from_datasheet = worm_model.calc.datasheet:main",
             "report = worm_model.figures.report:main",
             "residuals = worm_model.residuals.cli:main",
         ],

@@ -28,6 +28,7 @@ setup(
             "worm_effects = worm_rig_driver.sim.effects:main",
             "virtual_rig = worm_rig_driver.sim.virtual_rig:main",
             "driver_node = worm_rig_driver.nodes.driver_node:main",
+            "joint_state_merger = worm_rig_driver.nodes.joint_state_merger:main",
         ],
     },
 )

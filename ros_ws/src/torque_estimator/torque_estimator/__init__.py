@@ -13,6 +13,8 @@ helpers beside the CLIs that talk to a live graph):
                     caller builds its estimator from, and the one builder); ``live``
                     (LiveEstimator: the per-sample front end every node, replay and
                     study runs); ``quasi_static``, ``calibration_bias``
+``joints``          a robot's JointState in, one estimator per joint (``settings``: the
+                    per-joint files and which methods need no voltage; ``estimators``)
 ``control``         what feeds the load forward: ``feedforward`` (which estimate may
                     be fed forward, and when it is too old), ``rig_feedforward`` (the
                     estimator the rig runs beside its speed PI; the PI itself is

@@ -21,7 +21,10 @@ Map (dependencies point up this list; only ``nodes`` and ``fil.commander_node`` 
 ``fil``       the real firmware in simavr, closed through the simulated plant
               (``harness``, ``run`` = ``make fil``, ``commander_node``)
 ``recording`` the ``bag`` command over recorded runs (``bag_cli``)
-``nodes``     sim_node, driver_node, recorder_node: the executables' ROS shells
+``robot``     what a robot's stack sees of a drive: the standard outputs' trusted load
+              (``standard_outputs``), several rigs merged into one JointState (``joint_states``)
+``nodes``     sim_node, driver_node, recorder_node, joint_state_merger: the executables' ROS
+              shells; the rig's and the estimate's topics
 ============  =================================================================
 
 ``firmware/`` beside this package is the ATmega2560 firmware (AVR C).

@@ -34,8 +34,8 @@ from torque_estimator.calibration.journal import CalibrationJournal
 from torque_estimator.calibration.operating_points import SteadyStateCriterion, SteadyStateDetector
 
 #: Topics of the graph a live calibration uses (recorded in the journal's settings).
-TOPICS = {"samples": "/rig/samples", "speed_command": "/rig/speed_command",
-          "speed_setpoint": "/controller/speed_setpoint", "load_command": "/rig/load_command"}
+TOPICS = {"samples": "rig/samples", "speed_command": "rig/speed_command",
+          "speed_setpoint": "controller/speed_setpoint", "load_command": "rig/load_command"}
 
 
 class LiveRigError(RuntimeError):

@@ -34,7 +34,7 @@ from worm_model.physics.steady_state import make_balancing_torque_float
 from torque_estimator.control.feedforward import FeedforwardGate
 from torque_estimator.estimation.base import TorqueEstimator
 from torque_estimator.estimation.database import CalibrationDatabase
-from torque_estimator.estimation.live import LiveEstimator
+from torque_estimator.estimation.live import LiveEstimate, LiveEstimator
 from torque_estimator.estimation.observer import LoadProcess
 from torque_estimator.estimation.settings import BuiltEstimator, EstimatorSettings, build_estimator
 
@@ -50,10 +50,16 @@ class EstimatorFeedforward:
         live: the per-sample estimator (LiveEstimator: a streaming one, such as the observer, is fed voltage
             and angle).
         sample_period: [s] between samples.
+        method: the estimator's registry name (``method``).
+
+    ``last`` is the estimate of the sample observed last (None before the first): the rig publishes it as
+    the graph's estimate, so what the graph sees is what is fed forward.
     """
 
-    def __init__(self, rig: Rig, live: LiveEstimator, sample_period: float) -> None:
+    def __init__(self, rig: Rig, live: LiveEstimator, sample_period: float, method: str = "") -> None:
         self.live = live
+        self.method = method
+        self.last: LiveEstimate | None = None
         self.gate = FeedforwardGate(timeout=0.0, max_load=1.5 * rig.max_load_torque)
         self.sample_period = sample_period
         self._balancing = make_balancing_torque_float(rig)
@@ -61,7 +67,7 @@ class EstimatorFeedforward:
 
     def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> None:
         """Sample ``seq``: worm speed [rad/s], drive current [A], drive voltage [V], worm angle [rad]."""
-        est = self.live.update(omega, current, voltage, theta, seq)
+        est = self.last = self.live.update(omega, current, voltage, theta, seq)
         self._stamp = seq * self.sample_period
         self.gate.offer(est.torque, est.flags, self._stamp)
 
@@ -80,7 +86,7 @@ def build(method: str, calibration_file: str, rig: Rig, sample_period: float) ->
             one, or a bad calibration file.
     """
     built = _build(EstimatorSettings(method, calibration_file=calibration_file), rig, None)
-    return EstimatorFeedforward(rig, built.live(sample_period), sample_period)
+    return EstimatorFeedforward(rig, built.live(sample_period), sample_period, method)
 
 
 def feedforward_estimator(method: str, database: CalibrationDatabase | None, rig: Rig) -> TorqueEstimator:

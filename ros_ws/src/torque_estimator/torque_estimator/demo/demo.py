@@ -2,9 +2,10 @@
 
   1. calibrate: 17 speeds x 16 load torques, both directions, quasi-static;
   2. evaluate the k-NN estimator on 17 held-out operating points;
-  3. run the live graph over DDS (sim_node, model_node, estimator_node,
-     controller_node as separate processes) through load steps into all three
-     modes, feedforward off and then on, recording every topic to MCAP;
+  3. run the live graph over DDS (sim_node, whose load observer's estimate is the
+     graph's torque_estimate, in a process of its own; model_node and
+     controller_node in another) through load steps into all three modes,
+     feedforward off and then on, recording every topic to MCAP;
   4. print the figures and write PNG plots.
 """
 from __future__ import annotations
@@ -48,7 +49,7 @@ def load_run(bag: Path, start_stamp: float) -> dict:
     then instead ("truth_every_sample" says which). "flags" are the estimates' TorqueEstimate flags."""
     from worm_model.bags.reader import BagReader
     from worm_model.bags.writer import read_messages
-    from worm_model.rig_data.samples import SIM_TRUTHS_TOPIC, batch_stamps_ns, unbatch
+    from worm_model.rig_data.samples import SIM_TRUTHS_TOPIC, batch_stamps_ns, recorded_name, unbatch
 
     def stamp(header) -> float:
         return header.stamp.sec + header.stamp.nanosec * 1e-9 - start_stamp
@@ -56,10 +57,11 @@ def load_run(bag: Path, start_stamp: float) -> dict:
     samples = [(stamp(s.header), s.omega_worm) for _, m in read_messages(bag, "/rig/samples") for s in unbatch(m)]
     commands = [(stamp(m.header), m.speed_setpoint) for _, m in read_messages(bag, "/rig/speed_command")]
     estimates = [(stamp(m.header), m.torque, m.flags) for _, m in read_messages(bag, "/torque_estimate")]
+    truths = recorded_name(SIM_TRUTHS_TOPIC)  # the graph runs without a namespace
     with BagReader(bag) as reader:
-        every_sample = SIM_TRUTHS_TOPIC in reader.topics
+        every_sample = truths in reader.topics
     if every_sample:
-        truth = [(ns * 1e-9 - start_stamp, tau, mode, omega) for _, m in read_messages(bag, SIM_TRUTHS_TOPIC)
+        truth = [(ns * 1e-9 - start_stamp, tau, mode, omega) for _, m in read_messages(bag, truths)
                  for ns, tau, mode, omega in zip(batch_stamps_ns(m, len(m.tau_load)), m.tau_load, m.mode,
                                                  m.omega_worm)]
     else:

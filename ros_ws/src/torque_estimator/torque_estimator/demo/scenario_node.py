@@ -29,8 +29,7 @@ ANALYSED_TOPICS = ("/rig/samples", "/sim/truth_samples", "/torque_estimate", "/r
 
 def live_run(graph_file: Path, calibration: Path, feedforward: bool, bag: Path, log_dir: Path) -> float:
     """Run the scenario on the live graph, recording every topic to `bag`; returns the start stamp [s]."""
-    overrides = {"estimator_node": [f"calibration_file:={calibration}"],
-                 "sim_node": [f"feedforward_calibration:={calibration}"],
+    overrides = {"sim_node": [f"feedforward_calibration:={calibration}"],  # the rig's estimate is the graph's
                  "controller_node": [f"feedforward:={str(feedforward).lower()}", "speed_setpoint:=0.0"]}
     with Graph(graph_file, overrides, log_dir=log_dir, **rig_computer(graph_file)) as graph:
         rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
@@ -41,8 +40,8 @@ def live_run(graph_file: Path, calibration: Path, feedforward: bool, bag: Path, 
         try:
             recorder.subscribe_all()
             recorder.start_discovery(0.5)
-            speed_pub = node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND)
-            load_pub = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
+            speed_pub = node.create_publisher(Float64, "controller/speed_setpoint", COMMAND)
+            load_pub = node.create_publisher(LoadCommand, "rig/load_command", COMMAND)
             deadline = time.monotonic() + 60.0
             # Start the scenario only once every stream the analysis reads is being recorded: topics
             # are subscribed as discovery finds them, and a late /rig/samples or /sim/truth_samples would

@@ -18,6 +18,11 @@ protocol LiveEstimator (live.py) tests for:
 * :class:`AngleEstimator`: ``estimate`` also takes the worm angle and removes
   a ripple periodic in it when ``uses_angle`` is True (extended_model with
   periodic effects).
+
+An estimator that cannot estimate without the drive voltage says so with a
+class attribute ``needs_voltage = True`` (the observer); :func:`needs_voltage`
+reads it (absent: False). Input without a voltage (a robot's JointState: current
+and speed only) runs only the others.
 """
 
 from __future__ import annotations
@@ -130,5 +135,10 @@ class TorqueEstimator(Protocol):
         ...
 
 
+def needs_voltage(estimator_class: object) -> bool:
+    """Whether an estimator (its class, or a registry factory) reads the drive voltage (module docstring)."""
+    return bool(getattr(estimator_class, "needs_voltage", False))
+
+
 __all__ = ["AngleEstimator", "EstimateFlags", "EstimateStream", "SampleEstimate", "StreamingEstimator", "TorqueEstimates",
-           "TorqueEstimator"]
+           "TorqueEstimator", "needs_voltage"]

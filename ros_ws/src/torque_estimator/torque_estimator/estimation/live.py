@@ -29,7 +29,11 @@ A disturbance observer in front of a quasi-static map. Per sample (ω_w [rad/s],
    output far less than the current's does, and it must follow a reversal.
 3. The configured estimator (e.g. k-NN) maps (ω_f, smoothed i) to τ_d [N·m]
    (positive opposing positive worm rotation) with an uncertainty and flags;
-   a sample taken while |α| > ``transient_acceleration`` is flagged TRANSIENT.
+   a sample taken while |α| > ``transient_acceleration`` is flagged TRANSIENT, and so is every
+   sample for TRANSIENT_MEMORY smoothing time constants (``estimate_filter``) after the last such:
+   the smoothed current still holds the acceleration's share the compensation left (after a
+   reversal the estimate overshoots the load for about two smoothing time constants once the worm's
+   acceleration has ended: test_standard_outputs), and the map does not hold for it.
    One that takes the gear ripple out (base.AngleEstimator with ``uses_angle``:
    extended_model with periodic effects) also gets the sample's encoder angle ``theta``
    (the ripple it removes turns once per gear turn, slow beside the filters' delay).
@@ -72,9 +76,13 @@ from dataclasses import dataclass
 
 from worm_model.physics.parameters import Rig
 
+from collections.abc import Sequence
+
+import numpy as np
+
 from torque_estimator.estimation.base import (AngleEstimator, EstimateFlags, EstimateStream, StreamingEstimator,
                                               TorqueEstimator)
-from torque_estimator.estimation.quasi_static import inertia_free_current
+from torque_estimator.estimation.quasi_static import make_inertia_free_current_float
 
 #: First-order stages of the matched input filter (speed and current alike).
 INPUT_FILTER_STAGES = 3
@@ -82,6 +90,8 @@ INPUT_FILTER_STAGES = 3
 NOISE_TIME_CONSTANT = 0.5
 #: Largest seq gap [samples] bridged; a longer one (or a seq going back) is a new rig session.
 MAX_GAP = 100
+#: Smoothing time constants after the last sample beyond ``transient_acceleration`` that are still TRANSIENT.
+TRANSIENT_MEMORY = 3.0
 
 
 @dataclass(frozen=True)
@@ -99,6 +109,41 @@ class LiveEstimate:
     flags: int
     omega_worm: float
     current_drive: float
+
+
+@dataclass(frozen=True)
+class Filtered:
+    """One sample after LiveEstimator's filters (steps 1-2), before the map (step 3): what
+    :func:`estimate_filtered` maps, several at once.
+
+    Attributes:
+        omega [rad/s], current [A]: the filtered speed and inertia-free, smoothed current (held over an
+            invalid sample); theta [rad]: the encoder angle for a map that takes the ripple out, else None;
+        flags: INVALID_INPUT and TRANSIENT of the sample (the map adds its own).
+    """
+
+    omega: float
+    current: float
+    theta: float | None
+    flags: int
+
+
+def estimate_filtered(estimator: TorqueEstimator, samples: Sequence[Filtered]) -> list[LiveEstimate]:
+    """The map's estimates of several filtered samples (of one or several rigs) in one vectorised call: what
+    :meth:`LiveEstimator.update` computes for each, at the cost of one (a quasi-static map costs about the
+    same for one sample as for a few hundred). The angle is passed when every sample has one."""
+    if not samples:
+        return []
+    omega = np.array([s.omega for s in samples])
+    current = np.array([s.current for s in samples])
+    angles = [s.theta for s in samples]
+    if all(a is not None for a in angles) and isinstance(estimator, AngleEstimator) and estimator.uses_angle:
+        result = estimator.estimate(omega, current, theta_worm=np.array(angles))
+    else:
+        result = estimator.estimate(omega, current)
+    torque, spread, flags = (np.asarray(x).tolist() for x in (result.torque, result.uncertainty, result.flags))
+    return [LiveEstimate(float(torque[k]), float(spread[k]), int(flags[k]) | s.flags, s.omega, s.current)
+            for k, s in enumerate(samples)]
 
 
 class _Cascade:
@@ -196,11 +241,13 @@ class LiveEstimator:
         self.inertia_compensation = inertia_compensation
         self.transient_acceleration = transient_acceleration
         self._filters = (input_filter, estimate_filter, change_threshold, change_hold)
+        self._memory = int(math.ceil(TRANSIENT_MEMORY * estimate_filter / sample_period))  # [samples]
         self.gaps = 0  # seq gaps bridged (samples lost upstream)
         self.lost = 0  # samples in them
         self.restarts = 0  # new rig sessions seen (seq back or far ahead)
         self._next_seq: int | None = None
         self._uses_angle = isinstance(estimator, AngleEstimator) and bool(estimator.uses_angle)
+        self._inertia_free = make_inertia_free_current_float(rig)
         self._start()
 
     def _start(self) -> None:
@@ -212,6 +259,7 @@ class LiveEstimator:
         self._previous_speed: float | None = None
         self._omega = math.nan  # [rad/s] filtered speed of the last valid sample
         self.alpha = 0.0  # [rad/s^2] acceleration of the filtered speed, last sample
+        self._transient_left = 0  # samples still TRANSIENT after the last acceleration beyond the threshold
         self.stream: EstimateStream | None = (self.estimator.stream(self.sample_period)
                                               if isinstance(self.estimator, StreamingEstimator) else None)
 
@@ -230,38 +278,57 @@ class LiveEstimator:
             self.stream.skip(seq - expected)
         self._previous_speed = None  # no acceleration across the gap
 
+    @property
+    def quasi_static(self) -> bool:
+        """Whether the estimator is a map behind this class's filters (:meth:`filter` applies), not a stream."""
+        return self.stream is None
+
     def update(self, omega_worm: float, current_drive: float, voltage: float | None = None,
                theta: float | None = None, seq: int | None = None) -> LiveEstimate:
         """Feed one sample: measured worm speed [rad/s] and drive current [A]; for a streaming
         estimator also the drive voltage applied during this sample's period [V] and the encoder
         angle [rad] (None: no encoder); seq: the sample's RigSample seq (None: take it as the next)."""
-        if seq is not None:
-            self.follow(seq)
         if self.stream is not None:
+            if seq is not None:
+                self.follow(seq)
             est = self.stream.update(math.nan if voltage is None else voltage, current_drive, omega_worm, theta)
             return LiveEstimate(est.torque, est.uncertainty, est.flags, est.omega_worm, est.current_drive)
-        if math.isfinite(omega_worm) and math.isfinite(current_drive):
+        f = self.filter(omega_worm, current_drive, theta, seq)
+        if f.theta is not None:  # the gear ripple taken out at this angle (extended_model)
+            result = self.estimator.estimate(f.omega, f.current, theta_worm=f.theta)
+        else:
+            result = self.estimator.estimate(f.omega, f.current)
+        return LiveEstimate(float(result.torque), float(result.uncertainty), int(result.flags) | f.flags, f.omega,
+                            f.current)
+
+    def filter(self, omega_worm: float, current_drive: float, theta: float | None = None,
+               seq: int | None = None) -> Filtered:
+        """Steps 1-2 of the module docstring for one sample of a quasi-static map (not a stream), without
+        the map: :meth:`update` is ``filter`` and then the map; :func:`estimate_filtered` maps several
+        filtered samples in one call (estimates only where they are read; every sample must be filtered)."""
+        if seq is not None:
+            self.follow(seq)
+        valid = math.isfinite(omega_worm) and math.isfinite(current_drive)
+        if valid:
             omega = self.speed.update(omega_worm)
             current = self.current.update(current_drive)
             previous, self._previous_speed = self._previous_speed, omega
             self.alpha = 0.0 if previous is None else (omega - previous) / self.sample_period
             if self.inertia_compensation:
-                current = float(inertia_free_current(self.rig, current, omega, self.alpha))
+                current = self._inertia_free(current, omega, self.alpha)
             current = self.smooth.update(current)
             self._omega = omega
         else:  # hold: the estimate of the state as it was
             omega = self._omega
             current = math.nan if self.smooth.value is None else self.smooth.value
-        if self._uses_angle and theta is not None:  # the gear ripple taken out at this angle (extended_model)
-            result = self.estimator.estimate(omega, current, theta_worm=theta)
-        else:
-            result = self.estimator.estimate(omega, current)
-        flags = int(result.flags)
-        if not (math.isfinite(omega_worm) and math.isfinite(current_drive)):
-            flags |= EstimateFlags.INVALID_INPUT
+        flags = 0 if valid else int(EstimateFlags.INVALID_INPUT)
         if abs(self.alpha) > self.transient_acceleration:
-            flags |= EstimateFlags.TRANSIENT
-        return LiveEstimate(float(result.torque), float(result.uncertainty), flags, float(omega), float(current))
+            self._transient_left = self._memory + 1
+        if self._transient_left:
+            self._transient_left -= 1
+            flags |= int(EstimateFlags.TRANSIENT)
+        return Filtered(float(omega), float(current), theta if self._uses_angle else None, flags)
 
 
-__all__ = ["INPUT_FILTER_STAGES", "MAX_GAP", "NOISE_TIME_CONSTANT", "ChangeGatedLowPass", "LiveEstimate", "LiveEstimator"]
+__all__ = ["INPUT_FILTER_STAGES", "MAX_GAP", "NOISE_TIME_CONSTANT", "TRANSIENT_MEMORY", "ChangeGatedLowPass", "Filtered", "LiveEstimate",
+           "LiveEstimator", "estimate_filtered"]

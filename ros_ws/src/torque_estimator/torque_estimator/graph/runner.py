@@ -1,11 +1,16 @@
 """Start a node graph from one ROS 2 parameter file (no ROS import: processes only).
 
 `ros2 launch` is not always available (it is not on PyPI); this starts every
-node named at the top level of a standard parameter file as its own process,
-exactly as `ros2 run <pkg> <node> --ros-args --params-file <file>` would,
-and stops them all cleanly (SIGINT, then SIGKILL after a grace period).
+node named in a standard parameter file as its own process, exactly as
+`ros2 run <pkg> <node> --ros-args [-r __ns:=<namespace>] --params-file <file>`
+would, and stops them all cleanly (SIGINT, then SIGKILL after a grace period).
+A node is a section with ``ros__parameters``, named by its executable; in a
+namespace, by its full name (``/arm/joint2/sim_node:``) or nested in it
+(``arm: {joint2: {sim_node: {ros__parameters: ...}}}``), both forms ROS 2's
+parameter files take. Such a node runs with ``-r __ns:=/arm/joint2``, and is
+named ``/arm/joint2/sim_node`` here (in ``--set``, groups, process names).
 Nodes named in a group (``together``) share one process and executor instead
-(nodes.composed), with the same parameters.
+(nodes.composed), with the same parameters; a group's nodes share one namespace.
 Executables are found where `ros2 run` finds them: <prefix>/lib/<pkg>/<exe>
 for every prefix of AMENT_PREFIX_PATH.
 """
@@ -42,18 +47,40 @@ def default_graph_file() -> Path:
     return Path(__file__).resolve().parents[2] / "config" / "sim_graph.yaml"
 
 
+def split_name(node: str) -> tuple[str, str]:
+    """(namespace, executable) of a graph node's name: "sim_node" -> ("/", "sim_node"),
+    "/arm/joint2/sim_node" -> ("/arm/joint2", "sim_node")."""
+    namespace, _, name = node.rpartition("/")
+    return (namespace or "/"), name
+
+
 def graph_sections(params_file: Path) -> dict[str, dict[str, Any]]:
     """{node: {parameter: value}} of a ROS 2 parameter file, read as rcl reads it in every node
-    (worm_model.files.reading.load_parameter_file: no YAML anchors, a ros__parameters section per node)."""
+    (worm_model.files.reading.load_parameter_file: no YAML anchors, a ros__parameters section per node),
+    each node by its name here: ``sim_node``, or ``/arm/joint2/sim_node`` for one in a namespace (written
+    flat or nested); ``/**`` sections left out.
+
+    Raises:
+        GraphError: unreadable file, or a section that is neither a node nor a namespace of nodes.
+    """
     try:
-        return load_parameter_file(params_file)
+        sections = load_parameter_file(params_file)
     except InputError as err:
         raise GraphError(f"graph file {err}") from None
+    named = {}
+    for name, values in sections.items():
+        if "*" in name:
+            continue  # parameters for every node (of a namespace), not a node
+        inner = name.strip("/")
+        named["/" + inner if "/" in inner else inner] = values
+    if not named:
+        raise GraphError(f"graph file {params_file}: expected node names at the top level")
+    return named
 
 
 def graph_nodes(params_file: Path) -> list[str]:
-    """Node names (= executable names) at the top level of a ROS 2 parameter file."""
-    return [name for name in graph_sections(params_file) if "*" not in name]
+    """The graph's nodes (graph_sections' names: the executable's, after their namespace if any)."""
+    return list(graph_sections(params_file))
 
 
 def check_graph(params_file: Path, overrides: dict[str, list[str]], nodes: list[str]) -> None:
@@ -70,16 +97,17 @@ def check_graph(params_file: Path, overrides: dict[str, list[str]], nodes: list[
 
     sections = graph_sections(params_file)
     for node in nodes:
-        if node not in NODE_CLASSES:
+        executable = split_name(node)[1]
+        if executable not in NODE_CLASSES:
             try:
-                find_executable(node)  # another package's node: it checks its own parameters
+                find_executable(executable)  # another package's node: it checks its own parameters
             except FileNotFoundError as err:
                 raise GraphError(str(err)) from None
             continue
         values = dict(sections.get(node, {}))
         values.update({name: ros_value(text) for name, _, text in
                        (a.partition(":=") for a in overrides.get(node, []))})
-        refused = parameters_problem(node, declared_parameters(node_class(node)), values)
+        refused = parameters_problem(node, declared_parameters(node_class(executable)), values)
         if refused:
             name, problem = refused
             if any(a.startswith(name + ":=") for a in overrides.get(node, [])):
@@ -96,9 +124,9 @@ RIG_NODES = ("sim_node", "driver_node")
 
 
 def rig_computer(params_file: Path) -> dict:
-    """Graph options of a rig computer: the rig's node (RIG_NODES) in a process of its own, every other
-    node of the file together in one, all at RIG_COMPUTER_PRIORITY (``run_graph FILE --together <the
-    others> --priority 40``); what the demo and the graph benchmark run.
+    """Graph options of a rig computer: each rig's node (RIG_NODES) in a process of its own, every other
+    node of the file together in one per namespace, all at RIG_COMPUTER_PRIORITY (``run_graph FILE
+    --together <the others> --priority 40``); what the demo and the graph benchmark run.
 
     Why the rig alone: its sample thread runs the speed loop and, for the feedforward at the rig, an
     estimator on every sample (~0.3 core of Python), and the estimator, model and controller nodes take
@@ -107,8 +135,18 @@ def rig_computer(params_file: Path) -> dict:
     one (2 failed the live error bound); with the rig in its own process, 7 runs (3 under a CPU hog) saw
     at most one late estimate, at start-up. (Measured
     earlier: the model node in a process of its own costs ~0.14 core more and shortens no latency.)"""
-    nodes = graph_nodes(params_file)
-    return {"together": [[n for n in nodes if n not in RIG_NODES]], "priority": RIG_COMPUTER_PRIORITY}
+    groups: dict[str, list[str]] = {}
+    for node in graph_nodes(params_file):
+        namespace, name = split_name(node)
+        if name not in RIG_NODES:
+            groups.setdefault(namespace, []).append(node)
+    return {"together": list(groups.values()), "priority": RIG_COMPUTER_PRIORITY}
+
+
+def process_file_name(unit: list[str]) -> str:
+    """A file name for the process of ``unit`` (its nodes' names joined by "+", a namespace's "/" as "__"):
+    ``sim_node``, ``model_node+controller_node``, ``arm__joint2__sim_node``."""
+    return "+".join(n.strip("/").replace("/", "__") for n in unit)
 
 
 def parse_overrides(items: list[str]) -> dict[str, list[str]]:
@@ -137,27 +175,37 @@ class Graph:
     """SCHED_FIFO priority (1-99) for every process of the graph (``chrt -f``); 0: normal scheduling."""
 
     def command(self, node: str) -> list[str]:
+        namespace, name = split_name(node)
         try:
-            executable = find_executable(node)
+            executable = find_executable(name)
         except FileNotFoundError as err:
             raise GraphError(str(err)) from None
-        cmd = [str(executable), "--ros-args", "--params-file", str(self.params_file)]
+        cmd = [str(executable), "--ros-args"] + (["-r", f"__ns:={namespace}"] if namespace != "/" else [])
+        cmd += ["--params-file", str(self.params_file)]
         for assignment in self.overrides.get(node, []):
             cmd += ["-p", assignment]
         return cmd
 
     def composed_command(self, group: list[str]) -> list[str]:
-        """One process for ``group``: the overrides are merged into a parameter file of its own."""
-        data = load_yaml(self.params_file, "graph parameter file")
+        """One process for ``group`` (one namespace): the overrides are merged into a parameter file of its
+        own, every node's section under its full name."""
+        namespaces = {split_name(n)[0] for n in group}
+        if len(namespaces) > 1:
+            raise GraphError(f"a group's nodes share one namespace; {group} span {sorted(namespaces)}")
+        namespace = namespaces.pop()
+        raw = load_yaml(self.params_file, "graph parameter file")
+        data = {key: body for key, body in raw.items() if str(key).endswith("**")}  # every node's parameters
+        data.update({"/" + n.lstrip("/"): {"ros__parameters": body} for n, body in graph_sections(self.params_file).items()})
         for node, assignments in self.overrides.items():
-            section = data.setdefault(node, {}).setdefault("ros__parameters", {})
+            section = data.setdefault("/" + node.lstrip("/"), {}).setdefault("ros__parameters", {})
             for assignment in assignments:
                 name, _, value = assignment.partition(":=")
                 section[name] = yaml.safe_load(value)
-        merged = (self.log_dir or Path(tempfile.mkdtemp(prefix="graph_"))) / f"{'+'.join(group)}.params.yaml"
+        merged = (self.log_dir or Path(tempfile.mkdtemp(prefix="graph_"))) / f"{process_file_name(group)}.params.yaml"
         merged.parent.mkdir(parents=True, exist_ok=True)
         merged.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
-        return [sys.executable, "-m", "torque_estimator.nodes.composed", "--params-file", str(merged), *group]
+        return [sys.executable, "-m", "torque_estimator.nodes.composed", "--params-file", str(merged),
+                *(["--namespace", namespace] if namespace != "/" else []), *(split_name(n)[1] for n in group)]
 
     def start(self) -> "Graph":
         nodes = graph_nodes(self.params_file)
@@ -179,11 +227,11 @@ class Graph:
         commands = {"+".join(unit): self.command(unit[0]) if len(unit) == 1 else self.composed_command(unit)
                     for unit in units}
         try:
-            for name, command in commands.items():
+            for (name, command), unit in zip(commands.items(), units):
                 out = None
                 if self.log_dir is not None:
                     self.log_dir.mkdir(parents=True, exist_ok=True)
-                    out = open(self.log_dir / f"{name}.log", "wb")
+                    out = open(self.log_dir / f"{process_file_name(unit)}.log", "wb")
                 if self.priority:
                     command = ["chrt", "-f", str(self.priority), *command]
                 # numpy's BLAS with one thread in every node: see torque_estimator/__init__.py

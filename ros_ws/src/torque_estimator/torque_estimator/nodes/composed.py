@@ -1,6 +1,6 @@
 """Several nodes of a graph in one process, on one executor: the graph runner's ``--together``.
 
-    python -m torque_estimator.nodes.composed --params-file graph.yaml sim_node controller_node ...
+    python -m torque_estimator.nodes.composed --params-file graph.yaml [--namespace /arm/joint2] sim_node controller_node ...
 
 Each node is the very class its executable runs (``ros2 run <pkg> <node>``
 stays the way to run it alone) and reads its own section of the parameter file
@@ -29,6 +29,7 @@ NODE_CLASSES: dict[str, str] = {
     "model_node": "worm_model.nodes.model_node:ModelNode",
     "estimator_node": "torque_estimator.nodes.estimator_node:EstimatorNode",
     "controller_node": "torque_estimator.nodes.controller_node:ControllerNode",
+    "joint_state_merger": "worm_rig_driver.nodes.joint_state_merger:JointStateMergerNode",
 }
 
 
@@ -45,9 +46,12 @@ def node_class(name: str) -> Callable[[], Node]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="composed", description=__doc__.split("\n\n")[0])
     parser.add_argument("--params-file", required=True, help="ROS 2 parameter file (each node reads its section)")
+    parser.add_argument("--namespace", default="/", help="namespace of every node of this process (-r __ns:=)")
     parser.add_argument("nodes", nargs="+", choices=sorted(NODE_CLASSES), help="nodes to run in this process")
     args = parser.parse_args(argv)
-    return run_nodes([node_class(n) for n in args.nodes], ["composed", "--ros-args", "--params-file", args.params_file])
+    remap = ["-r", f"__ns:={args.namespace}"] if args.namespace != "/" else []
+    return run_nodes([node_class(n) for n in args.nodes],
+                     ["composed", "--ros-args", *remap, "--params-file", args.params_file])
 
 
 if __name__ == "__main__":

@@ -3,12 +3,16 @@
 The speed PI runs where the rig is, on every 1 kHz sample (sim_node, driver_node:
 worm_rig_driver.drive), the way a motor drive runs its velocity loop; this node
 tells it what to do, like a motion controller sending a drive its velocity
-set-point and torque offset. Subscribes /torque_estimate (worm_msgs/TorqueEstimate,
+set-point and torque offset. Subscribes torque_estimate (worm_msgs/TorqueEstimate,
 the estimator's newest estimate per batch of rig samples) and
-/controller/speed_setpoint (std_msgs/Float64 [rad/s]); publishes
-/rig/speed_command (worm_msgs/SpeedCommand: set-point, feedforward torque at the
-worm, the PI gains and the voltage limit) once per estimate, and at least every
-``command_period`` without one, so the rig's watchdog (command_timeout) stops the
+controller/speed_setpoint (std_msgs/Float64 [rad/s]); publishes
+rig/speed_command (worm_msgs/SpeedCommand: set-point, feedforward torque at the
+worm, the PI gains and the voltage limit), all relative to the node's namespace.
+A command goes out with an estimate (computed the moment it arrives): with every one
+while this node's own feedforward is in use (it rides on the command); otherwise
+(feedforward at the rig, or off) when the set-point, gains or feedforward settings
+changed, or ``command_period`` has passed since the last; and at least every
+``command_period`` without estimates, so the rig's watchdog (command_timeout) stops the
 drive only when this node is gone.
 
 The estimate comes from /torque_estimate by default (``feedforward_source``
@@ -55,9 +59,9 @@ from torque_estimator.control.feedforward import FeedforwardGate
 
 
 #: feedforward_source -> (message type, the estimator's topic for it)
-SOURCES = {"torque_estimate": (TorqueEstimate, "/torque_estimate"),
-           "joint_state": (JointState, "/torque_estimate/joint_states"),
-           "wrench": (WrenchStamped, "/torque_estimate/wrench")}
+SOURCES = {"torque_estimate": (TorqueEstimate, "torque_estimate"),
+           "joint_state": (JointState, "torque_estimate/joint_states"),
+           "wrench": (WrenchStamped, "torque_estimate/wrench")}
 
 
 class ControllerNode(Node):
@@ -82,8 +86,9 @@ class ControllerNode(Node):
                            "Estimates of a larger load [N m] are not fed forward (implausible; default 1.5 x the "
                            "rig file's max_load_torque).", low=0.0, high=1e6)
         self.command_period = declare(self, "command_period", 0.02,
-                                      "Longest time [s] between speed commands when no estimate arrives "
-                                      "(keep it well below the rig's command_timeout).", low=0.001, high=1.0)
+                                      "Longest time [s] between speed commands (keep it well below the rig's "
+                                      "command_timeout); with estimates arriving and no feedforward of this "
+                                      "node's riding on them, also the commands' period.", low=0.001, high=1.0)
         self.feedforward_at_rig = declare(
             self, "feedforward_at_rig", False,
             "Ask the rig to feed forward its own estimator's load (SpeedCommand.feedforward_at_rig; sim_node / "
@@ -102,15 +107,17 @@ class ControllerNode(Node):
                         "Topic of that message; empty = the estimator's: " +
                         ", ".join(f"{k}: {v[1]}" for k, v in SOURCES.items()) + ".")
         self.joint_name = declare(self, "joint_name", "gear", "Joint whose effort a JointState source gives.")
-        self.pub = self.create_publisher(SpeedCommand, "/rig/speed_command", STREAM)
+        self.pub = self.create_publisher(SpeedCommand, "rig/speed_command", STREAM)
         msg_type, default_topic = SOURCES[source]
         handler = {"torque_estimate": self.on_estimate, "joint_state": self.on_joint_state,
                    "wrench": self.on_wrench}[source]
         self.create_subscription(msg_type, topic or default_topic, handler, STREAM)
-        subscribe_command(self, Float64, "/controller/speed_setpoint", self.on_setpoint)
+        subscribe_command(self, Float64, "controller/speed_setpoint", self.on_setpoint)
         self.create_timer(self.command_period, self.on_timer)
         self.estimate: TorqueEstimate | None = None
         self.last_sent = -math.inf  # [s] node clock
+        self._sent_terms: tuple | None = None  # what the last command said, but its feedforward torque
+        self.last_estimate_at = -math.inf  # [s] node clock
         self.commands = 0
         self.feedforward_used = 0
         self.late_estimates = 0
@@ -136,7 +143,19 @@ class ControllerNode(Node):
         self.gate.offer(msg.torque, msg.flags, seconds(msg.header.stamp), self.clock_seconds())
         self._check_late()
         self.estimate = msg
-        self.send()
+        self.last_estimate_at = self.clock_seconds()
+        if self._command_due():
+            self.send()
+
+    def _terms(self) -> tuple:
+        return (self.speed_setpoint, self.kp, self.ki, self.voltage_limit, self.gate.enabled, self.feedforward_at_rig)
+
+    def _command_due(self) -> bool:
+        """Whether an estimate that just arrived sends a command (module docstring): always while this node's
+        feedforward rides on the commands; else on a change of what they say, or after command_period."""
+        if self.gate.enabled and not self.feedforward_at_rig:
+            return True
+        return self._terms() != self._sent_terms or self.clock_seconds() - self.last_sent >= self.command_period
 
     def _check_late(self) -> None:
         """Count, and say at most once a second, that an estimate arrived too late to be fed forward."""
@@ -163,10 +182,14 @@ class ControllerNode(Node):
         self.gate.offer(tau_d, 0, seconds(header.stamp), self.clock_seconds())
         self._check_late()
         self.estimate = None
-        self.send()
+        self.last_estimate_at = self.clock_seconds()
+        if self._command_due():
+            self.send()
 
     def on_timer(self) -> None:
-        if self.clock_seconds() - self.last_sent >= 0.5 * self.command_period:
+        """Commands without estimates (none arrive, or too rarely): the rig's watchdog must not starve."""
+        now = self.clock_seconds()
+        if now - self.last_estimate_at >= self.command_period and now - self.last_sent >= 0.5 * self.command_period:
             self.send()
 
     def clock_seconds(self) -> float:
@@ -192,6 +215,7 @@ class ControllerNode(Node):
                 self.feedforward_used += 1
         cmd.header.stamp = clock_now.to_msg()
         self.pub.publish(cmd)
+        self._sent_terms = self._terms()
         self.commands += 1
         self.last_sent = clock_now.nanoseconds * 1e-9
 

@@ -1,94 +1,141 @@
-"""estimator_node: the load torque tau_d for every rig sample, without a torque sensor.
+"""estimator_node: the load torque tau_d without a torque sensor, from a rig's samples or a robot's JointState.
 
-Subscribes /rig/samples (worm_msgs/RigSamples, batches of consecutive samples)
-and runs the estimator on every sample; publishes /torque_estimate
-(worm_msgs/TorqueEstimate) for the newest sample of each batch (the rig's batch
-rate, 200 Hz by default), sensor-data QoS: what the controller feeds forward and
-other stacks read.
+Input (``input``), every topic relative to the node's namespace (``-r __ns:=/arm/joint2``):
 
-The estimator is the parameter ``method`` (estimation.registry), built from the
-node's parameters by estimation.settings (as replay, ``estimate`` and the rig
-feedforward build theirs), and fed every sample by estimation.live.LiveEstimator:
+* ``rig_samples`` (default): rig/samples (worm_msgs/RigSamples, batches of consecutive samples),
+  the estimator run on every sample; one estimate published per batch (its newest sample: the
+  rig's batch rate, 200 Hz by default), on the topics of worm_rig_driver.nodes.estimate_topics:
+  torque_estimate (worm_msgs/TorqueEstimate), and while someone subscribes
+  torque_estimate/joint_states (one joint, ``joint_name``) and torque_estimate/wrench
+  (``wrench_frame``). A rig node that runs an estimator for its feedforward publishes that estimate
+  on the same topics (sim_node / driver_node ``publish_estimate``): the shipped graph runs no
+  estimator_node; run one beside such a rig only with the rig's ``publish_estimate`` false, or in
+  a namespace of its own.
+* ``joint_state``: a robot's sensor_msgs/JointState on ``joint_state_topic`` (default
+  joint_states: what ros2_control's joint_state_broadcaster publishes), one estimator per joint of
+  ``joint_names`` (found by name in every message, any order; joints.settings: per-joint rig,
+  model and calibration files as lists parallel to joint_names), positions and velocities on the
+  ``joint_side`` shaft, effort as ``effort_is`` (worm_model.rig_data.joint_states: the rig file's
+  ratio and K_t convert; stamps from the header, ``sample_rate`` the publisher's rate). What must
+  not be estimated from (a joint absent, a missing field, NaN, a repeated, earlier or early
+  stamp) is refused and counted per joint on /diagnostics. The message stamped at every
+  ``publish_every``-th sample period (a phase of the stamps' clock) gives, per joint ``j``, torque_estimate/<j> (TorqueEstimate, frame_id ``j``) and while subscribed
+  torque_estimate/<j>/wrench, and one torque_estimate/joint_states with every joint's effort. A
+  method that reads the drive voltage (the observer) needs ``voltage_topics`` (std_msgs/Float64
+  [V], the newest value used, per joint); without them the node refuses to start (exit 2). The
+  method defaults to joints.settings.JOINT_STATE_METHOD there.
 
-* ``observer`` (the shipped graph's, config/sim_graph.yaml): a Kalman filter on the
-  rig's model (Eqs 28-30, estimation/observer/) fed each sample's drive voltage,
-  current, speed and encoder angle, with a load-step detector; its noise model is
-  the rig file's sensors section. It needs no calibration; with one, it adds the
-  model's error measured at the calibration's points. Model: ``model_file`` (an
-  identified rig) or ``rig_file``.
-* ``knn`` (the paper's k-NN map over a calibration database, Eqs 33-34) and
-  ``extended_model`` (inverts the identified model's quasi-static current): a
-  quasi-static map behind a disturbance observer. Speed and current pass through the
-  same low-pass (``input_filter``), the current that accelerates the inertia is
-  removed (``inertia_compensation``, quasi_static.py), the result is smoothed
-  (``estimate_filter``) except while a change is detected (``change_threshold``),
-  then the map gives tau_d with an uncertainty and flags; a sample taken while the
-  worm accelerates faster than ``transient_acceleration`` is flagged TRANSIENT.
-  These options (and knn's ``k`` and ``weighting``) are declared only for the
-  methods that read them.
+The estimator is the parameter ``method`` (estimation.registry), built from the node's parameters by
+estimation.settings (as replay, ``estimate`` and the rig feedforward build theirs), and fed every
+sample by estimation.live.LiveEstimator:
 
-A parameter set for this node (parameter file or -p) that it does not declare (an
-option of another method, or no option at all) is reported at start, one warning
-line each naming it, and ignored.
+* ``observer``: a Kalman filter on the rig's model (Eqs 28-30, estimation/observer/) fed each
+  sample's drive voltage, current, speed and encoder angle, with a load-step detector; its noise
+  model is the rig file's sensors section. It needs no calibration; with one, it adds the model's
+  error measured at the calibration's points. Model: ``model_file`` (an identified rig) or
+  ``rig_file``.
+* ``knn`` (the paper's k-NN map over a calibration database, Eqs 33-34) and ``extended_model``
+  (inverts the identified model's quasi-static current): a quasi-static map behind a disturbance
+  observer. Speed and current pass through the same low-pass (``input_filter``), the current that
+  accelerates the inertia is removed (``inertia_compensation``, quasi_static.py), the result is
+  smoothed (``estimate_filter``) except while a change is detected (``change_threshold``), then the
+  map gives tau_d with an uncertainty and flags; a sample taken while the worm accelerates faster
+  than ``transient_acceleration`` is flagged TRANSIENT. These options (and knn's ``k`` and
+  ``weighting``) are declared only for the methods that read them.
 
-For other stacks the same estimate goes out in standard types, at the batch rate,
-while someone subscribes: sensor_msgs/JointState on ``joint_state_topic`` (one
-joint, ``joint_name``, its effort the torque the load applies to the gear shaft
-in the joint's positive direction: -tau_d, the ROS convention external-torque
-observers follow) and geometry_msgs/WrenchStamped on ``wrench_topic`` (torque
-about +z of ``wrench_frame``, the output shaft's axis pointing so that positive
-rotation is about +z: torque.z = -tau_d; force and the other torques 0).
+A parameter set for this node (parameter file or -p) that it does not declare (an option of another
+method or input, or no option at all) is reported at start, one warning line each naming it, and
+ignored.
 
-A calibration, model or rig file that is named but cannot be used (missing,
-damaged, implausible for the rig) stops the node at start: one line, exit code 2.
-With none named and a method that needs a calibration (knn), the node reports it
-(log + /diagnostics ERROR) and keeps running without publishing estimates, so the
-rest of the graph (the controller falls back to no feedforward) carries on.
+The standard outputs' effort (JointState) and torque.z (WrenchStamped) are the torque the load
+applies to the joint in its positive direction, -tau_d, for trusted estimates only: NaN for one
+flagged INVALID_INPUT, TRANSIENT or OUT_OF_CALIBRATION, or beyond 1.5 x the rig file's
+max_load_torque (worm_rig_driver.robot.standard_outputs: what and why). TorqueEstimate carries
+every estimate with its flags.
+
+A calibration, model or rig file that is named but cannot be used (missing, damaged, implausible
+for the rig) stops the node at start: one line, exit code 2. With none named and a method that
+needs a calibration (knn), the node reports it (log + /diagnostics ERROR) and keeps running without
+publishing estimates, so the rest of the graph (the controller falls back to no feedforward)
+carries on.
 """
 from __future__ import annotations
 
 from rclpy.node import Node
-from geometry_msgs.msg import WrenchStamped
+from rclpy.parameter import Parameter
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
-from worm_msgs.msg import RigSamples, TorqueEstimate
+from std_msgs.msg import Float64
+from worm_msgs.msg import RigSamples
 
+from worm_model.rig_data.joint_states import EFFORT_KINDS, JOINT_SIDES
 from worm_model.rig_data.samples import batch_problem
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
 from worm_model.ros.qos import STREAM
 from worm_model.physics.parameters import ParameterError
+from worm_rig_driver.nodes.estimate_topics import EstimateTopics
 
 from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.estimation.database import CalibrationError
 from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.estimation.registry import METHODS, Option
 from torque_estimator.estimation.settings import ALL_OPTIONS, SETTINGS_OPTIONS, EstimatorSettings, build_estimator
+from torque_estimator.joints.estimators import JointEstimators
+from torque_estimator.joints.settings import JOINT_STATE_METHOD, PER_JOINT_FILES, joint_setups
+
+#: what the node reads
+INPUTS = ("rig_samples", "joint_state")
+#: each input's own parameters (a parameter of the other input is reported as not read)
+INPUT_PARAMETERS = {"rig_samples": ("joint_name", "wrench_frame"),
+                    "joint_state": ("joint_state_topic", "joint_names", "joint_side", "effort_is", "voltage_topics",
+                                    "publish_every", *PER_JOINT_FILES)}
 
 
 class EstimatorNode(Node):
     def __init__(self) -> None:
         super().__init__("estimator_node")
-        values = {o.name: self._declare(o) for o in SETTINGS_OPTIONS}
+        self.input = declare(self, "input", "rig_samples",
+                             "What the estimates are computed from: rig_samples (rig/samples, a rig's batches) or "
+                             "joint_state (a robot's sensor_msgs/JointState on joint_state_topic).", choices=INPUTS)
+        joint_state = self.input == "joint_state"
+        values = {o.name: self._declare(o, JOINT_STATE_METHOD if joint_state and o.name == "method" else None)
+                  for o in SETTINGS_OPTIONS}
         self.method = values["method"]
         values.update({o.name: self._declare(o) for o in METHODS[self.method].options})
-        period = 1.0 / declare(self, "sample_rate", 1000.0, "Rig sample rate [Hz].", low=1.0, high=100000.0)
-        joint_topic = declare(self, "joint_state_topic", "/torque_estimate/joint_states",
-                              "Topic of the estimate as sensor_msgs/JointState (effort = -tau_d).")
-        self.joint_name = declare(self, "joint_name", "gear", "Name of the output joint in that JointState.")
-        wrench_topic = declare(self, "wrench_topic", "/torque_estimate/wrench",
-                               "Topic of the estimate as geometry_msgs/WrenchStamped (torque.z = -tau_d).")
-        self.wrench_frame = declare(self, "wrench_frame", "gear_output",
-                                    "frame_id of that wrench: its z axis is the output shaft, positive rotation "
-                                    "about +z.")
+        rate = declare(self, "sample_rate", 1000.0, "Sample rate [Hz] of the input: the rig's, or the JointState "
+                       "publisher's (its messages' stamps are numbered at this rate).", low=1.0, high=100000.0)
+        self.period = 1.0 / rate
+        self.problem = ""
+        self.flag_counts = {flag.name: 0 for flag in EstimateFlags if flag}
+        self.received = 0
+        self.malformed = 0  # rig/samples messages refused
+        self.topics: EstimateTopics | None = None
+        if joint_state:
+            self._start_joint_state(values)
+        else:
+            self._start_rig_samples(values)
+        Diagnostics(self, self.report)
+        self._warn_undeclared()
 
+    # --- start-up ----------------------------------------------------------------------------------
+    def _declare(self, option: Option, default=None):
+        return declare(self, option.name, option.default if default is None else default, option.description,
+                       low=option.low, high=option.high, choices=option.choices)
+
+    def _start_rig_samples(self, values: dict) -> None:
+        joint_name = declare(self, "joint_name", "gear", "Name of the joint in torque_estimate/joint_states.")
+        wrench_frame = declare(self, "wrench_frame", "gear_output",
+                               "frame_id of torque_estimate/wrench: its z axis is the output shaft, positive "
+                               "rotation about +z.")
         self.settings = EstimatorSettings.from_parameters(values)
         self.estimator: LiveEstimator | None = None
-        self.problem = ""
         try:
             built = build_estimator(self.settings)
-            self.estimator = built.live(period)
+            self.estimator = built.live(self.period)
+            self.topics = EstimateTopics(self, self.method, [joint_name], [1.5 * built.rig.max_load_torque],
+                                         sample_period=self.period, wrench_frame=wrench_frame)
             self.get_logger().info(
                 f"{self.method} estimator on {len(built.database)} calibration points from "
                 f"{self.settings.calibration_file}" if built.database is not None else
@@ -99,20 +146,51 @@ class EstimatorNode(Node):
                 raise
             self.problem = str(err)
             self.get_logger().error(f"no estimates: {err}")
+        self.create_subscription(RigSamples, "rig/samples", self.on_samples, STREAM)
 
-        self.pub = self.create_publisher(TorqueEstimate, "/torque_estimate", STREAM)
-        self.pub_joint = self.create_publisher(JointState, joint_topic, STREAM)
-        self.pub_wrench = self.create_publisher(WrenchStamped, wrench_topic, STREAM)
-        self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
-        self.received = 0
-        self.malformed = 0  # /rig/samples messages refused
-        self.flag_counts = {flag.name: 0 for flag in EstimateFlags if flag}
-        Diagnostics(self, self.report)
-        self._warn_undeclared()
-
-    def _declare(self, option: Option):
-        return declare(self, option.name, option.default, option.description, low=option.low, high=option.high,
-                       choices=option.choices)
+    def _start_joint_state(self, values: dict) -> None:
+        topic = declare(self, "joint_state_topic", "joint_states",
+                        "Topic of the robot's sensor_msgs/JointState (relative: in this node's namespace).")
+        names = declare(self, "joint_names", Parameter.Type.STRING_ARRAY,
+                        "The joints to estimate, by their names in the JointState (any order there).") or []
+        side = declare(self, "joint_side", "output", "Shaft of the JointState's position and velocity: output (the "
+                       "gear shaft, as a robot's joint) or motor (the worm); the rig file's ratio converts.",
+                       choices=JOINT_SIDES)
+        effort_is = declare(self, "effort_is", "current", "What the JointState's effort is: current (the drive "
+                            "current [A]) or motor_torque (K_t i [N m]; the rig file's K_t converts).",
+                            choices=EFFORT_KINDS)
+        volts = declare(self, "voltage_topics", Parameter.Type.STRING_ARRAY,
+                        "Per joint (parallel to joint_names), a std_msgs/Float64 topic of the drive voltage [V] "
+                        "('' for none): needed by a method that reads it (the observer).")
+        files = {name: declare(self, name, Parameter.Type.STRING_ARRAY,
+                               f"Per joint (parallel to joint_names), its {single} ('' for none); empty: "
+                               f"{single} for every joint.")
+                 for name, single in PER_JOINT_FILES.items()}
+        self.publish_every = declare(self, "publish_every", 5, "Publish the estimates of the JointStates stamped at "
+                                     "every n-th sample period of the stamps' clock (5: 200 Hz from 1 kHz); every "
+                                     "message is estimated.", low=1, high=100000)
+        self.period_ns = self.period * 1e9
+        setups = joint_setups(values, names, volts, files)  # ValueError: one line, exit 2
+        self.joints: JointEstimators | None = None
+        try:
+            self.joints = JointEstimators(setups, self.period, side, effort_is)
+            self.topics = EstimateTopics(self, self.method, [s.name for s in setups], self.joints.max_loads,
+                                         sample_period=self.period, per_joint=True)
+            self.get_logger().info(f"{self.method} estimators for joints {', '.join(s.name for s in setups)} of "
+                                   f"{self.resolve_topic_name(topic)} ({side} side, effort as {effort_is})")
+        except (CalibrationError, ParameterError) as err:
+            if any(s.settings.calibration_file or s.settings.model_file or s.settings.rig_file for s in setups):
+                raise  # a file the user named cannot be used: stop (exit 2)
+            self.problem = str(err)
+            self.get_logger().error(f"no estimates: {err}")
+        self.voltages: dict[str, float] = {}
+        for setup in setups:
+            if setup.voltage_topic:
+                self.create_subscription(Float64, setup.voltage_topic,
+                                         lambda msg, joint=setup.name: self.voltages.__setitem__(joint, msg.data),
+                                         STREAM)
+        self.messages = 0
+        self.create_subscription(JointState, topic, self.on_joint_state, STREAM)
 
     def _warn_undeclared(self) -> None:
         """One warning per parameter given to this node that it did not declare: rclpy keeps such an override
@@ -120,15 +198,18 @@ class EstimatorNode(Node):
         without a word. (rclpy has no public accessor for a node's overrides.)"""
         for name in sorted(n for n in self._parameter_overrides if not self.has_parameter(n)):
             readers = [m for m, row in METHODS.items() if any(o.name == name for o in row.options)]
+            inputs = [i for i, names in INPUT_PARAMETERS.items() if name in names]
             why = (f"method {self.method} does not read it (read by {', '.join(readers)} only)" if name in ALL_OPTIONS
+                   else f"input {self.input} does not read it (input {inputs[0]} does)" if inputs
                    else "estimator_node has no such parameter")
             self.get_logger().warning(f"parameter {name} is set but {why}: ignored")
 
+    # --- input -------------------------------------------------------------------------------------
     def on_samples(self, batch: RigSamples) -> None:
         problem = batch_problem(batch, ("omega_worm", "current_drive", "voltage_drive", "theta_worm"))
         if problem:
             self.malformed += 1
-            self.get_logger().warning(f"ignored a /rig/samples message (first_seq {batch.first_seq}): {problem}",
+            self.get_logger().warning(f"ignored a rig/samples message (first_seq {batch.first_seq}): {problem}",
                                       throttle_duration_sec=1.0)
             return
         n = len(batch.omega_worm)
@@ -139,6 +220,9 @@ class EstimatorNode(Node):
         restarts = self.estimator.restarts
         for k in range(n):
             est = self.estimator.update(omega[k], current[k], voltage[k], theta[k], batch.first_seq + k)
+            if self.estimator.restarts != restarts:
+                self.topics.restart(0)
+            self.topics.observe(0, est.flags, est.torque)
             if est.flags:
                 for flag in EstimateFlags(est.flags):
                     self.flag_counts[flag.name] += 1
@@ -146,33 +230,46 @@ class EstimatorNode(Node):
             self.get_logger().info(f"rig sample stream started again at seq {batch.first_seq} (a restarted rig "
                                    "or driver): estimator state reset")
         last = n - 1
-        msg = TorqueEstimate(seq=batch.first_seq + last, torque=est.torque, uncertainty=est.uncertainty,
-                             method=self.method, omega_worm=est.omega_worm, current_drive=est.current_drive,
-                             flags=est.flags)
         stamp = Time.from_msg(batch.header.stamp).nanoseconds + int(round(last * batch.sample_period * 1e9))
-        msg.header.stamp = Time(nanoseconds=stamp).to_msg()
-        msg.header.frame_id = batch.header.frame_id
-        self.pub.publish(msg)
-        # standard types for other stacks, only while someone listens (each costs a publish)
-        if self.pub_joint.get_subscription_count():
-            joint = JointState(name=[self.joint_name], effort=[-est.torque])
-            joint.header.stamp = msg.header.stamp
-            joint.header.frame_id = msg.header.frame_id
-            self.pub_joint.publish(joint)
-        if self.pub_wrench.get_subscription_count():
-            wrench = WrenchStamped()
-            wrench.header.stamp, wrench.header.frame_id = msg.header.stamp, self.wrench_frame
-            wrench.wrench.torque.z = -est.torque
-            self.pub_wrench.publish(wrench)
+        self.topics.publish(stamp, batch.header.frame_id, [(batch.first_seq + last, est)])
 
+    def on_joint_state(self, msg: JointState) -> None:
+        self.messages += 1
+        if self.joints is None:
+            return
+        stamp = Time.from_msg(msg.header.stamp).nanoseconds
+        # the messages at every publish_every-th period of the stamps' clock: a phase of the clock, not of
+        # this node's start, so every estimator of one JointState publishes the same stamps
+        publish = round(stamp / self.period_ns) % self.publish_every == self.publish_every - 1
+        estimates = self.joints.update(stamp, msg.name, msg.position, msg.velocity, msg.effort, self.voltages,
+                                       estimate=publish)
+        for k, (flags, torque) in enumerate(self.joints.judged):
+            if flags is not None:  # the joint had a sample in this message
+                if self.joints.restarted[k]:
+                    self.topics.restart(k)
+                self.topics.observe(k, flags, torque)
+        if publish:
+            self.topics.publish(stamp, msg.header.frame_id, estimates)
+
+    # --- health ------------------------------------------------------------------------------------
     def report(self) -> tuple[bytes, str, dict]:
+        outputs = self.topics.report() if self.topics is not None else {}
+        if self.input == "joint_state":
+            if self.joints is None:
+                return ERROR, f"no estimates: {self.problem}", {"messages": self.messages}
+            values = {**self.joints.report(), **outputs}
+            refused = self.joints.reader.refused_total()
+            invalid = sum(c["INVALID_INPUT"] for c in self.joints.flag_counts)
+            return (WARN if refused or invalid else OK), (
+                f"estimating {len(self.joints.names)} joints" + (f"; {refused} joint samples refused" if refused
+                                                                 else "")), values
         if self.estimator is None:
             return ERROR, f"no calibration: {self.problem}", {"samples": self.received}
         level = WARN if self.flag_counts["INVALID_INPUT"] else OK
         e = self.estimator
         return level, "estimating", {"samples": self.received, "malformed_batches": self.malformed,
                                      "seq_gaps": e.gaps, "samples_lost": e.lost, "stream_restarts": e.restarts,
-                                     **self.flag_counts}
+                                     **self.flag_counts, **outputs}
 
 
 def main(args=None) -> int:

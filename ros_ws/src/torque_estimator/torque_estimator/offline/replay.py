@@ -12,10 +12,14 @@ worm_model.bags.reader and fed, message by message in recorded order,
   parameters), and
 * to :class:`~torque_estimator.estimation.live.LiveEstimator`, the very class
   estimator_node runs, once per estimator of the registry asked for
-  (``--estimators``; default: the method configured for estimator_node).
+  (``--estimators``; default: the graph's live estimator's method).
 
-Parameters come from the graph's parameter file (the one the live run used)
-plus ``--set`` overrides, with the nodes' defaults for anything missing.
+The graph's live estimator, whose /torque_estimate the bag holds, is estimator_node when the
+graph file has one; else the rig's (sim_node or driver_node with ``feedforward_estimator``
+and ``publish_estimate``, as the shipped sim_graph.yaml runs it), which is replayed exactly as
+the rig builds it (torque_estimator.control.rig_feedforward: the rig file's rig, the
+feedforward's step detector). Parameters come from the graph's parameter file (the one the
+live run used) plus ``--set`` overrides, with the nodes' defaults for anything missing.
 
 If the bag also holds what the live nodes published (/torque_estimate,
 /gearbox/forces), the replay is compared with it, sample by sample (by
@@ -82,11 +86,16 @@ from worm_model.cli.progress import ProgressBar
 #: The nodes' parameter defaults (model_node.py; estimator_node.py: every method's options, from
 #: estimation.settings), for what the file leaves out.
 NODE_DEFAULTS: dict[str, dict[str, Any]] = {
-    "model_node": {"rig_file": "", "use_acceleration": True, "acceleration_filter": 0.01, "publish_period": 0.02},
+    "model_node": {"input": "rig_samples", "rig_file": "", "use_acceleration": True, "acceleration_filter": 0.01,
+                   "publish_period": 0.02},
     "estimator_node": {**{name: option.default for name, option in ALL_OPTIONS.items()}, "sample_rate": 1000.0,
-                       "joint_state_topic": "/torque_estimate/joint_states", "joint_name": "gear",
-                       "wrench_topic": "/torque_estimate/wrench", "wrench_frame": "gear_output"},
+                       "input": "rig_samples", "joint_name": "gear", "wrench_frame": "gear_output"},
 }
+#: The rig nodes whose feedforward estimator may be the graph's live estimator, and what replay reads of them
+#: (sim_node.py, driver_node.py; their other parameters are ignored here).
+RIG_DEFAULTS: dict[str, Any] = {"rig_file": "", "feedforward_estimator": "", "feedforward_calibration": "",
+                                "publish_estimate": True}
+RIG_NODES = ("sim_node", "driver_node")
 #: sample channels checked against the rig's envelope before they reach a core
 PLAUSIBLE_CHANNELS = ("omega_worm", "current_drive", "tau_load", "voltage_drive")
 ESTIMATE_TOPIC = "/torque_estimate"
@@ -107,7 +116,9 @@ def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> 
     Raises:
         ReplayError: Unreadable file or bad override (named).
     """
-    params = {node: dict(values) for node, values in NODE_DEFAULTS.items()}
+    params: dict[str, dict[str, Any]] = {node: dict(values) for node, values in NODE_DEFAULTS.items()}
+    params.update({node: dict(RIG_DEFAULTS) for node in RIG_NODES})
+    document: dict = {}
     if params_file is not None:
         try:
             document = load_parameter_file(params_file)  # read as rcl reads it in the nodes
@@ -115,6 +126,9 @@ def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> 
             raise ReplayError(f"parameter file {err}") from None
         for node in params:
             values = document.get(node, {})
+            if node in RIG_NODES:  # the rig's parameters replay does not read (seed, batch_size, ...) are left
+                params[node].update({k: v for k, v in values.items() if k in RIG_DEFAULTS})
+                continue
             for name in values:  # a misspelt name would leave the node's default in force without a word
                 if name not in NODE_DEFAULTS[node]:
                     raise ReplayError(f"parameter file {params_file}: {node}: {node} declares no parameter "
@@ -129,10 +143,13 @@ def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> 
             continue  # another node of the graph (the same --set list serves run_graph)
         for assignment in assignments:
             name, _, text = assignment.partition(":=")
-            default = NODE_DEFAULTS[node].get(name)
-            if name not in NODE_DEFAULTS[node]:
+            known = RIG_DEFAULTS if node in RIG_NODES else NODE_DEFAULTS[node]
+            if node in RIG_NODES and name not in known:
+                continue  # a rig parameter replay does not read (seed, batch_size, ...)
+            default = known.get(name)
+            if name not in known:
                 raise ReplayError(f"--set {node}.{name}={text}: {node} has no parameter {name!r}"
-                                  f"{nearest(name, NODE_DEFAULTS[node])} (it has: {', '.join(NODE_DEFAULTS[node])})")
+                                  f"{nearest(name, known)} (it has: {', '.join(known)})")
             try:
                 value = yaml.safe_load(text) if text else ""
             except yaml.YAMLError:
@@ -141,7 +158,26 @@ def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> 
                 raise ReplayError(f"--set {node}.{name}={text}: expected {type(default).__name__} like the "
                                   f"node's default {default!r}")
             params[node][name] = value
+    params["live"] = {"node": live_estimator(document, params)}
     return params
+
+
+def live_estimator(document: Mapping[str, Any], params: Mapping[str, Mapping[str, Any]]) -> str:
+    """Which node of the graph published /torque_estimate (module docstring): "estimator_node" when the file
+    has it, else the rig node with a feedforward estimator that publishes it, else "estimator_node" (its
+    defaults and the overrides)."""
+    if "estimator_node" in document:
+        return "estimator_node"
+    for node in RIG_NODES:
+        if node in document and params[node]["feedforward_estimator"] and params[node]["publish_estimate"]:
+            return node
+    return "estimator_node"
+
+
+def live_method(params: Mapping[str, Mapping[str, Any]]) -> str:
+    """The method of the graph's live estimator."""
+    node = params["live"]["node"]
+    return str(params[node]["feedforward_estimator"] if node in RIG_NODES else params[node]["method"])
 
 
 def _same_kind(default: Any, value: Any) -> bool:
@@ -218,15 +254,22 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
             estimator_node's rig can do (named by message, seq and column).
     """
     model_p, est_p = params["model_node"], params["estimator_node"]
-    names = list(estimators) if estimators else [str(est_p["method"])]
+    live_node = params.get("live", {}).get("node", "estimator_node")
+    names = list(estimators) if estimators else [live_method(params) if "live" in params else str(est_p["method"])]
     if unknown := [n for n in names if n not in ESTIMATORS]:
         raise ReplayError(f"unknown estimator(s) {unknown}; registry: {sorted(ESTIMATORS)}")
     start = time.perf_counter()
     model = LiveModel(load_rig(model_p["rig_file"] or None), bool(model_p["use_acceleration"]),
                       float(model_p["acceleration_filter"]))
-    est_rig = load_rig(est_p["rig_file"] or None)  # the envelope of plausible samples
+    rig_file = params[live_node]["rig_file"]
+    try:
+        est_rig = load_rig(rig_file or None)  # the envelope of plausible samples
+    except ParameterError as err:
+        raise ReplayError(f"{live_node}.rig_file: {err}") from None
     period = 1.0 / float(est_p["sample_rate"])
-    cores = {name: _core(est_p, name, period) for name in names}
+    cores = {name: _rig_core(params[live_node], est_rig, period)
+             if live_node in RIG_NODES and name == live_method(params) else _core(est_p, name, period)
+             for name in names}
     model_out, est_out = Outputs(), {name: Outputs() for name in names}
     envelope = Envelope.of(est_rig)
     first = last = None
@@ -301,6 +344,20 @@ def _core(parameters: Mapping[str, Any], name: str, period: float):
         raise ReplayError(f"estimator_node.calibration_file: {err}{hint}") from None
     except ValueError as err:  # worm_model's ParameterError is a ValueError: a bad rig_file or model_file
         raise ReplayError(f"estimator_node: {err}") from None
+
+
+def _rig_core(parameters: Mapping[str, Any], rig, period: float):
+    """The rig's feedforward estimator, built as the rig builds it (control.rig_feedforward), for its samples.
+
+    Raises:
+        ReplayError: a bad calibration (named).
+    """
+    from torque_estimator.control.rig_feedforward import build as build_rig_feedforward
+    try:
+        return build_rig_feedforward(str(parameters["feedforward_estimator"]),
+                                     str(parameters["feedforward_calibration"] or ""), rig, period).live
+    except ValueError as err:  # CalibrationError is one
+        raise ReplayError(f"feedforward_calibration: {err}") from None
 
 
 # --- comparison with the live run ------------------------------------------------------------------
@@ -389,12 +446,13 @@ def _main(argv: Sequence[str] | None) -> int:
     parser.add_argument("--params-file", type=existing_file, default=None, metavar="FILE",
                         help="graph parameter file of the live run (default: the installed sim_graph.yaml)")
     parser.add_argument("--set", action="append", default=[], metavar="NODE.PARAM=VALUE",
-                        help="override one parameter of model_node or estimator_node (repeatable), "
-                             "e.g. estimator_node.calibration_file=cal.json; other nodes' are ignored, "
-                             "so run_graph's --set list can be passed as is")
+                        help="override one parameter of model_node, estimator_node or the rig's estimator "
+                             "(sim_node/driver_node feedforward_estimator, feedforward_calibration, rig_file) "
+                             "(repeatable), e.g. sim_node.feedforward_calibration=cal.json; other nodes' and "
+                             "parameters are ignored, so run_graph's --set list can be passed as is")
     parser.add_argument("--estimators", default=None, metavar="NAME[,NAME...]",
                         help=f"estimators of the registry to run ({', '.join(sorted(ESTIMATORS))}; "
-                             "default: estimator_node's method)")
+                             "default: the method of the graph's live estimator, estimator_node's or the rig's)")
     parser.add_argument("--topic", default=None, help="sample stream topic, RigSamples or RigSample (default: the only one, or /rig/samples, then /rig/sample)")
     parser.add_argument("--follow-live", action="store_true",
                         help="feed each core only the samples its live node answered (by the seqs of the "
@@ -420,7 +478,7 @@ def _main(argv: Sequence[str] | None) -> int:
                      allow_truncated=args.allow_truncated)
     if forces is not None:
         _print_comparison(forces, "forces")
-    method = str(params["estimator_node"]["method"])
+    method = live_method(params)
     if method in result.estimates:
         estimates = compare(args.bag, ESTIMATE_TOPIC, result.estimates[method], ESTIMATE_FIELDS,
                             args.warmup, method, args.allow_truncated)

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import importlib.util
 import math
 import os
 from collections.abc import Callable, Mapping
@@ -283,6 +284,24 @@ def default_rig_path() -> Path:
     return Path(__file__).resolve().parent.parent / "data" / "nmrv030_rig.yaml"
 
 
+#: A rig file named by its package, as ROS names package files: ``package://worm_model/data/tro2021_worm_rig.yaml``
+PACKAGE_SCHEME = "package://"
+
+
+def resolve_rig_path(path: str | os.PathLike[str]) -> Path:
+    """The file ``path`` names: ``package://<pkg>/<file>`` is ``<file>`` in the folder of the installed Python
+    package ``<pkg>`` (the bundled rigs, wherever the package is installed, so a graph file can name them);
+    any other path as it is. An unknown package is left as the path it spells (loading then names it)."""
+    text = os.fspath(path)
+    if not text.startswith(PACKAGE_SCHEME):
+        return Path(text)
+    package, _, rest = text[len(PACKAGE_SCHEME):].partition("/")
+    spec = importlib.util.find_spec(package) if package.isidentifier() else None
+    if spec is None or not spec.submodule_search_locations:
+        return Path(text)
+    return Path(next(iter(spec.submodule_search_locations))) / rest
+
+
 def _is_int_field(f: dataclasses.Field[Any]) -> bool:
     return f.type in ("int", int)
 
@@ -445,7 +464,8 @@ def check_rig(rig: Rig, origin: str) -> None:
 
 
 def load_rig(path: str | os.PathLike[str] | None = None) -> Rig:
-    """Load and check a ``worm_rig_parameters`` v1 file; ``None`` loads :func:`default_rig_path`.
+    """Load and check a ``worm_rig_parameters`` v1 file; ``None`` loads :func:`default_rig_path`, and
+    ``package://<pkg>/<file>`` a file of an installed package (:func:`resolve_rig_path`).
 
     Returns:
         a :class:`Rig` in SI units whose ``source`` is the resolved file path.
@@ -456,7 +476,7 @@ def load_rig(path: str | os.PathLike[str] | None = None) -> Rig:
             a key given twice,
             out-of-range value, inconsistent gear geometry.  The message names file and field.
     """
-    file = Path(path) if path is not None else default_rig_path()
+    file = resolve_rig_path(path) if path is not None else default_rig_path()
     origin = str(file)
     try:
         document = load_yaml(file, "rig parameter file")

@@ -10,6 +10,8 @@
 ``plausibility``   rig data and calibration points against the rig: sample rate, units, angle
 ``bags``           RigSample bags <-> MeasuredData (``bag export`` / ``bag import``)
 ``samples``        the rig's sample streams as recorded (one per message or batched), in order
+``joint_states``   a robot's sensor_msgs/JointState as rig samples: joints by name, motor or
+                   output side, effort as current or motor torque, stamps checked and counted
 =================  ==============================================================
 
 Start with :mod:`~worm_model.rig_data.schema`. Bags themselves (rosbag2 layouts,

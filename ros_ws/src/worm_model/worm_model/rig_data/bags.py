@@ -32,7 +32,7 @@ from worm_model.rig_data.schema import (
     read_rig_csv,
     write_rig_csv,
 )
-from worm_model.rig_data.samples import SAMPLE_TOPICS, SAMPLE_TYPES, iter_samples
+from worm_model.rig_data.samples import SAMPLE_TOPICS, SAMPLE_TYPES, iter_samples, recorded_name
 from worm_model.bags.reader import BagReader
 from worm_model.bags.typestore import BagRecordingError
 from worm_model.files.writing import Output, atomic_dir, atomic_file
@@ -82,7 +82,7 @@ def find_sample_topic(reader: BagReader, topic: str | None = None) -> str:
     if not candidates:
         raise RigDataError(source, f'no sample stream ({" or ".join(SAMPLE_TYPES)}); it has {sorted(reader.topics)}')
     if len(candidates) > 1:
-        for preferred in SAMPLE_TOPICS:
+        for preferred in map(recorded_name, SAMPLE_TOPICS):  # a graph recorded without a namespace
             if preferred in candidates:
                 return preferred
         raise RigDataError(source, f'several sample streams {candidates}; choose one')

@@ -1,9 +1,10 @@
 """The rig's sample streams as recorded: one sample per message, or batches of consecutive samples.
 
 A rig publishes the same samples two ways (worm_rig_driver.nodes.rig_topics):
-``worm_msgs/msg/RigSamples`` on /rig/samples (``batch_size`` consecutive samples
+``worm_msgs/msg/RigSamples`` on rig/samples (``batch_size`` consecutive samples
 per message, arrays per field, the graph's stream) and ``worm_msgs/msg/RigSample``
-on /rig/sample (one by one, while someone subscribes). Readers of recordings
+on rig/sample (one by one, while someone subscribes): names relative to the rig
+node's namespace, /rig/samples and /rig/sample in a recording of a graph without one. Readers of recordings
 (``bag export``, ``replay``, ``residuals``) take either through :func:`samples_of`,
 which turns a message of either type into RigSample-like records in sample order.
 No rclpy: works on the dataclasses the bag reader decodes and on rclpy messages alike.
@@ -23,11 +24,12 @@ RIG_SAMPLE_TYPE: Final[str] = "worm_msgs/msg/RigSample"
 RIG_SAMPLES_TYPE: Final[str] = "worm_msgs/msg/RigSamples"
 #: the types a sample stream may have, preferred first
 SAMPLE_TYPES: Final[tuple[str, ...]] = (RIG_SAMPLES_TYPE, RIG_SAMPLE_TYPE)
-#: where the rigs publish them, preferred first
-SAMPLE_TOPICS: Final[tuple[str, ...]] = ("/rig/samples", "/rig/sample")
+#: where the rigs publish them, preferred first: relative names, resolved in the rig node's namespace
+#: (``recorded_name`` gives what a recording of a graph in a namespace holds)
+SAMPLE_TOPICS: Final[tuple[str, ...]] = ("rig/samples", "rig/sample")
 SIM_TRUTHS_TYPE: Final[str] = "worm_msgs/msg/SimTruths"
-#: where sim_node publishes every sample's ground truth (SimTruths batches)
-SIM_TRUTHS_TOPIC: Final[str] = "/sim/truth_samples"
+#: where sim_node publishes every sample's ground truth (SimTruths batches), relative like SAMPLE_TOPICS
+SIM_TRUTHS_TOPIC: Final[str] = "sim/truth_samples"
 #: the streams that carry every sample's seq (a gap is a loss): the rig's samples and the simulator's truth
 EVERY_SAMPLE_TYPES: Final[tuple[str, ...]] = (*SAMPLE_TYPES, SIM_TRUTHS_TYPE)
 #: SimTruths' per-sample fields, in message order (SimTruth's fields of the same names)
@@ -38,6 +40,15 @@ FIELDS: Final[tuple[str, ...]] = (
     "current_drive", "current_load_1", "current_load_2", "omega_worm", "omega_gear", "theta_worm", "theta_gear",
     "count_drive", "count_load_1", "count_load_2", "voltage_drive", "tau_load", "status")
 NS_PER_S: Final[int] = 1_000_000_000
+
+
+def recorded_name(topic: str, namespace: str = "/") -> str:
+    """The full name of a node's ``topic`` (relative, e.g. "rig/samples") in ``namespace`` ("/": none), as a
+    recording of the graph names it: ``recorded_name("rig/samples")`` is "/rig/samples",
+    ``recorded_name("rig/samples", "/arm/joint2")`` "/arm/joint2/rig/samples". An absolute topic stays as it is."""
+    if topic.startswith("/"):
+        return topic
+    return f"{namespace.rstrip('/')}/{topic}"
 
 
 @dataclass(frozen=True)
@@ -163,6 +174,6 @@ def missing_seqs(seqs: Iterator[int]) -> int:
 
 
 __all__ = ["EVERY_SAMPLE_TYPES", "FIELDS", "RIG_SAMPLES_TYPE", "RIG_SAMPLE_TYPE", "SAMPLE_TOPICS",
-           "SAMPLE_TYPES", "SIM_TRUTHS_TOPIC", "SIM_TRUTHS_TYPE", "TRUTH_FIELDS", "Header", "Sample",
+           "SAMPLE_TYPES", "SIM_TRUTHS_TOPIC", "recorded_name", "SIM_TRUTHS_TYPE", "TRUTH_FIELDS", "Header", "Sample",
            "batch_problem", "batch_stamps_ns", "command_latencies", "missing_seqs",
            "Stamp", "iter_samples", "samples_of", "stamp_ns", "unbatch"]

@@ -92,8 +92,14 @@ class RigFeedforward(Protocol):
     the sample [V] and the worm encoder angle [rad]; ``torque`` gives the torque at the worm [N m]
     (positive turns the worm positively) to add to the PI output for the period that follows, at
     worm speed set-point ``setpoint`` [rad/s]: 0 when the estimate is unusable. Both run in the
-    rig's sample thread, so they must take microseconds, not milliseconds.
+    rig's sample thread, so they must take microseconds, not milliseconds. ``last`` is the load
+    estimate of the sample observed last (torque_estimator's LiveEstimate: tau_d, uncertainty,
+    flags, the filtered speed and current; None before the first), which the rig publishes as the
+    graph's estimate (nodes.rig_topics); ``method`` names its estimator.
     """
+
+    method: str
+    last: object | None
 
     def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> None: ...
 

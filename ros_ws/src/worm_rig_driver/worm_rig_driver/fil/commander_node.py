@@ -55,10 +55,10 @@ class FilCommander(Node):
         self.report_file = declare(self, "report_file", "", "Write the JSON summary here at shutdown (empty: no file).")
         self.speed_mode = declare(self, "speed_mode", False,
                                   "Run the profile with the rig's speed loop (SpeedCommand) instead of voltages.")
-        self.drive = self.create_publisher(DriveCommand, "/rig/drive_command", STREAM)
-        self.speed = self.create_publisher(SpeedCommand, "/rig/speed_command", STREAM)
-        self.load = self.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
-        self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
+        self.drive = self.create_publisher(DriveCommand, "rig/drive_command", STREAM)
+        self.speed = self.create_publisher(SpeedCommand, "rig/speed_command", STREAM)
+        self.load = self.create_publisher(LoadCommand, "rig/load_command", COMMAND)
+        self.create_subscription(RigSamples, "rig/samples", self.on_samples, STREAM)
         self.create_timer(1.0 / rate, self.on_tick)
         self.start: float | None = None
         self.torque: float | None = None

@@ -42,7 +42,7 @@ from worm_rig_driver.link.serial_link import SUPPORTED_BAUDS, SerialLink
 from worm_rig_driver.drive.realtime import make_realtime
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
-from worm_rig_driver.nodes.rig_topics import (FIELDS, RigTopics, declare_rig_feedforward, log_refusal,
+from worm_rig_driver.nodes.rig_topics import (FIELDS, RigEstimate, RigTopics, declare_rig_feedforward, log_refusal,
                                              speed_command_from_msg, subscribe_commands)
 
 
@@ -57,7 +57,7 @@ class DriverNode(Node):
         rate = declare(self, "stream_rate_hz", table.SAMPLE_RATE_HZ,
                        f"Telemetry rate [Hz]: 0 or a divisor of {table.SAMPLE_RATE_HZ}.", low=0,
                        high=table.SAMPLE_RATE_HZ)
-        batch_size = declare(self, "batch_size", 5, "Telemetry frames per /rig/samples message.", low=1, high=1000)
+        batch_size = declare(self, "batch_size", 5, "Telemetry frames per rig/samples message.", low=1, high=1000)
         decimation = declare(self, "channel_decimation", 10,
                              "Publish currents/joint_states/encoders every N-th sample (while subscribed).",
                              low=1, high=1000)
@@ -93,9 +93,11 @@ class DriverNode(Node):
         tick = 1.0 / table.SAMPLE_RATE_HZ
         sample_period = tick * table.SAMPLE_RATE_HZ / max(rate, 1)
         self._seq_step = max(1, round(sample_period / tick))  # clock ticks per streamed sample
+        feedforward = declare_rig_feedforward(self, self.rig, sample_period)
         self.loop = RigLoop(self.rig, sample_period, command_timeout, DEFAULT_GAINS, seq_period=tick,
-                            feedforward=declare_rig_feedforward(self, self.rig, sample_period))
+                            feedforward=feedforward)
         self.topics = RigTopics(self, self.frame_id, tick, batch_size, decimation, self.scaling.counts_per_rev)
+        self.estimate = RigEstimate(self, self.rig, feedforward, self.frame_id)
         self._command_seq = 0  # the speed command in force for the next frame (its source seq)
         self._sent_voltage = 0.0  # [V] the last drive voltage sent to the rig
         self._sent_at = 0.0  # [s] time.monotonic() it was sent
@@ -152,6 +154,7 @@ class DriverNode(Node):
             self.topics.add(s.seq, s.stamp_ns, values, self._command_seq)
             # every sample to the rig's own estimator, numbered in samples (its gaps are lost samples)
             self.loop.observe(s.omega_worm, s.current_drive, s.voltage_drive, s.theta_worm, s.seq // self._seq_step)
+            self.estimate.after_sample(self.topics, s.seq, s.stamp_ns)  # a batch went out: its estimate too
         newest = samples[-1]
         out = self.loop.step(time.monotonic(), newest.omega_worm, newest.seq)
         self._command_seq = out.command_seq
@@ -178,7 +181,8 @@ class DriverNode(Node):
             log.info(message)
 
     def report(self) -> tuple[bytes, str, dict]:
-        values = {**self.link.report(), "feedforward_at_rig_samples": self.loop.feedforward_at_rig}
+        values = {**self.link.report(), "feedforward_at_rig_samples": self.loop.feedforward_at_rig,
+                  **self.estimate.report()}
         state = LinkState(values["state"])
         level, message = OK, "streaming"
         if state is LinkState.INCOMPATIBLE:

@@ -15,12 +15,16 @@ Parameters:
     compression (string): ``none`` (default) or ``zstd``: MCAP chunk compression, as
         ``ros2 bag record --storage-preset-profile zstd_fast`` writes it (Foxglove and
         PlotJuggler open such files as they are); mcap only.
-    topics (string array): topics to record. Unset or empty: every topic of
-        the graph, hidden ones (a ``_``-prefixed name part) and ``exclude`` excepted.
+    topics (string array): topics to record (a relative name is resolved in the
+        recorder's namespace, ``--ros-args -r __ns:=/arm/joint2``). Unset or empty:
+        every topic of the graph, hidden ones (a ``_``-prefixed name part) and
+        ``exclude`` excepted.
     exclude (string array): topics left out when recording every topic
-        (default ``[/rig/sample]``: the rig publishes that per-sample copy of
-        /rig/samples only while someone subscribes, and recording it would
-        double what the rig publishes for nothing; ``[]`` records it too).
+        (default ``[rig/sample]``: a rig publishes that per-sample copy of its
+        rig/samples only while someone subscribes, and recording it would
+        double what the rig publishes for nothing; ``[]`` records it too). An
+        absolute name is that topic; a relative one, that topic in any
+        namespace (every rig of a graph of namespaced drives).
     discovery_period (double, s): how often the graph is searched for the
         topics' publishers (and, when recording all, for new topics).
     queue_depth (integer): KEEP_LAST depth of each subscription (default
@@ -174,8 +178,15 @@ def subscription_qos(publishers: Sequence[TopicEndpointInfo], depth: int) -> QoS
     )
 
 
-#: what recording every topic leaves out by default: the rig's per-sample copy of /rig/samples
-DEFAULT_EXCLUDE: tuple[str, ...] = ('/rig/sample',)
+#: what recording every topic leaves out by default: each rig's per-sample copy of its rig/samples
+DEFAULT_EXCLUDE: tuple[str, ...] = ('rig/sample',)
+
+
+def is_excluded(topic: str, exclude: Iterable[str]) -> bool:
+    """Whether the full name ``topic`` is one of ``exclude``: an absolute name is that topic, a relative one
+    (``rig/sample``) that topic in any namespace (/rig/sample, /arm/joint2/rig/sample, ...)."""
+    return any(topic == name if name.startswith('/') else topic == f'/{name}' or topic.endswith(f'/{name}')
+               for name in exclude)
 
 
 def is_hidden(topic: str) -> bool:
@@ -271,7 +282,7 @@ class TopicRecorder:
         with self._lock:
             if self.record_all:
                 for topic, _types in self.node.get_topic_names_and_types():
-                    if not is_hidden(topic) and topic not in self.excluded:
+                    if not is_hidden(topic) and not is_excluded(topic, self.excluded):
                         self.wanted.setdefault(topic, None)
             for topic in self._subscriptions:  # only needed where rclpy does not name publishers (Jazzy)
                 self.deliveries.publishers_seen(topic, self.node.count_publishers(topic))
@@ -408,7 +419,8 @@ class RecorderNode(Node):
         )
         exclude: list[str] = self._parameter(
             'exclude', list(DEFAULT_EXCLUDE),
-            'Topics left out when recording every topic (/rig/sample: a per-sample copy of /rig/samples)',
+            'Topics left out when recording every topic (relative: in any namespace; rig/sample: a rig\'s '
+            'per-sample copy of its rig/samples)',
         )
         period: float = self._parameter(
             'discovery_period', 1.0, '[s] period of the graph search for publishers and new topics',
@@ -432,7 +444,7 @@ class RecorderNode(Node):
         self.get_logger().info(f'Recording into {path} ({storage}{zstd})')
         if topics:
             for topic in topics:
-                self.recorder.subscribe(topic)
+                self.recorder.subscribe(self.resolve_topic_name(topic))  # a bag holds full names
         else:
             self.recorder.subscribe_all(exclude)
         self.recorder.start_discovery(period)

@@ -1,22 +1,29 @@
 """What sim_node and driver_node share: the rig's topics, and the commands they take.
 
-Out (sensor-data QoS):
-  /rig/samples      worm_msgs/RigSamples   every sample, ``batch_size`` per message (the graph's stream)
-  /rig/sample       worm_msgs/RigSample    every sample one by one, only while someone subscribes
+Every name is relative: a rig started in a namespace (``--ros-args -r __ns:=/arm/joint2``) puts all
+of them there, and with none they are /rig/samples, ... Out (sensor-data QoS):
+  rig/samples       worm_msgs/RigSamples   every sample, ``batch_size`` per message (the graph's stream)
+  rig/sample        worm_msgs/RigSample    every sample one by one, only while someone subscribes
                                            (``ros2 topic echo``, a foreign stack); costs nothing otherwise
-  /rig/currents, /rig/joint_states, /rig/encoders   every ``channel_decimation``-th sample, only while
+  rig/currents, rig/joint_states, rig/encoders   every ``channel_decimation``-th sample, only while
                                            someone subscribes. JointState follows ROS's convention: the
                                            gear joint's effort is the torque the load applies to the gear
                                            shaft in its positive direction, -tau_load (RigSample's
                                            tau_load is positive OPPOSING positive rotation)
+  torque_estimate, torque_estimate/joint_states, torque_estimate/wrench   the load estimate of the
+                                           rig's feedforward estimator (``feedforward_estimator``) for
+                                           each batch's newest sample, right after the batch, as
+                                           estimator_node publishes its own (estimate_topics): the
+                                           estimate the graph sees is the one fed forward
+                                           (``publish_estimate``: RigEstimate)
   sim_node adds the simulator's ground truth (when ``publish_truth``, only while someone subscribes):
-  /sim/truth_samples  worm_msgs/SimTruths  every sample, in batches aligned with /rig/samples' (same
+  sim/truth_samples   worm_msgs/SimTruths  every sample, in batches aligned with rig/samples' (same
                                            first_seq, stamp and length: see opens_batch / pending)
-  /sim/truth          worm_msgs/SimTruth   every ``channel_decimation``-th sample
+  sim/truth           worm_msgs/SimTruth   every ``channel_decimation``-th sample
 In:
-  /rig/speed_command  worm_msgs/SpeedCommand  the rig's own speed loop (drive.rig_loop), sensor-data QoS
-  /rig/drive_command  worm_msgs/DriveCommand  a voltage to hold, sensor-data QoS
-  /rig/load_command   worm_msgs/LoadCommand   any publisher reaches it; a latched value reaches a rig
+  rig/speed_command   worm_msgs/SpeedCommand  the rig's own speed loop (drive.rig_loop), sensor-data QoS
+  rig/drive_command   worm_msgs/DriveCommand  a voltage to hold, sensor-data QoS
+  rig/load_command    worm_msgs/LoadCommand   any publisher reaches it; a latched value reaches a rig
                                               that (re)starts later (worm_model.ros.commands)
 
 Why batches: a 1 kHz topic costs rclpy ~12-15 % of a core per endpoint, whatever the
@@ -47,6 +54,7 @@ from worm_model.ros.qos import STREAM
 from worm_rig_driver.drive.feedforward_plugin import FeedforwardUnavailable, load_rig_feedforward
 from worm_rig_driver.drive.rig_loop import RigFeedforward
 from worm_rig_driver.drive.rig_loop import SpeedCommand as LoopCommand
+from worm_rig_driver.nodes.estimate_topics import EstimateTopics
 
 #: RigSamples' per-sample fields, in message order (RigSample's fields of the same names)
 FIELDS = ("current_drive", "current_load_1", "current_load_2", "omega_worm", "omega_gear", "theta_worm",
@@ -82,11 +90,11 @@ class RigTopics:
         self.batch_size = batch_size
         self.decimation = decimation
         self.counts_per_rev = counts_per_rev
-        self.pub_samples = node.create_publisher(RigSamples, "/rig/samples", STREAM)
-        self.pub_sample = node.create_publisher(RigSample, "/rig/sample", STREAM)
-        self.pub_currents = node.create_publisher(MotorCurrents, "/rig/currents", STREAM)
-        self.pub_joints = node.create_publisher(JointState, "/rig/joint_states", STREAM)
-        self.pub_encoders = node.create_publisher(EncoderCounts, "/rig/encoders", STREAM)
+        self.pub_samples = node.create_publisher(RigSamples, "rig/samples", STREAM)
+        self.pub_sample = node.create_publisher(RigSample, "rig/sample", STREAM)
+        self.pub_currents = node.create_publisher(MotorCurrents, "rig/currents", STREAM)
+        self.pub_joints = node.create_publisher(JointState, "rig/joint_states", STREAM)
+        self.pub_encoders = node.create_publisher(EncoderCounts, "rig/encoders", STREAM)
         self._batch = _Batch()
         self.published = 0  # samples published on /rig/samples
 
@@ -188,12 +196,54 @@ def declare_rig_feedforward(node: Node, rig: Rig, sample_period: float) -> RigFe
     return source
 
 
+class RigEstimate:
+    """The rig's feedforward estimate on the graph (module docstring): after each batch of rig/samples, the
+    estimate of its newest sample, on estimate_topics' single-joint topics.
+
+    Args:
+        node: the rig's node (declares ``publish_estimate``, ``joint_name``, ``wrench_frame``).
+        rig: its rig (the plausibility bound of the standard outputs: 1.5 x max_load_torque).
+        feedforward: the rig's feedforward estimator (None: nothing is published).
+        frame_id: of the TorqueEstimate headers (the samples').
+    """
+
+    def __init__(self, node: Node, rig: Rig, feedforward: RigFeedforward | None, frame_id: str) -> None:
+        publish = declare(node, "publish_estimate", True,
+                          "Publish the feedforward estimator's estimate of each batch's newest sample as the "
+                          "graph's estimate: torque_estimate (worm_msgs/TorqueEstimate), torque_estimate/"
+                          "joint_states and torque_estimate/wrench, as estimator_node does (nothing without "
+                          "feedforward_estimator). False: leave those topics to an estimator_node.")
+        joint_name = declare(node, "joint_name", "gear", "Name of the joint in torque_estimate/joint_states.")
+        wrench_frame = declare(node, "wrench_frame", "gear_output",
+                               "frame_id of torque_estimate/wrench: its z axis is the output shaft, positive "
+                               "rotation about +z.")
+        self.feedforward = feedforward if publish else None
+        self.frame_id = frame_id
+        self.topics = (EstimateTopics(node, feedforward.method, [joint_name], [1.5 * rig.max_load_torque],
+                                      sample_period=1.0 / rig.sensors.sample_rate_hz, wrench_frame=wrench_frame)
+                       if self.feedforward is not None else None)
+
+    def after_sample(self, rig_topics: "RigTopics", seq: int, stamp_ns: int) -> None:
+        """Sample ``seq`` (stamped ``stamp_ns``) went to rig_topics and to the feedforward: judge its estimate
+        for the standard outputs, and publish it if the sample closed a batch."""
+        estimate = self.feedforward.last if self.topics is not None else None
+        if estimate is None:
+            return
+        self.topics.observe(0, estimate.flags, estimate.torque)
+        if not rig_topics.pending:
+            self.topics.publish(stamp_ns, self.frame_id, [(seq, estimate)])
+
+    def report(self) -> dict[str, int]:
+        """For /diagnostics: what the standard outputs carried and withheld."""
+        return self.topics.report() if self.topics is not None else {}
+
+
 def subscribe_commands(node: Node, on_speed: Callable[[SpeedCommand], None],
                        on_drive: Callable[[DriveCommand], None], on_load: Callable[[LoadCommand], None]) -> None:
     """The rig's command subscriptions, with the QoS every rig uses."""
-    node.create_subscription(SpeedCommand, "/rig/speed_command", on_speed, STREAM)
-    node.create_subscription(DriveCommand, "/rig/drive_command", on_drive, STREAM)
-    subscribe_command(node, LoadCommand, "/rig/load_command", on_load)
+    node.create_subscription(SpeedCommand, "rig/speed_command", on_speed, STREAM)
+    node.create_subscription(DriveCommand, "rig/drive_command", on_drive, STREAM)
+    subscribe_command(node, LoadCommand, "rig/load_command", on_load)
 
 
 def log_refusal(node: Node, what: str, reason: str) -> None:
@@ -213,5 +263,5 @@ def log_refusal(node: Node, what: str, reason: str) -> None:
         log.warning(text, throttle_duration_sec=1.0)
 
 
-__all__ = ["FIELDS", "RigTopics", "declare_rig_feedforward", "log_refusal", "speed_command_from_msg",
+__all__ = ["FIELDS", "RigEstimate", "RigTopics", "declare_rig_feedforward", "log_refusal", "speed_command_from_msg",
            "subscribe_commands"]

@@ -33,6 +33,7 @@ from __future__ import annotations
 import math
 import threading
 import time
+from dataclasses import replace
 
 from rclpy.node import Node
 from rclpy.time import Time
@@ -48,8 +49,8 @@ from worm_model.ros.qos import STREAM
 from worm_rig_driver.drive.realtime import make_realtime
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
-from worm_rig_driver.nodes.rig_topics import (RigTopics, declare_rig_feedforward, log_refusal, speed_command_from_msg,
-                                             subscribe_commands)
+from worm_rig_driver.nodes.rig_topics import (RigEstimate, RigTopics, declare_rig_feedforward, log_refusal,
+                                             speed_command_from_msg, subscribe_commands)
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 _WATCHDOG = RigSample.STATUS_WATCHDOG_STOP
@@ -86,15 +87,21 @@ class SimNode(Node):
                                       "Needs CAP_SYS_NICE; without it the thread runs at normal priority.",
                                       low=0, high=99)
         frame_id = declare(self, "frame_id", "worm_rig", "frame_id of published headers.")
+        sample_rate = declare(self, "sample_rate", 0.0, "The rig's sample clock [Hz]; 0: the rig file's "
+                              "sensors.sample_rate_hz (a drive among others of a robot runs at the robot's rate).",
+                              low=0.0, high=100000.0)
 
         self.rig = load_rig(rig_file or None)
+        if sample_rate > 0:
+            self.rig = replace(self.rig, sensors=replace(self.rig.sensors, sample_rate_hz=float(sample_rate)))
         self.sim = SimulatedRig(self.rig, n=1, seed=seed, substeps=substeps, effects=effects_file or None)
         self.period = self.sim.sample_period
         feedforward = declare_rig_feedforward(self, self.rig, self.period)
         self.loop = RigLoop(self.rig, self.period, command_timeout, DEFAULT_GAINS, feedforward=feedforward)
         self.topics = RigTopics(self, frame_id, self.period, batch_size, decimation, self.sim.sensors.counts_per_rev)
+        self.estimate = RigEstimate(self, self.rig, feedforward, frame_id)
         self.decimation = decimation
-        self.pub_truth = self.create_publisher(SimTruth, "/sim/truth", STREAM) if self.publish_truth else None
+        self.pub_truth = self.create_publisher(SimTruth, "sim/truth", STREAM) if self.publish_truth else None
         self.pub_truths = self.create_publisher(SimTruths, SIM_TRUTHS_TOPIC, STREAM) if self.publish_truth else None
         self._truths: dict[str, list] | None = None  # the open /sim/truth_samples batch (None: not collecting)
         self._truths_first = (0, 0)  # its (first_seq, first stamp [ns])
@@ -189,6 +196,7 @@ class SimNode(Node):
         stamp_ns = self._start_ns + int(round(seq * self.period * 1e9))
         opens = self.pub_truths is not None and self.topics.opens_batch(seq)
         self.topics.add(seq, stamp_ns, values, command_seq)  # the graph's stream first
+        self.estimate.after_sample(self.topics, seq, stamp_ns)  # then its estimate (observed above)
         if opens:
             # a /rig/samples batch started here: so does a truth batch, if anyone listens (asked once a batch)
             self._flush_truths()
@@ -238,7 +246,7 @@ class SimNode(Node):
             "rejected_commands": self.rejected_commands, "mode": self.loop.mode.name,
             "feedforward_at_rig_samples": self.loop.feedforward_at_rig,
             "command_latency_p50_ms": self.loop.latency_percentile(50) * 1e3,
-            "command_latency_p99_ms": self.loop.latency_percentile(99) * 1e3}
+            "command_latency_p99_ms": self.loop.latency_percentile(99) * 1e3, **self.estimate.report()}
 
 
 def main(args=None) -> int:

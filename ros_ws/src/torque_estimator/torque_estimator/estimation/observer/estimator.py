@@ -59,6 +59,9 @@ class ObserverEstimator:
         calibration_bias: add the calibration's measured model error (when a database is given).
     """
 
+    #: its stream reads the drive voltage every sample (base.needs_voltage): no estimate from current and speed alone
+    needs_voltage = True
+
     name = "observer"
 
     def __init__(self, database: CalibrationDatabase | None = None, rig_file: str | None = None,
