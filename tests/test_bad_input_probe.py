@@ -2,7 +2,7 @@
 
 Runs the installed executables (as `ros2 run` finds them) on bad options, damaged files, outputs that
 are inputs, FIFOs, YAML bombs, logs in the wrong unit, misspelt parameters and Ctrl-C in the middle of
-long runs (the probe's groups: issue17, out, in, units, params, ctrl-c): 0 tracebacks, 0 silently wrong
+long runs (the probe's groups: options, out, in, units, params, ctrl-c): 0 tracebacks, 0 silently wrong
 results, 0 hangs, 0 lost user files, nothing left behind (files or processes), one-line refusals. About
 270 cases; 3 minutes with two at a time on a 2-core machine shared with other work.
 """
@@ -12,9 +12,12 @@ import importlib.util
 import sys
 from pathlib import Path
 
+import pytest
+
 PROBE = Path(__file__).resolve().parents[1] / "tools" / "probe_bad_input.py"
 
 
+@pytest.mark.slow
 def test_every_probe_case_is_refused_cleanly(ros_env) -> None:
     spec = importlib.util.spec_from_file_location("probe_bad_input", PROBE)
     probe = importlib.util.module_from_spec(spec)

@@ -137,4 +137,4 @@ def test_live_calibration_without_a_rig_fails_naming_the_topic(ros_env: dict[str
                            "--quiet", "--start-timeout", "2", *CLI_GRID], env=env, capture_output=True,
                           text=True, timeout=60)
     assert done.returncode == 1, done.stderr
-    assert "/rig/sample" in done.stderr and not (tmp_path / "x.json").exists()
+    assert "rig/samples" in done.stderr and not (tmp_path / "x.json").exists()

@@ -592,30 +592,41 @@ def test_nan_commands_are_rejected_with_a_reason_and_nodes_keep_running(
 
 def test_missing_calibration_reports_error_and_keeps_running(
         ros_env: dict[str, str], probe: Probe, tmp_path: Path) -> None:
-    missing = tmp_path / f"no_such_calibration_{random.randrange(10**9)}.json"
+    """knn with no calibration named: an ERROR on /diagnostics, and the node keeps running (the rest of the graph
+    carries on); a calibration file named but missing: the node stops at start, one line naming it, exit 2."""
     params = tmp_path / "estimator_only.yaml"
     params.write_text("estimator_node:\n  ros__parameters:\n    method: knn\n", encoding="utf-8")
     log_dir = tmp_path / "logs"
     errors: list[DiagnosticStatus] = []
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
-        errors.extend(s for s in msg.status if s.level == DiagnosticStatus.ERROR and missing.name in s.message)
+        errors.extend(s for s in msg.status if s.level == DiagnosticStatus.ERROR and "calibration" in s.message)
 
     sub = probe.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 50)
-    g = Graph(params, parse_overrides([f"estimator_node.calibration_file={missing}"]), log_dir)
+    g = Graph(params, {}, log_dir)
     try:
         g.start()
         started = time.monotonic()
         probe.spin_until(lambda: bool(errors) or bool(g.failed()), 20.0)
         probe.spin_for(max(0.0, 2.0 - (time.monotonic() - started)))
         assert not g.failed(), f"estimator_node exited: {g.failed()}\n{node_logs(log_dir)}"
-        assert errors, f"no ERROR on /diagnostics naming {missing.name}\n{node_logs(log_dir)}"
+        assert errors, f"no ERROR on /diagnostics naming the calibration\n{node_logs(log_dir)}"
         assert errors[0].name == "estimator_node"
     finally:
         codes = g.stop()
         probe.node.destroy_subscription(sub)
     assert codes == {"estimator_node": 0}, f"exit codes {codes}\n{node_logs(log_dir)}"
-    assert missing.name in node_logs(log_dir), "the node's log does not name the missing file"
+
+    missing = tmp_path / f"no_such_calibration_{random.randrange(10**9)}.json"
+    named = Graph(params, parse_overrides([f"estimator_node.calibration_file={missing}"]), tmp_path / "logs_named")
+    try:
+        named.start()
+        assert probe.spin_until(lambda: bool(named.failed()), 30.0), "estimator_node kept running"
+    finally:
+        codes = named.stop()
+    assert codes == {"estimator_node": 2}, codes
+    log = node_logs(tmp_path / "logs_named")
+    assert missing.name in log and "Traceback" not in log, log
 
 
 def test_a_foreign_stack_reads_the_estimate_in_standard_types(graph: RunningGraph, probe: Probe) -> None:

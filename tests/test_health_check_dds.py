@@ -24,7 +24,7 @@ CHECK_GRAPH = """\
 sim_node:
   ros__parameters:
     seed: 4
-    publish_period: 0.005
+    batch_size: 5
     channel_decimation: 10
     publish_truth: false
     command_timeout: 0.5

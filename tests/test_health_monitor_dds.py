@@ -28,7 +28,7 @@ MONITOR_GRAPH = """\
 sim_node:
   ros__parameters:
     seed: 5
-    publish_period: 0.005
+    batch_size: 5
     channel_decimation: 10
     publish_truth: false
     command_timeout: 0.5

@@ -1,4 +1,4 @@
-"""`residuals` on simulator data with effects the model is not told about (issue 7).
+"""`residuals` on simulator data with effects the model is not told about.
 
 The simulator (worm_rig_driver.sim.simulated_rig.SimulatedRig with its effect plug-ins)
 produces the data; the analysis (worm_model.residuals) knows only the bundled rig file

@@ -18,7 +18,7 @@ working folder, with damaged files and bad options built here, and is judged:
   message     refused, but not with one ``tool: where: what`` line (or the wrong exit code)
 
 The cases, by mechanism (their names start with the group):
-  issue17   the bad options and damaged files of the first probe
+  options   bad options and damaged files
   out       the output policy: an output that is an input, holds one or lies inside one; --force
             over the user's own file or folder; empty paths, `.`, `..`, the home folder;
             unwritable places; --force over the tool's own earlier output (must work)
@@ -86,7 +86,7 @@ class Case:
     may_leave: tuple[str, ...] = ()
 
 
-def issue17_cases() -> list[Case]:
+def options_cases() -> list[Case]:
     """Issue 17's findings, one case each (and a few of their siblings)."""
     nodes = {"sim_node": "seed", "model_node": "acceleration_filter", "estimator_node": "calibration_file",
              "controller_node": "kp", "driver_node": "max_drive_voltage", "recorder": "storage"}
@@ -159,13 +159,13 @@ def issue17_cases() -> list[Case]:
              user_files={"res/report.json": "text"}),
     ]
     for case in c:
-        case.name = f"issue17: {case.name}"
+        case.name = f"options: {case.name}"
     return c
 
 
 def cases() -> list[Case]:
     """Every case: the first probe's and one group per mechanism (module docstring)."""
-    return [*issue17_cases(), *output_cases(), *input_cases(), *unit_cases(), *parameter_cases(),
+    return [*options_cases(), *output_cases(), *input_cases(), *unit_cases(), *parameter_cases(),
             *interrupt_cases()]
 
 
@@ -427,7 +427,7 @@ def unit_cases() -> list[Case]:
              "estimate": lambda f: ["estimate", f, "--method", "observer", "--out", "e.csv"],
              "identify --from": lambda f: ["identify", "--from", f, "--out", "x.yaml"],
              "bag import": lambda f: ["bag", "import", f, "--out", "nb"]}
-    everywhere = ("csv_ms", "csv_mA", "csv_deg")  # the issue's three, through every reader; the others through two
+    everywhere = ("csv_ms", "csv_mA", "csv_deg")  # the three unit slips, through every reader; the others through two
     c = [Case(f"{tool} a log with {fixture.split('_', 1)[1]}", argv("{" + fixture + "}"), stderr_has=has)
          for fixture, has in logs.items() for tool, argv in tools.items()
          if fixture in everywhere or tool in ("residuals", "identify --from")]

@@ -70,7 +70,7 @@ def test_each_direction_reads_its_own_points_and_ambiguous_points_are_left_out(d
     ids=["mu x1.3", "K_t x0.95", "nominal"])
 def test_with_a_calibration_the_observer_with_its_model_off_stays_within_1_5_percent(database, perturbation, without,
                                                                                    with_) -> None:
-    """Issue 14: the 17 held-out points streamed, the observer's rig file off (the simulator keeps the true
+    """The 17 held-out points streamed, the observer's rig file off (the simulator keeps the true
     values). Measured mean error, % of the 0.495 N m range: mu x1.3 7.90 -> 0.37 with the calibration, K_t x0.95
     3.09 -> 0.33, nominal 0.25 -> 0.28 (README; bench/observer_bench.py prints every case)."""
     speeds, torques = held_out_setpoints(CalibrationGrid.paper(RIG), 17, 1)

@@ -219,7 +219,7 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
                 print(f"  {result.name} [{label}]  {cells}")
     if not args.no_transient:
         side_by_side(args, rig, grid, db)
-        # issue 18: identify from one short run vs the k-NN grid, on the simulated rig with every effect on
+        # identify from one short run vs the k-NN grid, on the simulated rig with every effect on
         print("\n".join(identified_lines(rig, args.points, args.seed + 1, args.k, args.weighting)))
     if not args.no_real:  # a real drive's measurements through the model and the estimator
         with ProgressBar(2 * len(real_drive.TERMS), "real drive", enabled=not args.quiet) as bar:
@@ -242,7 +242,7 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
             lines = health_lines(rig, args.seed, out=out, progress=on_progress)
         print("\n".join(lines))
         pngs += [out / "health_trend.png", out / "health_live.png"]
-    if not args.no_residuals:  # the residuals tool's case matrix (issue 15); ends with its `residuals:` line
+    if not args.no_residuals:  # the residuals tool's case matrix; ends with its `residuals:` line
         cases = full_matrix() if args.residual_cases == "full" else small_matrix()
         with ProgressBar(len(cases), "residuals cases", enabled=not args.quiet) as bar:
             print("\n".join(evaluate_lines(cases, progress=bar.update_to)))

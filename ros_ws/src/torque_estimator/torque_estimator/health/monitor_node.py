@@ -67,7 +67,7 @@ class HealthMonitorNode(Node):
             reference = LiveReference.from_rig(self.rig, self.settings)
         self.core = LiveHealth(self.rig, reference, self.settings, 1.0 / sample_rate)
         self.pub = self.create_publisher(GearboxHealth, "health", STREAM)
-        self.create_subscription(RigSamples, "/rig/samples", self.on_samples, STREAM)
+        self.create_subscription(RigSamples, "rig/samples", self.on_samples, STREAM)
         self.create_subscription(Temperature, "oil_temperature", self.on_temperature, STREAM)
         self.queue: list[RigSamples] = []
         self.temperature: tuple[float, float] | None = None  # (degC, monotonic time received)

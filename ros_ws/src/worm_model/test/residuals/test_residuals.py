@@ -1,4 +1,4 @@
-"""Residual analysis core (issue 7): CSV schema, split, model, held-out discipline, extended model; parameter
+"""Residual analysis core: CSV schema, split, model, held-out discipline, extended model; parameter
 corrections that stay live under every friction model and physical; effects outside the vocabulary not named.
 
 Data here are synthetic, made by the declared model itself plus Gaussian current noise,

@@ -1,4 +1,4 @@
-"""Closing the loop with measured data (issue 7, physics.md section 9).
+"""Closing the loop with measured data (physics.md section 9).
 
 Modules (plain Python, no ROS), in the order the analysis uses them:
   ``data``           the input: a ``worm_rig_data`` CSV (schema, reader, writer: worm_model.rig_data.schema) or a bag

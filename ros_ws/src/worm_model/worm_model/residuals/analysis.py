@@ -34,7 +34,7 @@ force) and scored each in its own unit; the BIC of a fit is the sum of both sign
    ``unexplained_factor`` x that floor, describe the unexplained residual
    (unexplained.describe_unexplained).
 
-Why this shape (issue 15).  The parameters a rig file typically gets wrong (mu, K_t, drags, rotor
+Why this shape.  The parameters a rig file typically gets wrong (mu, K_t, drags, rotor
 inertia: free.STANDARD_REFIT) are refitted always, whatever the friction model and whatever the
 provenance of the declared number, so that a wrong declared value, or a wrong reference state of a
 mu effect (oil temperature, load, speed: they all modulate mu, which is refitted), shows as a

@@ -8,7 +8,7 @@ optional top-level list naming them by their dotted field path::
 ``load_rig`` ignores the list; :func:`read_free` reads and checks it.  Only parameters
 the drive-current model depends on can be free (:data:`FREE_PARAMETERS`).
 
-Refitted always (:data:`STANDARD_REFIT`, issue 15), on top of that list
+Refitted always (:data:`STANDARD_REFIT`), on top of that list
 ---------------------------------------------------------------------
 A rig file's numbers are nominal, whatever their provenance: a ``source:`` says where a
 number was read (a catalogue, a datasheet), not that this gearbox has it.  Nor is "every

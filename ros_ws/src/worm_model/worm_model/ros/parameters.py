@@ -129,9 +129,13 @@ def _choices(descriptor: ParameterDescriptor | None) -> tuple[str, ...]:
     return tuple(c.strip() for c in text[len(_CHOICES):].split(",")) if text.startswith(_CHOICES) else ()
 
 
-def declared_parameters(make_node: Callable[[], Node]) -> list[DeclaredParameter]:
-    """What ``make_node`` declares, in order, without rclpy running (see the module docstring)."""
+def declared_parameters(make_node: Callable[[], Node],
+                        given: dict[str, Any] | None = None) -> list[DeclaredParameter]:
+    """What ``make_node`` declares, in order, without rclpy running (see the module docstring). A node whose
+    declarations depend on a choice (estimator_node's ``method`` and ``input``) sees ``given``'s value of a
+    parameter with choices instead of its default: what it declares with that choice."""
     found: list[DeclaredParameter] = []
+    given = given or {}
 
     def init(self: Node, node_name: str, *args: Any, **kwargs: Any) -> None:
         self.__dict__["_help_name"] = node_name
@@ -142,7 +146,12 @@ def declared_parameters(make_node: Callable[[], Node]) -> list[DeclaredParameter
                                        None if isinstance(value, Parameter.Type) else value, _range(descriptor),
                                        descriptor.description if descriptor is not None else "",
                                        _bounds(descriptor), _choices(descriptor)))
-        return Parameter(name, value=None if isinstance(value, Parameter.Type) else value)
+        if isinstance(value, Parameter.Type):
+            return Parameter(name, value=None)
+        # only a choice among named options (method, input) selects what else is declared; any other given
+        # value (a file, a folder) could make the dry run act on it, so it keeps its default
+        chosen = given.get(name, value) if _choices(descriptor) else value
+        return Parameter(name, value=chosen if chosen in _choices(descriptor) else value)
 
     def stop(self: Node, *args: Any, **kwargs: Any) -> Any:
         raise _Declared
@@ -317,6 +326,9 @@ def undeclared_problem(makers: Sequence[Callable[[], Node]], argv: Sequence[str]
     for make_node in makers:
         try:
             found = declared_parameters(make_node)
+            if found:  # again with the values given: what it declares may depend on them (method, input)
+                values = {name: value for name, (_where, value) in given_values(argv, found[0].node).items()}
+                found = declared_parameters(make_node, values) if values else found
         except Exception:  # noqa: BLE001 - cannot tell now; check_undeclared tells once the node is built
             return None
         if found:

@@ -96,8 +96,9 @@ class DriverNode(Node):
         feedforward = declare_rig_feedforward(self, self.rig, sample_period)
         self.loop = RigLoop(self.rig, sample_period, command_timeout, DEFAULT_GAINS, seq_period=tick,
                             feedforward=feedforward)
-        self.topics = RigTopics(self, self.frame_id, tick, batch_size, decimation, self.scaling.counts_per_rev)
+        # its parameters first: everything a node declares comes before its first publisher (--help reads them)
         self.estimate = RigEstimate(self, self.rig, feedforward, self.frame_id)
+        self.topics = RigTopics(self, self.frame_id, tick, batch_size, decimation, self.scaling.counts_per_rev)
         self._command_seq = 0  # the speed command in force for the next frame (its source seq)
         self._sent_voltage = 0.0  # [V] the last drive voltage sent to the rig
         self._sent_at = 0.0  # [s] time.monotonic() it was sent

@@ -98,8 +98,9 @@ class SimNode(Node):
         self.period = self.sim.sample_period
         feedforward = declare_rig_feedforward(self, self.rig, self.period)
         self.loop = RigLoop(self.rig, self.period, command_timeout, DEFAULT_GAINS, feedforward=feedforward)
-        self.topics = RigTopics(self, frame_id, self.period, batch_size, decimation, self.sim.sensors.counts_per_rev)
+        # its parameters first: everything a node declares comes before its first publisher (--help reads them)
         self.estimate = RigEstimate(self, self.rig, feedforward, frame_id)
+        self.topics = RigTopics(self, frame_id, self.period, batch_size, decimation, self.sim.sensors.counts_per_rev)
         self.decimation = decimation
         self.pub_truth = self.create_publisher(SimTruth, "sim/truth", STREAM) if self.publish_truth else None
         self.pub_truths = self.create_publisher(SimTruths, SIM_TRUTHS_TOPIC, STREAM) if self.publish_truth else None
