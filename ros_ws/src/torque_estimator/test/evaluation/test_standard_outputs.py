@@ -70,10 +70,15 @@ def test_the_transient_tables_scenarios_carry_no_load_beyond_the_true_one(method
         largest = float(np.max(np.abs(run["tau_true"])))
         for seed in range(2):
             out = carried(run["tau_est"][:, seed], run["flags"][:, seed])
-            worst = float(np.nanmax(np.abs(out)))
+            finite = np.abs(out[np.isfinite(out)])
+            worst = float(finite.max()) if finite.size else 0.0  # nothing carried (all NaN) is no false load
             assert worst <= BOUND * largest, (method, name, seed, worst, largest)
-            if name == "step":  # and it is the load: at a constant speed most published estimates go out
-                assert np.mean(np.isfinite(out[BATCH - 1::BATCH])) > 0.5, (method, name, seed)
+            if name == "step":  # and it is the load again once settled: the last 0.1 s all out, within 5 % of
+                # the step (measured: 0.004 N m at most; the momentum observer holds its start-up TRANSIENT longest,
+                # up to 0.66 s, so what fraction goes out before depends on the seed)
+                last = out[BATCH - 1::BATCH][-int(0.1 / 1e-3 / BATCH):]
+                assert np.all(np.isfinite(last)), (method, name, seed)
+                assert np.max(np.abs(-last - transient.STEP_SIZE)) < 0.05 * transient.STEP_SIZE, (method, seed)
 
 
 def demo_reversal(feedforward: bool, seed: int) -> dict[str, np.ndarray]:

@@ -42,7 +42,7 @@ def graph_file(tmp_path: Path) -> Path:
 def test_nodes_flat_nested_and_plain(graph_file: Path) -> None:
     assert graph_nodes(graph_file) == ["/arm/joint1/sim_node", "/arm/joint2/sim_node", "/arm/joint2/controller_node",
                                        "estimator_node"]
-    assert graph_sections(graph_file)["/arm/joint2/sim_node"]["ros__parameters"] == {"seed": 2}
+    assert graph_sections(graph_file)["/arm/joint2/sim_node"] == {"seed": 2}
     assert split_name("/arm/joint2/sim_node") == ("/arm/joint2", "sim_node")
     assert split_name("estimator_node") == ("/", "estimator_node")
 
@@ -50,7 +50,7 @@ def test_nodes_flat_nested_and_plain(graph_file: Path) -> None:
 def test_a_section_that_is_neither_node_nor_namespace_is_refused(tmp_path: Path) -> None:
     path = tmp_path / "bad.yaml"
     path.write_text("arm:\n  joint1:\n    sim_node: 3\n", encoding="utf-8")
-    with pytest.raises(GraphError, match="node 'arm/joint1' has no ros__parameters"):
+    with pytest.raises(GraphError, match="arm/joint1/sim_node: expected 'ros__parameters:'"):
         graph_nodes(path)
 
 
