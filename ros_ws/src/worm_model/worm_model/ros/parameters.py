@@ -133,7 +133,8 @@ def declared_parameters(make_node: Callable[[], Node],
                         given: dict[str, Any] | None = None) -> list[DeclaredParameter]:
     """What ``make_node`` declares, in order, without rclpy running (see the module docstring). A node whose
     declarations depend on a choice (estimator_node's ``method`` and ``input``) sees ``given``'s value of a
-    parameter with choices instead of its default: what it declares with that choice."""
+    parameter with choices instead of its default, and ``given``'s list for a list declared without a default
+    (the joints a choice then needs): what it declares with them."""
     found: list[DeclaredParameter] = []
     given = given or {}
 
@@ -146,10 +147,11 @@ def declared_parameters(make_node: Callable[[], Node],
                                        None if isinstance(value, Parameter.Type) else value, _range(descriptor),
                                        descriptor.description if descriptor is not None else "",
                                        _bounds(descriptor), _choices(descriptor)))
-        if isinstance(value, Parameter.Type):
-            return Parameter(name, value=None)
-        # only a choice among named options (method, input) selects what else is declared; any other given
-        # value (a file, a folder) could make the dry run act on it, so it keeps its default
+        if isinstance(value, Parameter.Type):  # a list with no default (joint names, per-joint files)
+            chosen = given.get(name)
+            return Parameter(name, value=chosen if isinstance(chosen, list) else None)
+        # a choice among named options (method, input) selects what else is declared; any other given value
+        # (a file, a folder) could make the dry run act on it, so it keeps its default
         chosen = given.get(name, value) if _choices(descriptor) else value
         return Parameter(name, value=chosen if chosen in _choices(descriptor) else value)
 
