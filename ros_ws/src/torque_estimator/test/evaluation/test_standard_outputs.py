@@ -16,11 +16,13 @@ import pytest
 from worm_model.physics.parameters import load_rig
 from worm_rig_driver.drive.rig_loop import RigLoop, SpeedCommand
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
-from worm_rig_driver.robot.standard_outputs import StandardEffort
+from worm_rig_driver.robot.standard_outputs import (FLAG_AMBIGUOUS, FLAG_INVALID_INPUT, FLAG_OUT_OF_CALIBRATION,
+                                                    FLAG_TRANSIENT, UNTRUSTED, StandardEffort)
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.control.rig_feedforward import build
+from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.estimation.registry import METHODS
 from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.evaluation import transient
@@ -34,6 +36,12 @@ BOUND = 1.5  # x the largest true load
 @pytest.fixture(scope="module")
 def database():
     return calibrate_simulated(RIG, CalibrationGrid.paper(RIG), seed=0)
+
+
+def test_the_estimators_flags_are_the_standard_outputs() -> None:
+    assert (EstimateFlags.OUT_OF_CALIBRATION, EstimateFlags.AMBIGUOUS, EstimateFlags.INVALID_INPUT,
+            EstimateFlags.TRANSIENT) == (FLAG_OUT_OF_CALIBRATION, FLAG_AMBIGUOUS, FLAG_INVALID_INPUT, FLAG_TRANSIENT)
+    assert UNTRUSTED == EstimateFlags.OUT_OF_CALIBRATION | EstimateFlags.INVALID_INPUT | EstimateFlags.TRANSIENT
 
 
 def carried(torque: np.ndarray, flags: np.ndarray) -> np.ndarray:

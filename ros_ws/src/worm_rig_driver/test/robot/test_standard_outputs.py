@@ -11,12 +11,12 @@ from worm_rig_driver.robot.standard_outputs import (FLAG_AMBIGUOUS, FLAG_INVALID
                                                     FLAG_TRANSIENT, UNTRUSTED, StandardEffort)
 
 
-def test_the_flags_are_torque_estimates_and_the_estimators() -> None:
-    from torque_estimator.estimation.base import EstimateFlags
+def test_the_flags_are_torque_estimates() -> None:
+    """(The estimators' EstimateFlags against these: torque_estimator's test_standard_outputs.)"""
     assert (FLAG_OUT_OF_CALIBRATION, FLAG_AMBIGUOUS, FLAG_INVALID_INPUT, FLAG_TRANSIENT) == (
         TorqueEstimate.FLAG_OUT_OF_CALIBRATION, TorqueEstimate.FLAG_AMBIGUOUS, TorqueEstimate.FLAG_INVALID_INPUT,
         TorqueEstimate.FLAG_TRANSIENT)
-    assert UNTRUSTED == EstimateFlags.OUT_OF_CALIBRATION | EstimateFlags.INVALID_INPUT | EstimateFlags.TRANSIENT
+    assert UNTRUSTED == FLAG_OUT_OF_CALIBRATION | FLAG_INVALID_INPUT | FLAG_TRANSIENT
 
 
 def feed(effort: StandardEffort, stream: list[tuple[float, int]]) -> list[float]:
