@@ -240,7 +240,9 @@ def test_layout_plots_what_a_recording_holds(recordings: dict[str, Path]) -> Non
         assert len(values) > 10 and all(isinstance(v, float | int) and math.isfinite(v) for v in values), path
     speed = resolve("/rig/joint_states.velocity[0]", topics, lines)
     names = {tuple(line["message"]["name"]) for line in lines if line["topic"] == "/rig/joint_states"}
-    assert names == {("worm", "gear")} and abs(speed[-1] - 150.0) < 5.0  # the worm's, at the set-point
+    # the worm's, at the set-point for most of the run (at its end the graph stops first and the rig's watchdog
+    # brakes the worm while the recorders still record)
+    assert names == {("worm", "gear")} and abs(float(np.median(speed)) - 150.0) < 5.0
 
 
 def rig_csv(path: Path, rows: int) -> None:
