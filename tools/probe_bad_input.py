@@ -659,8 +659,6 @@ def _bomb(levels: int = 9) -> str:
 
 def _policy_fixtures(folder: Path, f: dict[str, Path], data, cal_doc: dict, put) -> None:
     """The files of the careless-user cases: wrong units, BOMs, bombs, rcl-unreadable graph files, outputs."""
-    import math
-
     import numpy as np
 
     from worm_model.physics.parameters import default_rig_path

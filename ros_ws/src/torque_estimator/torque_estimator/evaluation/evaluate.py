@@ -74,6 +74,8 @@ from torque_estimator.estimation.momentum import predicted_noise as momentum_noi
 from torque_estimator.evaluation.transient import STEP_SPEED, ensemble_noise, transient_figures
 from torque_estimator.evaluation.identified import evaluate_lines as identified_lines
 from torque_estimator.evaluation import real_drive, start_stop
+from torque_estimator.evaluation.plots import held_out_deviation, sweeps
+from worm_model.cli.progress import Progress, ProgressBar
 
 #: what evaluate writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
 OUTPUT = Output("evaluate", names=("*.png",))
@@ -81,8 +83,6 @@ OUTPUT = Output("evaluate", names=("*.png",))
 TRANSIENT_SEEDS = 12
 #: samples after a load step by which the momentum observer is asked to have 90 % of it (5 ms at 1 kHz)
 MOMENTUM_STEP_SAMPLES = 5
-from torque_estimator.evaluation.plots import held_out_deviation, sweeps
-from worm_model.cli.progress import Progress, ProgressBar
 
 
 def _number_list(kind: Callable[[str], float], minimum: float, what: str) -> Callable[[str], list[Any]]:

@@ -201,7 +201,7 @@ def estimate_loads(rig: Rig, sp: SteadyPoints, structure: tuple[str, ...], margi
         slope = (fitted.torque(sp.omega[idx], out.estimate[idx] + step)
                  - fitted.torque(sp.omega[idx], out.estimate[idx] - step)) / (2 * step)
         out.bound_pct[idx] = 100.0 * sp.torque_sem[idx] / np.abs(slope) / LOAD
-        for j, k in enumerate(idx):
+        for k in idx:
             if out.flags[k] & int(EstimateFlags.AMBIGUOUS):
                 out.other[k] = _other_crossing(fitted, sp.omega[k], sp.torque[k], out.estimate[k], margin)
     return out

@@ -162,7 +162,10 @@ def write_estimate_csv(path: Path, data: MeasuredData, estimate: LogEstimate) ->
     """The log's columns, then tau_estimate, tau_estimate_uncertainty, estimate_flags."""
     names = data.names
     columns = [getattr(data, c).tolist() for c in names] + [estimate.torque.tolist(), estimate.uncertainty.tolist()]
-    cell = (lambda v: "" if math.isnan(v) else repr(v))
+
+    def cell(v):
+        return "" if math.isnan(v) else repr(v)
+
     with path.open("w", newline="", encoding="utf-8") as handle:
         handle.write(",".join(names + ["tau_estimate", "tau_estimate_uncertainty", "estimate_flags"]) + "\n")
         for row, flag in zip(zip(*columns), estimate.flags.tolist()):

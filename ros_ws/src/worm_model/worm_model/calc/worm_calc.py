@@ -11,7 +11,6 @@ import argparse
 import json
 import math
 import sys
-from pathlib import Path
 from typing import Any
 
 from worm_model.calc.calculator import CalculatorError, efficiencies, forces, make_gearbox, to_json_ready

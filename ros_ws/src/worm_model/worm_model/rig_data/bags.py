@@ -34,7 +34,6 @@ from worm_model.rig_data.schema import (
 )
 from worm_model.rig_data.samples import SAMPLE_TOPICS, SAMPLE_TYPES, iter_samples, recorded_name
 from worm_model.bags.reader import BagReader
-from worm_model.bags.typestore import BagRecordingError
 from worm_model.files.writing import Output, atomic_dir, atomic_file
 from worm_model.rig_data.plausibility import check_rig_data
 from worm_model.bags.writer import BagWriter

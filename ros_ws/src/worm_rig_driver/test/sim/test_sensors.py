@@ -26,7 +26,9 @@ RIPPLE_ORDER = RIG.sensors.tacho_ripple_order  # 7 on the bundled rig
 
 
 def _state(n: int, current=0.0, omega=0.0, theta=0.0, current_load=0.0) -> PlantState:
-    full = (lambda x: np.broadcast_to(np.asarray(x, float), (n,)).copy())
+    def full(x):
+        return np.broadcast_to(np.asarray(x, float), (n,)).copy()
+
     return PlantState(full(current), full(omega), full(theta), full(current_load))
 
 
