@@ -23,10 +23,10 @@ test: setup
 
 # The system tests: nodes as processes over DDS, the driver over a pty, the firmware in simavr, the demo, the
 # README's commands, Foxglove decoding our bags. Left out: the tests that never touch ROS (residual analysis on
-# the simulator, the README's computed figures, static import/dependency checks). CI's run on the second
+# the simulator, the README's computed figures, static import/dependency checks, ruff). CI's run on the second
 # distribution (.ci/run: make test-system ROS_DISTRO=jazzy).
 NOT_SYSTEM := tests/test_residuals_cases.py tests/test_residuals_sim.py tests/test_readme_figures.py tests/test_docs.py \
-              tests/test_layout.py tests/test_package_deps.py
+              tests/test_layout.py tests/test_package_deps.py tests/test_lint.py
 SYSTEM_TESTS := $(filter-out $(NOT_SYSTEM),$(sort $(wildcard tests/test_*.py)))
 test-system: setup
 	@$(RUN) python -m pytest $(SYSTEM_TESTS) $(TESTS)

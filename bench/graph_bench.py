@@ -222,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
     for suffix, hog, options, window in runs:
         try:
             figures = run_phase(calibration, work, window, hog, options["together"], options["priority"])
-        except Exception as err:  # a benchmark reports, it does not assert
+        except Exception as err:  # noqa: BLE001 - a benchmark reports, it does not assert
             info(f"failed: {err!r}")
             figures = {}
             code = 1

@@ -120,7 +120,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         figures.update(run(args))
         code = 0
-    except Exception as err:  # a benchmark reports, it does not assert
+    except Exception as err:  # noqa: BLE001 - a benchmark reports, it does not assert
         info(f"failed: {err!r}")
         code = 1
     print(f"joint_state_estimator_cpu_cores: {figures['cpu_cores']:.3f} cores", flush=True)
@@ -131,7 +131,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run(args: argparse.Namespace) -> dict[str, float]:
-    import rclpy
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
     from worm_msgs.msg import TorqueEstimate

@@ -8,8 +8,9 @@ through both directions, load torque sweeps all modes, the current the model nee
 plus sensor noise), and calls node.on_samples(msg) on each in turn, timing every call
 with perf_counter_ns, in 3 rounds of 2000 calls.  Each call is the whole callback:
 filter updates, Eqs 21-23 for the 5 samples, modes, the GearboxForces message of the
-newest and its publish (to no subscriber, so the DDS write but no delivery).  Executor dispatch and DDS transport to a subscriber are not included (the
-graph benchmark measures those end to end).  Prints to stdout:
+newest and its publish (to no subscriber, so the DDS write but no delivery).  Executor dispatch
+and DDS transport to a subscriber are not included (the graph benchmark measures those end to
+end).  Prints to stdout:
 
   model_node_latency_p99: <x> us     p99 of one on_samples call, 5 samples (lowest of the 3
                                      rounds: on a shared machine the tail is mostly other processes)

@@ -4,8 +4,9 @@
 
 Prints: ``observer_update_cpu: <x> us``, the median CPU time (time.process_time) of one
 LoadObserver.update on a steady 8 V, 0.1 N m run of the simulated rig (what the live graph pays
-per 1 ms sample; --cpu-only prints only this line), then the step response to a 0 -> 0.2 N m load step at 150 rad/s (ensemble over seeds; a true
-step, and with the rig's 2 ms load loop), the steady noise against the filter's prediction and
+per 1 ms sample; --cpu-only prints only this line), then the step response to a 0 -> 0.2 N m
+load step at 150 rad/s (ensemble over seeds; a true step, and with the rig's 2 ms load loop), the
+steady noise against the filter's prediction and
 the Cramer-Rao-type bound, the step-size bound (jump_bound), errors over a speed ramp and
 through a +150 -> -150 rad/s reversal, the 17 held-out points streamed, the robustness table
 (observer's model perturbed: mu ±30 %, K_t ±5 %, J ±20 %; its step figures, and the 17 held-out

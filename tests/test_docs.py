@@ -82,8 +82,9 @@ def test_the_history_patterns_catch_history() -> None:
     history = ["Since issue 15 the numbers are refitted", "see #12", "(before: 5 false names)",
                "a cache once kept whichever fit asked first", "(it was 2.97 / 6.96 %)", "the old graph had ten",
                "costs 0.15 cores more than it used to", "before this session", "the bench now averages"]
-    technical = ["counters are totals since reset", "a frame dropped since the last telemetry", "a command before HELLO", "once per gear turn",
-                 "[physics.md §2](physics.md#2-frame-of-motion)", "since no estimator reads it", "[x](#3-modes)"]
+    technical = ["counters are totals since reset", "a frame dropped since the last telemetry",
+                 "a command before HELLO", "once per gear turn", "[physics.md §2](physics.md#2-frame-of-motion)",
+                 "since no estimator reads it", "[x](#3-modes)"]
     for line in history:
         assert any(re.search(p, line, flags=re.I) for p, _ in HISTORY), line
     for line in technical:

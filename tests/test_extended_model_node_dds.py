@@ -38,7 +38,8 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     model = folder / "extended_rig.yaml"
     model.write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
     calibration = folder / "calibration.json"
-    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(calibration), "--quiet"],
+    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(calibration),
+                           "--quiet"],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     return model, calibration

@@ -179,7 +179,8 @@ def probe(ros_env: dict[str, str]) -> Iterator[Probe]:
 @pytest.fixture(scope="module")
 def calibration_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("calibration") / "calibration.json"
-    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(out), "--quiet"],
+    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(out),
+                           "--quiet"],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and out.exists(), f"calibrate failed:\n{done.stdout}\n{done.stderr}"
     return out

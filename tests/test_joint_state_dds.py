@@ -116,7 +116,8 @@ def pace(k, start, period=0.002):
 matched_at, k, start = None, 0, time.monotonic()
 while matched_at is None or time.monotonic() < matched_at + 1.5:
     tick(k % 500, prelude_base + (k // 500) * 500_000_000, k - k % 500)
-    if matched_at is None and joints.get_subscription_count() and all(p.get_subscription_count() for p in rigs.values()):
+    if (matched_at is None and joints.get_subscription_count()
+            and all(p.get_subscription_count() for p in rigs.values())):
         matched_at = time.monotonic()
     pace(k, start)
     k += 1
@@ -157,7 +158,8 @@ def simulate() -> dict[str, np.ndarray]:
         omega, current, theta, voltage = (np.array(c) for c in zip(*rows))
         ratio = rig.gearbox.ratio
         out.update({f"omega_{joint}": omega, f"current_{joint}": current, f"theta_{joint}": theta,
-                    f"voltage_{joint}": voltage, f"velocity_{joint}": omega * ratio, f"position_{joint}": theta * ratio})
+                    f"voltage_{joint}": voltage, f"velocity_{joint}": omega * ratio,
+                    f"position_{joint}": theta * ratio})
     return out
 
 

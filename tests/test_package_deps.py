@@ -22,7 +22,8 @@ PACKAGES = ("worm_model", "worm_rig_driver", "torque_estimator")
 KEYS = {
     "numpy": "python3-numpy", "scipy": "python3-scipy", "yaml": "python3-yaml",
     "matplotlib": "python3-matplotlib", "tqdm": "python3-tqdm", "ruamel": "python3-ruamel.yaml",
-    "rosbags": "python3-rosbags-pip", "serial": "python3-serial", "mcap_ros2": "mcap-ros2-support", "pytest": "python3-pytest",
+    "rosbags": "python3-rosbags-pip", "serial": "python3-serial", "mcap_ros2": "mcap-ros2-support",
+    "pytest": "python3-pytest",
     # PyPI-only, without a rosdep key: documented in a package.xml comment instead
     "mcap": None, "zstandard": None,
     **{name: name for name in ("rclpy", "rcl_interfaces", "std_msgs", "sensor_msgs", "diagnostic_msgs",

@@ -335,7 +335,8 @@ def test_settings_the_pages_state() -> None:
     estimators = page("estimators.md")
     assert int(stated(estimators, r"interpolated at each estimate's speed and torque over (\d+) neighbours")[0]) \
         == NEIGHBOURS
-    rig_rate, node_rate = stated(estimators, r"false-alarm rate of ([\de-]+) per sample \(`estimator_node`'s: ([\de-]+)\)")
+    rig_rate, node_rate = stated(estimators,
+                                 r"false-alarm rate of ([\de-]+) per sample \(`estimator_node`'s: ([\de-]+)\)")
     assert FEEDFORWARD_FALSE_ALARM == float(rig_rate) and LoadProcess().false_alarm == float(node_rate)
 
     new_drive = page("new-drive.md")
@@ -347,7 +348,8 @@ def test_settings_the_pages_state() -> None:
     assert float(stated(bench, r"\|α\| ≤ (\d+) rad/s²")[0]) == QUASI_STATIC_ACCELERATION
 
     residuals = page("residuals.md")
-    assert float(stated(residuals, r"by at least (\d+) % \*and\* the")[0]) / 100 == pytest.approx(Settings().min_improvement)
+    assert (float(stated(residuals, r"by at least (\d+) % \*and\* the")[0]) / 100
+            == pytest.approx(Settings().min_improvement))
     assert float(stated(residuals, r"above ([\d.]+) × that floor")[0]) == Settings().unexplained_factor
     kt, low, high, inertia_low, inertia_high = stated(
         residuals, r"K_t ±(\d+) %, drags ([\d.]+)–([\d.]+) ×,\s+rotor inertia ([\d.]+)–([\d.]+) ×")

@@ -60,7 +60,8 @@ def recorded(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
     """
     tmp = tmp_path_factory.mktemp("replay")
     calibration = tmp / "calibration.json"
-    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(calibration), "--quiet"],
+    done = subprocess.run([sys.executable, "-m", "torque_estimator.calibration.calibrate", "--out", str(calibration),
+                           "--quiet"],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     overrides = [f"estimator_node.calibration_file={calibration}", f"estimator_node.method={METHOD}",
@@ -185,7 +186,8 @@ def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str]
                 known = {p: v for p, v in NODE_DEFAULTS[name].items() if node.has_parameter(p)}
                 assert {p: node.get_parameter(p).value for p in known} == known, name
                 assert "method" not in known or set(known) >= {o.name for o in METHODS[known["method"]].options}
-                undeclared = set(node._parameters) - set(NODE_DEFAULTS[name]) - {"use_sim_time", "start_type_description_service"}
+                undeclared = (set(node._parameters) - set(NODE_DEFAULTS[name])
+                              - {"use_sim_time", "start_type_description_service"})
                 assert not undeclared, f"{name} declares {sorted(undeclared)} that replay does not know"
             finally:
                 node.destroy_node()

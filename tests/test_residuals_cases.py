@@ -37,14 +37,16 @@ def test_small_matrix_names_exactly_the_true_effects_at_the_noise_floor() -> Non
     n = len(results)
     oov = [r for r in results if r.case.extra]
     assert _line(results) == (f"residuals: cases={n} exact={n} false_names=0 missed=0 at_floor={n - len(oov)}/"
-                              f"{n - len(oov)} unexplained_oov={sum(r.unexplained is not None for r in oov)}/{len(oov)} "
+                              f"{n - len(oov)} "
+                              f"unexplained_oov={sum(r.unexplained is not None for r in oov)}/{len(oov)} "
                               f"unphysical=0 passed={n}")
     assert sum(r.unexplained is not None for r in oov) >= 3  # all but the bearing drag mu takes (cases.passed)
 
 
 @pytest.mark.slow
 def test_full_matrix_names_exactly_the_true_effects_at_the_noise_floor() -> None:
-    """Measured (173 cases in seven families): the line below (the stribeck family: 10 of 10).  The one left: backlash on the NMRV040 (gear-side inertia
+    """Measured (173 cases in seven families): the line below (the stribeck family: 10 of 10).  The one left:
+    backlash on the NMRV040 (gear-side inertia
     3.6x the NMRV030's): its impacts leave the current at 1.30x the floor, which biases the refitted load-motor drag
     to 0 (true 8 mN m); the modelled flank changes then come at the wrong times and the transmission error's
     backlash fit fails (with the true rig and nothing refitted it takes the TE from 2.29 to 0.46 mrad).  Before the

@@ -2,7 +2,8 @@
 
 Two network namespaces joined by a veth pair stand for the two hosts (the test creates and removes them;
 it needs root, as CI has): the rig computer runs sim_node (whose load observer feeds forward and publishes
-the graph's /torque_estimate) and controller_node, the workstation runs model_node and a recorder. DDS finds its peers across the link by multicast
+the graph's /torque_estimate) and controller_node, the workstation runs model_node and a recorder. DDS
+finds its peers across the link by multicast
 (ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET). Fast DDS is kept to UDP (FASTDDS_BUILTIN_TRANSPORTS=UDPv4), the
 only transport two real hosts share: two namespaces of one machine also share /dev/shm, and whether the
 shared-memory transport pairs them depends on how a Fast DDS version tells hosts apart (Kilted's did not

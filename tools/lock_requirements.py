@@ -40,7 +40,7 @@ TARGETS = {"kilted": ROOT / "requirements.lock", "jazzy": ROOT / "requirements-j
 HEADERS = {
     "kilted": """# Every Python dependency of the project, pinned to exact versions (one file).
 # ROS 2 Kilted from the ros-* wheels with rmw_fastrtps_cpp as the RMW, colcon,
-# numpy/scipy/matplotlib, pyserial, rosbags (+ mcap readers), pytest, hypothesis.
+# numpy/scipy/matplotlib, pyserial, rosbags (+ mcap readers), pytest, hypothesis, ruff.
 # Regenerate: tools/lock_requirements.py (keeps real distributions only; the
 # ros-* wheels also carry inner egg-info entries that are not on PyPI).
 # The second distribution tested, Jazzy, has its own file: requirements-jazzy.lock.

@@ -108,10 +108,12 @@ def options_cases() -> list[Case]:
         Case("bag import negative t", ["bag", "import", "{csv_negative_t}", "--out", "newbag"]),
         Case("virtual_rig --link /nonexistent/x", ["virtual_rig", "--link", "/nonexistent/x", "--duration", "1"]),
         Case("estimator_node -p k:=-1", ["estimator_node", "--ros-args", "-p", "k:=-1"]),
-        Case("sim_node -p feedforward_estimator:=kalman", ["sim_node", "--ros-args", "-p", "feedforward_estimator:=kalman"],
+        Case("sim_node -p feedforward_estimator:=kalman",
+             ["sim_node", "--ros-args", "-p", "feedforward_estimator:=kalman"],
              stderr_has="feedforward_estimator"),
-        Case("sim_node feedforward_calibration binary", ["sim_node", "--ros-args", "-p", "feedforward_estimator:=observer",
-                                                         "-p", "feedforward_calibration:={binary}"],
+        Case("sim_node feedforward_calibration binary",
+             ["sim_node", "--ros-args", "-p", "feedforward_estimator:=observer",
+              "-p", "feedforward_calibration:={binary}"],
              stderr_has="feedforward_calibration"),
         Case("driver_node -p max_drive_voltage:=-5.0", ["driver_node", "--ros-args", "-p",
                                                         "max_drive_voltage:=-5.0", "-p", "port:=/nonexistent"]),
@@ -660,8 +662,6 @@ def _bomb(levels: int = 9) -> str:
 
 def _policy_fixtures(folder: Path, f: dict[str, Path], data, cal_doc: dict, put) -> None:
     """The files of the careless-user cases: wrong units, BOMs, bombs, rcl-unreadable graph files, outputs."""
-    import math
-
     import numpy as np
 
     from worm_model.physics.parameters import default_rig_path
@@ -714,9 +714,11 @@ def _policy_fixtures(folder: Path, f: dict[str, Path], data, cal_doc: dict, put)
     rig_text = default_rig_path().read_text(encoding="utf-8")
     f["rig"] = default_rig_path()
     put("rig_bom.yaml", b"\xef\xbb\xbf" + rig_text.encode())
-    put("rig_kt_tiny.yaml", rig_text.replace("    value: 0.055\n    unit: N m/A", "    value: 1e-12\n    unit: N m/A", 1))
+    put("rig_kt_tiny.yaml",
+        rig_text.replace("    value: 0.055\n    unit: N m/A", "    value: 1e-12\n    unit: N m/A", 1))
     put("rig_1MV.yaml", rig_text.replace("supply_voltage:\n  value: 24", "supply_voltage:\n  value: 1000000", 1))
-    put("rig_lead_rad.yaml", rig_text.replace("    value: 5.710593\n    unit: deg", "    value: 0.0996687\n    unit: deg"))
+    put("rig_lead_rad.yaml",
+        rig_text.replace("    value: 5.710593\n    unit: deg", "    value: 0.0996687\n    unit: deg"))
     put("rig_bomb.yaml", rig_text + "free:\n" + _bomb())
     put("effects_bomb.yaml", "format: worm_rig_effects\nversion: 1\neffects: {}\nbomb:\n" + _bomb())
     put("yaml_deep.yaml", "a: " + "[" * 5000 + "]" * 5000 + "\n")
@@ -727,9 +729,11 @@ def _policy_fixtures(folder: Path, f: dict[str, Path], data, cal_doc: dict, put)
         "    publish_estimate: true", "    publish_estimate: false") + "estimator_node:\n  ros__parameters:\n    method: observer\n"
     put("graph.yaml", graph)
     put("graph_bom.yaml", b"\xef\xbb\xbf" + graph.encode())
-    put("graph_anchor.yaml", graph.replace("estimator_node:\n  ros__parameters:", "estimator_node:\n  ros__parameters: &est", 1)
+    put("graph_anchor.yaml",
+        graph.replace("estimator_node:\n  ros__parameters:", "estimator_node:\n  ros__parameters: &est", 1)
         + "other_estimator:\n  ros__parameters: *est\n")
-    put("graph_merge.yaml", graph.replace("estimator_node:\n  ros__parameters:", "estimator_node:\n  ros__parameters: &est", 1)
+    put("graph_merge.yaml",
+        graph.replace("estimator_node:\n  ros__parameters:", "estimator_node:\n  ros__parameters: &est", 1)
         + "other_estimator:\n  ros__parameters:\n    <<: *est\n    k: 8\n")
     put("graph_typo.yaml", graph.replace("    method: observer", "    methd: observer", 1))
     put("graph_not_yaml.yaml", "estimator_node: {ros__parameters: {k: 4}\nmodel_node: [\n")

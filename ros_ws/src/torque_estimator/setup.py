@@ -18,7 +18,8 @@ setup(
     zip_safe=True,
     maintainer="worm-torque maintainers",
     maintainer_email="maintainers@worm-torque.invalid",
-    description="Sensorless load-torque estimation for worm gearboxes: calibration, k-NN estimator node, and a velocity controller node with torque feedforward.",
+    description="Sensorless load-torque estimation for worm gearboxes: calibration, k-NN estimator node, "
+                "and a velocity controller node with torque feedforward.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

@@ -19,7 +19,9 @@ setup(
     zip_safe=True,
     maintainer="worm-torque maintainers",
     maintainer_email="maintainers@worm-torque.invalid",
-    description="Worm-gear model: internal forces (paper Eqs 21-23), modes, switching torque, efficiencies, coupled motor and gearbox dynamics; model_node publishes the internal forces of every rig sample; worm_calc (one operating point) and report (the paper's Figs 6-11 from a calibration) are its CLIs.",
+    description="Worm-gear model: internal forces (paper Eqs 21-23), modes, switching torque, efficiencies, "
+                "coupled motor and gearbox dynamics; model_node publishes the internal forces of every rig sample; "
+                "worm_calc (one operating point) and report (the paper's Figs 6-11 from a calibration) are its CLIs.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

@@ -18,7 +18,8 @@ setup(
     zip_safe=True,
     maintainer="worm-torque maintainers",
     maintainer_email="maintainers@worm-torque.invalid",
-    description="The worm-gear rig: sim_node (simulated rig) publishing currents, velocities, encoder counts and synchronized samples, and the bag recorder.",
+    description="The worm-gear rig: sim_node (simulated rig) publishing currents, velocities, encoder counts "
+                "and synchronized samples, and the bag recorder.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

@@ -40,7 +40,8 @@ def _model(offset, ambiguous_above=math.inf):
 
 def test_a_model_off_by_a_smooth_function_is_put_right_between_the_points(database) -> None:
     """A model reading 0.01 + 0.05 tau too little: the bias map returns it exactly at a calibration point,
-    within 5e-4 N m between points (inverse-distance weights of a linear function: 2.4e-4 measured), and 0 for NaN input."""
+    within 5e-4 N m between points (inverse-distance weights of a linear function: 2.4e-4 measured), and 0
+    for NaN input."""
     bias = CalibrationBias(_model(lambda w, t: 0.01 + 0.05 * t)(database), database)
     j = 17
     tau_model = float(database.tau_load[j]) - (0.01 + 0.05 * float(database.tau_load[j]))

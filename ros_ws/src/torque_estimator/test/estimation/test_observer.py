@@ -134,7 +134,8 @@ def test_flags_and_invalid_input() -> None:
 
 def test_speed_ramp_and_reversal() -> None:
     """Error while the speed ramps 50 -> 300 rad/s in 1 s at 0.1 N m (measured, 2 seeds: mean 0.3 %, max
-    4.6 % of the range, a short excursion as the ramp starts), and through a +150 -> -150 rad/s reversal at 0.1 N m on a simulator integrated finely
+    4.6 % of the range, a short excursion as the ramp starts), and through a +150 -> -150 rad/s reversal
+    at 0.1 N m on a simulator integrated finely
     enough for a reversal (20 substeps; its default 2 substeps are coarse at ~30000 rad/s², see the
     report): unflagged samples stay within 4 % of the range (measured 2.1 %; flagged ones are the
     self-locking V at the zero crossing and the TRANSIENT after a detection)."""

@@ -76,7 +76,8 @@ def test_estimate_on_a_log_of_the_effects_rig(roads, tmp_path, capsys) -> None:
     log = tmp_path / "demo.csv"
     write_rig_csv(log, record_on_simulator(RIG, timeline, effects=effects_all(), seed=2))
     lines = {}
-    for label, model in (("identified", result.model_file), ("declared", result.model_file.parent / "declared_rig.yaml")):
+    for label, model in (("identified", result.model_file),
+                         ("declared", result.model_file.parent / "declared_rig.yaml")):
         assert estimate_main([str(log), "--method", "extended_model", "--model-file", str(model),
                               "--out", str(tmp_path / f"{label}.csv"), "--quiet"]) == 0
         lines[label] = capsys.readouterr().out.strip().splitlines()[-1]

@@ -105,9 +105,12 @@ def test_parameters_and_the_selection(study: real_drive.Study, doc: str) -> None
     final, refit = study.final.values, study.tro_structure.values
     shown = {
         "kinetic mu": (refit["friction.mu_constant"], final["friction.mu_constant"], 1.0),
-        "worm-side Coulomb (`inSupBreak`) [mN m]": (refit["drive_motor.coulomb_drag"], final["drive_motor.coulomb_drag"], 1e3),
-        "worm-side viscous (`inSupVisc`) [uN m s/rad]": (refit["drive_motor.viscous_drag"], final["drive_motor.viscous_drag"], 1e6),
-        "gear-side Coulomb (`outSupBreak`) [mN m]": (refit["load_motor.coulomb_drag"], final["load_motor.coulomb_drag"], 1e3),
+        "worm-side Coulomb (`inSupBreak`) [mN m]": (refit["drive_motor.coulomb_drag"],
+                                                    final["drive_motor.coulomb_drag"], 1e3),
+        "worm-side viscous (`inSupVisc`) [uN m s/rad]": (refit["drive_motor.viscous_drag"],
+                                                         final["drive_motor.viscous_drag"], 1e6),
+        "gear-side Coulomb (`outSupBreak`) [mN m]": (refit["load_motor.coulomb_drag"],
+                                                     final["load_motor.coulomb_drag"], 1e3),
     }
     for label, (a, b, scale) in shown.items():
         row = re.search(rf"^\| {re.escape(label)} \| [\d.]+ \| ([\d.]+) \| ([\d.]+) \|$", doc, re.M)
@@ -115,7 +118,8 @@ def test_parameters_and_the_selection(study: real_drive.Study, doc: str) -> None
     assert close("12.46", 1e3 * final["gear_support_stribeck.torque"])
     assert close("0.2547", final["gear_support_stribeck.speed"])
     assert close("0.0469", refit["friction.stribeck_rise"])
-    speed = refit["friction.stribeck_speed"] * math.cos(study.rig.gearbox.lead_angle) / study.rig.gearbox.worm_pitch_radius
+    gearbox = study.rig.gearbox
+    speed = refit["friction.stribeck_speed"] * math.cos(gearbox.lead_angle) / gearbox.worm_pitch_radius
     assert close("0.5772", speed)
     assert round(1e3 * (final["load_motor.coulomb_drag"] + final["gear_support_stribeck.torque"])) == 16
     assert refit["load_motor.coulomb_drag"] == pytest.approx(real_drive.LOAD, abs=5e-6)  # = the load

@@ -8,7 +8,6 @@ flags and all, does go far beyond it at the reversal (what TorqueEstimate carrie
 outputs carry the load again once the estimate has settled."""
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest

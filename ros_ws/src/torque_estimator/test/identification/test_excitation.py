@@ -1,4 +1,5 @@
-"""The excitation: at most 90 s of rig time, both directions, the whole speed and load range, steps, ramps, reversals."""
+"""The excitation: at most 90 s of rig time, both directions, the whole speed and load range, steps, ramps,
+reversals."""
 from __future__ import annotations
 
 import numpy as np

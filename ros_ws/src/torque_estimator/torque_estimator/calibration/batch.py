@@ -25,7 +25,8 @@ from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.calibration.journal import CalibrationJournal
-from torque_estimator.calibration.operating_points import OperatingPoints, SteadyStateCriterion, measure_operating_points
+from torque_estimator.calibration.operating_points import (OperatingPoints, SteadyStateCriterion,
+                                                            measure_operating_points)
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, PiGains, SpeedController
 
 

@@ -68,9 +68,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="rig parameter YAML recorded in the database (default: the bundled NMRV030 rig); "
                         "with --live it must describe the rig on the graph")
     grid = p.add_argument_group("grid")
-    grid.add_argument("--speeds", type=integer(1, MAX_GRID), default=17, help="number of worm speeds per direction (default 17)")
+    grid.add_argument("--speeds", type=integer(1, MAX_GRID), default=17,
+                      help="number of worm speeds per direction (default 17)")
     grid.add_argument("--torques", type=integer(2, MAX_GRID), default=16, help="number of load torques (default 16)")
-    grid.add_argument("--speed-min", type=number("rad/s", 0, open_low=True), default=20.0, help="smallest worm speed [rad/s] (default 20)")
+    grid.add_argument("--speed-min", type=number("rad/s", 0, open_low=True), default=20.0,
+                      help="smallest worm speed [rad/s] (default 20)")
     grid.add_argument("--speed-max", type=number("rad/s", 0, open_low=True), default=340.0,
                       help="largest worm speed [rad/s], at most the rig's no-load speed (default 340)")
     grid.add_argument("--torque-fraction", type=number("", 0, 1, open_low=True), default=0.9,
@@ -85,7 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
                         help=f"after this [s] an unsettled point keeps its last window and is listed as "
                              f"unsettled (default {default.timeout:g})")
     sim = p.add_argument_group("simulator (without --live)")
-    sim.add_argument("--seed", type=integer(0, 2**63 - 1), default=0, help="seed of the simulated sensor noise (default 0)")
+    sim.add_argument("--seed", type=integer(0, 2**63 - 1), default=0,
+                     help="seed of the simulated sensor noise (default 0)")
     sim.add_argument("--batch-size", type=integer(1, 100_000), default=DEFAULT_BATCH_SIZE,
                      help=f"points simulated side by side; the journal is written after each batch "
                           f"(default {DEFAULT_BATCH_SIZE})")

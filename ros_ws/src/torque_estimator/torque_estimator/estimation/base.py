@@ -140,5 +140,5 @@ def needs_voltage(estimator_class: object) -> bool:
     return bool(getattr(estimator_class, "needs_voltage", False))
 
 
-__all__ = ["AngleEstimator", "EstimateFlags", "EstimateStream", "SampleEstimate", "StreamingEstimator", "TorqueEstimates",
-           "TorqueEstimator", "needs_voltage"]
+__all__ = ["AngleEstimator", "EstimateFlags", "EstimateStream", "SampleEstimate", "StreamingEstimator",
+           "TorqueEstimates", "TorqueEstimator", "needs_voltage"]

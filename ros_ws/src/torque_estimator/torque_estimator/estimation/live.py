@@ -330,5 +330,5 @@ class LiveEstimator:
         return Filtered(float(omega), float(current), theta if self._uses_angle else None, flags)
 
 
-__all__ = ["INPUT_FILTER_STAGES", "MAX_GAP", "NOISE_TIME_CONSTANT", "TRANSIENT_MEMORY", "ChangeGatedLowPass", "Filtered", "LiveEstimate",
-           "LiveEstimator", "estimate_filtered"]
+__all__ = ["INPUT_FILTER_STAGES", "MAX_GAP", "NOISE_TIME_CONSTANT", "TRANSIENT_MEMORY", "ChangeGatedLowPass",
+           "Filtered", "LiveEstimate", "LiveEstimator", "estimate_filtered"]

@@ -31,7 +31,8 @@ lubricant loss and a cold start, the real drive's check (health.real_drive), as 
     health: false_alarms=<n> of <m> temperature=measured
     health: live lubricant_loss=mu+30% warn_after_s=<x> ...
 and health_trend.png (a simulated gearbox's life with its alarm bands), health_live.png (the live
-monitor on the two scenarios); then the fast road (evaluation.identified): on the simulated rig with every default effect
+monitor on the two scenarios); then the fast road (evaluation.identified): \
+on the simulated rig with every default effect
 on and the rig file off (mu x1.3, K_t x1.05, drags x2), one `identify` run against the
 k-NN grid calibrated on that rig, the extended model and the observer with the identified
 parameters, on the same held-out points, ending with
@@ -66,7 +67,8 @@ from torque_estimator.evaluation.residual_cases import evaluate_lines, full_matr
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import CalibrationError, load_database
 from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
-from torque_estimator.evaluation.held_out import format_table, measure_held_out, score, sweep_grid_density, sweep_k, sweep_noise
+from torque_estimator.evaluation.held_out import (format_table, measure_held_out, score, sweep_grid_density, sweep_k,
+                                                  sweep_noise)
 from torque_estimator.estimation.knn import WEIGHTINGS
 from torque_estimator.estimation.observer import steady_state_bound
 from torque_estimator.estimation.momentum import linear_noise_bound
@@ -74,6 +76,8 @@ from torque_estimator.estimation.momentum import predicted_noise as momentum_noi
 from torque_estimator.evaluation.transient import STEP_SPEED, ensemble_noise, transient_figures
 from torque_estimator.evaluation.identified import evaluate_lines as identified_lines
 from torque_estimator.evaluation import real_drive, start_stop
+from torque_estimator.evaluation.plots import held_out_deviation, sweeps
+from worm_model.cli.progress import Progress, ProgressBar
 
 #: what evaluate writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
 OUTPUT = Output("evaluate", names=("*.png",))
@@ -81,8 +85,6 @@ OUTPUT = Output("evaluate", names=("*.png",))
 TRANSIENT_SEEDS = 12
 #: samples after a load step by which the momentum observer is asked to have 90 % of it (5 ms at 1 kHz)
 MOMENTUM_STEP_SAMPLES = 5
-from torque_estimator.evaluation.plots import held_out_deviation, sweeps
-from worm_model.cli.progress import Progress, ProgressBar
 
 
 def _number_list(kind: Callable[[str], float], minimum: float, what: str) -> Callable[[str], list[Any]]:
@@ -129,10 +131,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--k", type=integer(1, 64), default=4, help="neighbours of the k-NN estimator (default 4)")
     p.add_argument("--weighting", default="inverse_distance", choices=sorted(WEIGHTINGS),
                    help="k-NN weighting (default inverse_distance)")
-    p.add_argument("--points", type=integer(1, 10_000), default=17, help="held-out points of the table (default 17, as the paper)")
+    p.add_argument("--points", type=integer(1, 10_000), default=17,
+                   help="held-out points of the table (default 17, as the paper)")
     p.add_argument("--seed", type=integer(0, 2**32 - 2), default=0,
                    help="seed of the calibration noise; held-out draws and their noise use seed+1 (default 0)")
-    p.add_argument("--speeds", type=integer(1, 1000), default=17, help="speeds per direction of the calibration grid (default 17)")
+    p.add_argument("--speeds", type=integer(1, 1000), default=17,
+                   help="speeds per direction of the calibration grid (default 17)")
     p.add_argument("--torques", type=integer(2, 1000), default=16, help="torques of the calibration grid (default 16)")
     sweep = p.add_argument_group("sweeps")
     sweep.add_argument("--no-sweeps", action="store_true", help="only the table and the deviation plot")

@@ -201,7 +201,7 @@ def estimate_loads(rig: Rig, sp: SteadyPoints, structure: tuple[str, ...], margi
         slope = (fitted.torque(sp.omega[idx], out.estimate[idx] + step)
                  - fitted.torque(sp.omega[idx], out.estimate[idx] - step)) / (2 * step)
         out.bound_pct[idx] = 100.0 * sp.torque_sem[idx] / np.abs(slope) / LOAD
-        for j, k in enumerate(idx):
+        for k in idx:
             if out.flags[k] & int(EstimateFlags.AMBIGUOUS):
                 out.other[k] = _other_crossing(fitted, sp.omega[k], sp.torque[k], out.estimate[k], margin)
     return out
@@ -250,7 +250,8 @@ def residuals_tool(refit: tuple[str, ...] = STANDARD_REFIT) -> ResidualsRun:
     """The residual analysis on the exports, sample by sample, as the ``residuals`` command runs it (module
     docstring)."""
     rig = load_rig(rig_file())
-    data = read_rig_data(data_folder(), epos=EposSettings(load_torque=LOAD, nominal_current=rig.drive_motor.rated_current,
+    data = read_rig_data(data_folder(), epos=EposSettings(load_torque=LOAD,
+                                                          nominal_current=rig.drive_motor.rated_current,
                                                           skip_bad_rows=True))
     settings = residual_analysis.Settings(min_speed=RESIDUALS_MIN_SPEED, refit=tuple(refit))
     signals = prepare_signals(rig, data, settings.alpha_time_constant, settings.reference_temperature)
@@ -425,7 +426,8 @@ def plot(study: Study, path: Path) -> Path:
         ax.plot(grid * 30 / math.pi, 1e3 * sign * motor_torque(TroDrive(), w, LOAD), "--", color="tab:red",
                 label=f"T-RO fit (their parameters), RMS {1e3 * Study._rms(study.tro[m] - study.measured[m]):.3f}")
         ax.plot(grid * 30 / math.pi, 1e3 * sign * study.base.torque(w, tau), ":", color="tab:gray",
-                label=f"ours fitted, constant mu, RMS {1e3 * Study._rms(study.base.torque(sp.omega[m], sp.tau_load[m]) - study.measured[m]):.3f}")
+                label="ours fitted, constant mu, RMS "
+                      f"{1e3 * Study._rms(study.base.torque(sp.omega[m], sp.tau_load[m]) - study.measured[m]):.3f}")
         ax.plot(grid * 30 / math.pi, 1e3 * sign * study.final.torque(w, tau), "-", color="tab:blue",
                 label=f"ours fitted + {', '.join(study.selection.accepted) or 'nothing'}, RMS "
                       f"{1e3 * Study._rms(study.fitted[m] - study.measured[m]):.3f}")

@@ -199,7 +199,8 @@ class Graph:
         namespace = namespaces.pop()
         raw = load_yaml(self.params_file, "graph parameter file")
         data = {key: body for key, body in raw.items() if str(key).endswith("**")}  # every node's parameters
-        data.update({"/" + n.lstrip("/"): {"ros__parameters": body} for n, body in graph_sections(self.params_file).items()})
+        data.update({"/" + n.lstrip("/"): {"ros__parameters": body}
+                     for n, body in graph_sections(self.params_file).items()})
         for node, assignments in self.overrides.items():
             section = data.setdefault("/" + node.lstrip("/"), {}).setdefault("ros__parameters", {})
             for assignment in assignments:

@@ -50,7 +50,8 @@ from worm_model.rig_data.reader import read_rig_data
 from worm_model.rig_data.schema import RigDataError, is_rig_csv, write_rig_csv
 
 from torque_estimator.calibration.live import LiveRigError
-from torque_estimator.identification.excitation import DEFAULT_DURATION, MAX_DURATION, default_excitation, total_duration
+from torque_estimator.identification.excitation import (DEFAULT_DURATION, MAX_DURATION, default_excitation,
+                                                        total_duration)
 from torque_estimator.identification.fit import IdentificationError, identify, write_identified
 from torque_estimator.identification.recording import ExcitationRun, Journal, JournalError, journal_paths, run_settings
 
@@ -207,8 +208,10 @@ def _main(argv: list[str] | None) -> int:
         journal.remove()
     for line in summary(ident, time.monotonic() - start):
         print(line)
-    print(f"{PROG}: rig_time_s={ident.rig_time:.1f} samples={ident.samples} found={','.join(ident.model.names) or 'none'} "
-          f"rms_before={ident.analysis.rms_before:.4f} rms_after={ident.analysis.final.rms_held_out:.4f} A -> {args.out}")
+    print(f"{PROG}: rig_time_s={ident.rig_time:.1f} samples={ident.samples} "
+          f"found={','.join(ident.model.names) or 'none'} "
+          f"rms_before={ident.analysis.rms_before:.4f} "
+          f"rms_after={ident.analysis.final.rms_held_out:.4f} A -> {args.out}")
     return 0
 
 
@@ -235,7 +238,8 @@ def summary(ident, wall: float) -> list[str]:
              f"fitted ({ident.choice}): {', '.join(ident.fitted) or 'none'}"]
     lines += [f"  {line}" for line in ident.correction_lines()]
     lines.append(f"effects: {', '.join(ident.model.names) or 'none'}; held-out current RMS "
-                 f"{ident.analysis.rms_before:.4f} A (rig file as declared) -> {ident.analysis.final.rms_held_out:.4f} A; "
+                 f"{ident.analysis.rms_before:.4f} A (rig file as declared) "
+                 f"-> {ident.analysis.final.rms_held_out:.4f} A; "
                  f"{wall:.1f} s")
     return lines
 

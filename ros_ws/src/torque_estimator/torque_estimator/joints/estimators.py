@@ -127,7 +127,8 @@ class JointEstimators:
         """Per joint (``<joint>.<count>``): samples taken, refusals by reason, seq gaps bridged and the
         samples in them, stream restarts, flagged estimates by flag (of the estimates computed); and the
         malformed messages."""
-        values: dict[str, int] = {"messages": self.reader.messages, "malformed_messages": self.reader.malformed_messages}
+        values: dict[str, int] = {"messages": self.reader.messages,
+                                  "malformed_messages": self.reader.malformed_messages}
         for k, name in enumerate(self.names):
             live = self.live[k]
             values[f"{name}.samples"] = self.reader.samples(name)

@@ -80,7 +80,8 @@ def joint_setups(parameters: Mapping[str, Any], joint_names: Sequence[str],
         missing = [j for j, v in zip(joints, volts) if not v]
         raise ValueError(f"parameter method={base.method!r} reads the drive voltage every sample, and a JointState "
                          f"carries none: set voltage_topics for every joint (none for {missing}), or choose a method "
-                         f"that needs none ({', '.join(m for m, row in METHODS.items() if not needs_voltage(row.factory))})")
+                         "that needs none "
+                         f"({', '.join(m for m, row in METHODS.items() if not needs_voltage(row.factory))})")
     return [JointSetup(joint, replace(base, rig_file=lists["rig_files"][k], model_file=lists["model_files"][k],
                                       calibration_file=lists["calibration_files"][k]), volts[k])
             for k, joint in enumerate(joints)]

@@ -1,6 +1,7 @@
 """Several nodes of a graph in one process, on one executor: the graph runner's ``--together``.
 
-    python -m torque_estimator.nodes.composed --params-file graph.yaml [--namespace /arm/joint2] sim_node controller_node ...
+    python -m torque_estimator.nodes.composed --params-file graph.yaml [--namespace /arm/joint2] \\
+        sim_node controller_node ...
 
 Each node is the very class its executable runs (``ros2 run <pkg> <node>``
 stays the way to run it alone) and reads its own section of the parameter file
@@ -14,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import sys
 from collections.abc import Callable
 
 from rclpy.node import Node

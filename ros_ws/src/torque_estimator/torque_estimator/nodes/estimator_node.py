@@ -19,7 +19,8 @@ Input (``input``), every topic relative to the node's namespace (``-r __ns:=/arm
   ratio and K_t convert; stamps from the header, ``sample_rate`` the publisher's rate). What must
   not be estimated from (a joint absent, a missing field, NaN, a repeated, earlier or early
   stamp) is refused and counted per joint on /diagnostics. The message stamped at every
-  ``publish_every``-th sample period (a phase of the stamps' clock) gives, per joint ``j``, torque_estimate/<j> (TorqueEstimate, frame_id ``j``) and while subscribed
+  ``publish_every``-th sample period (a phase of the stamps' clock) gives, per joint ``j``,
+  torque_estimate/<j> (TorqueEstimate, frame_id ``j``) and while subscribed
   torque_estimate/<j>/wrench, and one torque_estimate/joint_states with every joint's effort. A
   method that reads the drive voltage (the observer) needs ``voltage_topics`` (std_msgs/Float64
   [V], the newest value used, per joint); without them the node refuses to start (exit 2). The

@@ -123,7 +123,8 @@ def steady_windows(data: MeasuredData, criterion: SteadyStateCriterion = SteadyS
             mean = float(np.mean(w))
             if abs(mean) < MIN_SPEED:
                 continue
-            if (abs(np.mean(w[:half]) - np.mean(w[half:])) <= criterion.speed_tolerance * abs(mean) + criterion.speed_floor
+            if (abs(np.mean(w[:half]) - np.mean(w[half:]))
+                    <= criterion.speed_tolerance * abs(mean) + criterion.speed_floor
                     and abs(np.mean(i[:half]) - np.mean(i[half:])) <= criterion.current_drift):
                 out.append(slice(first, first + size))
     return out
@@ -162,7 +163,10 @@ def write_estimate_csv(path: Path, data: MeasuredData, estimate: LogEstimate) ->
     """The log's columns, then tau_estimate, tau_estimate_uncertainty, estimate_flags."""
     names = data.names
     columns = [getattr(data, c).tolist() for c in names] + [estimate.torque.tolist(), estimate.uncertainty.tolist()]
-    cell = (lambda v: "" if math.isnan(v) else repr(v))
+
+    def cell(v):
+        return "" if math.isnan(v) else repr(v)
+
     with path.open("w", newline="", encoding="utf-8") as handle:
         handle.write(",".join(names + ["tau_estimate", "tau_estimate_uncertainty", "estimate_flags"]) + "\n")
         for row, flag in zip(zip(*columns), estimate.flags.tolist()):
@@ -173,9 +177,11 @@ def build_parser() -> argparse.ArgumentParser:
     p = Parser(prog=PROG, description=__doc__.split("\n\n")[0],
                                 epilog="\n\n".join(__doc__.split("\n\n")[1:]),
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("log", type=Path, help="the logged run: a worm_rig_data CSV, a rosbag2 bag (directory, .mcap, .db3), "
-                                          "or an EPOS Studio export or folder of them (with the load options below)")
-    p.add_argument("--method", required=True, choices=sorted(ESTIMATORS), help="the estimator (estimator_node's method)")
+    p.add_argument("log", type=Path,
+                   help="the logged run: a worm_rig_data CSV, a rosbag2 bag (directory, .mcap, .db3), "
+                        "or an EPOS Studio export or folder of them (with the load options below)")
+    p.add_argument("--method", required=True, choices=sorted(ESTIMATORS),
+                   help="the estimator (estimator_node's method)")
     p.add_argument("--calibration", type=Path, default=None,
                    help="calibration database (calibrate); required by knn, optional for the others (ranges)")
     p.add_argument("--model-file", type=Path, default=None,
@@ -251,7 +257,8 @@ def _main(argv: list[str] | None) -> int:
     except InputError as err:
         return fail(err.where, err.what)
     ranges = getattr(estimator, "ranges_from", None)
-    print(f"{PROG}: {args.log}: {len(data)} samples, {data.t[-1] - data.t[0]:.1f} s, {len(np.unique(data.run))} run(s); "
+    print(f"{PROG}: {args.log}: {len(data)} samples, {data.t[-1] - data.t[0]:.1f} s, "
+          f"{len(np.unique(data.run))} run(s); "
           f"{args.method} from {args.calibration or model_file or rig_file or 'the bundled rig'}"
           + (f" (table ranges from the {ranges})" if ranges else "")
           + f"; {time.monotonic() - start:.1f} s -> {out}")

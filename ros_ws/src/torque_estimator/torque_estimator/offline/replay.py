@@ -453,7 +453,9 @@ def _main(argv: Sequence[str] | None) -> int:
     parser.add_argument("--estimators", default=None, metavar="NAME[,NAME...]",
                         help=f"estimators of the registry to run ({', '.join(sorted(ESTIMATORS))}; "
                              "default: the method of the graph's live estimator, estimator_node's or the rig's)")
-    parser.add_argument("--topic", default=None, help="sample stream topic, RigSamples or RigSample (default: the only one, or /rig/samples, then /rig/sample)")
+    parser.add_argument("--topic", default=None,
+                        help="sample stream topic, RigSamples or RigSample (default: the only one, or /rig/samples, "
+                             "then /rig/sample)")
     parser.add_argument("--follow-live", action="store_true",
                         help="feed each core only the samples its live node answered (by the seqs of the "
                              "recorded /torque_estimate and /gearbox/forces)")

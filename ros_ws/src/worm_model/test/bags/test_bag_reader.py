@@ -236,7 +236,8 @@ def test_errors_name_file_and_key(tmp_path: Path) -> None:
     original = meta.read_text()
 
     meta.write_text(original.replace('  storage_identifier: sqlite3\n', ''))
-    with pytest.raises(BagReadError, match=r"metadata.yaml: rosbag2_bagfile_information: missing key 'storage_identifier'"):
+    with pytest.raises(BagReadError,
+                       match=r"metadata.yaml: rosbag2_bagfile_information: missing key 'storage_identifier'"):
         BagReader(bag)
     meta.write_text(original.replace('  version: 5', '  version: five'))
     with pytest.raises(BagReadError, match=r"key 'version' is str 'five', expected int"):

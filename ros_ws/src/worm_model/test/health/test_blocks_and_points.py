@@ -21,7 +21,7 @@ def test_a_recorded_run_and_samples_one_at_a_time_give_the_same_blocks() -> None
     recorded = blocks_from_data(data, RIG.gearbox.ratio)
     acc = BlockAccumulator(2, PERIOD, RIG.gearbox.ratio)
     for k in range(len(data)):  # the same run twice side by side, as a batch of two rigs
-        pair = lambda x: np.array([x[k], x[k]])  # noqa: E731
+        pair = lambda x: np.array([x[k], x[k]])  # noqa: E731, B023 - used only within this iteration
         acc.add(data.t[k], pair(data.omega_worm), pair(data.current_drive), pair(data.tau_load),
                 pair(data.theta_worm), pair(data.theta_gear), pair(data.temperature))
     streamed = acc.blocks().rig(1)

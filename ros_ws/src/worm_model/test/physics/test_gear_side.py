@@ -5,7 +5,8 @@ import numpy as np
 
 from worm_model.physics.dynamics import reflected_input_torque, worm_acceleration
 from worm_model.physics.friction import friction_coefficient
-from worm_model.physics.gear_side import gear_side_drag, gear_side_load, make_gear_side_drag_float, no_load_switching_torque
+from worm_model.physics.gear_side import (gear_side_drag, gear_side_load, make_gear_side_drag_float,
+                                          no_load_switching_torque)
 from worm_model.physics.modes import Flank
 from worm_model.physics.parameters import load_rig
 

@@ -125,7 +125,8 @@ def test_motion_sign() -> None:
 
 def test_classify_mode_boundaries() -> None:
     modes = classify_mode([0.1, 0.0, -0.05, -0.051, np.nan], 0.05)
-    assert list(modes) == [Mode.RESISTIVE, Mode.PSEUDO_RESISTIVE, Mode.PSEUDO_RESISTIVE, Mode.ASSISTIVE, Mode.STANDSTILL]
+    assert list(modes) == [Mode.RESISTIVE, Mode.PSEUDO_RESISTIVE, Mode.PSEUDO_RESISTIVE, Mode.ASSISTIVE,
+                           Mode.STANDSTILL]
 
 
 def test_mesh_power_balance_with_accelerations_every_mode() -> None:

@@ -25,8 +25,9 @@ from worm_model.residuals.data import load_data
 from worm_model.residuals.descriptors import time_in_run
 from worm_model.residuals.effects import EFFECTS, Backlash, channels_of, gap_crossing
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
-from worm_model.residuals.free import (READ_BY_MODEL, LOWER_BOUNDS, MU_PARAMETERS, STANDARD_REFIT, TOLERANCES, get_value, mu_parameter,
-                                       read_free, resolve_parameters, set_value, typical_coulomb_drag)
+from worm_model.residuals.free import (READ_BY_MODEL, LOWER_BOUNDS, MU_PARAMETERS, STANDARD_REFIT, TOLERANCES,
+                                       get_value, mu_parameter, read_free, resolve_parameters, set_value,
+                                       typical_coulomb_drag)
 from worm_model.residuals.report import correction_line, corrections
 from worm_model.residuals.model import Signals, evaluate, prepare_signals, ripple_response
 from worm_model.rig_data.schema import MeasuredData, RigDataError, read_rig_csv, split_runs, write_rig_csv

@@ -153,7 +153,8 @@ def _good(n: int = 8) -> str:
 
 @pytest.mark.parametrize(("change", "line", "words"), [
     (lambda t: t.replace("\n102.400;-12;-9.8\n", "\n102.400;-12;-9.8;\n"), 13, "trailing separator ';'"),
-    (lambda t: t.replace("\n102.400;-12;-9.8\n", "\n102.400;-12;-9.8 was -9.6\n"), 13, "'-9.8 was -9.6' is not a number (%)"),
+    (lambda t: t.replace("\n102.400;-12;-9.8\n", "\n102.400;-12;-9.8 was -9.6\n"), 13,
+     "'-9.8 was -9.6' is not a number (%)"),
     (lambda t: t.replace("\n102.400;-12;-9.8\n", "\n102.400;-12\n"), 13, "2 cells, the header has 3"),
     (lambda t: t.replace("\n102.400;-12;-9.8\n", "\n51.200;-12;-9.8\n"), 13, "time 51.2 ms is not after"),
     (lambda t: t.replace("\n153.600;-10;-9.9\n", "\n153.600;-10;-1200\n"), 14, "-1200 % is a spike"),

@@ -24,7 +24,8 @@ def test_bag_round_trip_in_process(tmp_path: Path) -> None:
     assert back.source == f'{tmp_path / "bag"}:/rig/sample' and back.skipped == {}
     for name in data.names:
         np.testing.assert_array_equal(getattr(back, name), getattr(data, name))
-    with pytest.raises(RigDataError, match=r"column 't': .* is beyond 2038 \(int32 seconds of builtin_interfaces/Time\)"):
+    with pytest.raises(RigDataError,
+                       match=r"column 't': .* is beyond 2038 \(int32 seconds of builtin_interfaces/Time\)"):
         measured_to_bag(data, tmp_path / 'late', start_ns=2**31 * 10**9)
 
 
@@ -37,7 +38,8 @@ def test_csv_to_bag_to_csv_gives_the_same_file(tmp_path: Path) -> None:
     n = 100
     first, second = tmp_path / 'a.csv', tmp_path / 'b.csv'
     first.write_text('t,current_drive,omega_worm,theta_worm,tau_load,voltage_drive,theta_gear\n' + ''.join(
-        f'{k * 1_000_000 / 1e9!r},{rng.normal()!r},{rng.normal() * 100!r},{k * 0.1!r},{rng.normal()!r},12.0,{rng.normal()!r}\n'
+        f'{k * 1_000_000 / 1e9!r},{rng.normal()!r},{rng.normal() * 100!r},{k * 0.1!r},{rng.normal()!r},12.0,'
+        f'{rng.normal()!r}\n'
         for k in range(n)))
     assert csv_to_bag(first, tmp_path / 'bag', 'mcap') == n
     data = bag_to_csv(tmp_path / 'bag', second)

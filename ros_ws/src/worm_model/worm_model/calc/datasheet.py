@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import copy
 import math
-import sys
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path

@@ -11,7 +11,6 @@ import argparse
 import json
 import math
 import sys
-from pathlib import Path
 from typing import Any
 
 from worm_model.calc.calculator import CalculatorError, efficiencies, forces, make_gearbox, to_json_ready
@@ -74,28 +73,38 @@ def build_parser() -> argparse.ArgumentParser:
     g = p.add_argument_group("geometry (defaults: the rig file)")
     g.add_argument("--rig", type=existing_file, default=None,
                    help="rig parameter YAML the defaults come from (default: the bundled NMRV030 rig)")
-    g.add_argument("--r-worm", type=number("m", 0, MAX_RADIUS, open_low=True, what="worm pitch radius"), default=None, metavar="M", help="worm pitch radius r_w [m], > 0")
-    g.add_argument("--r-gear", type=number("m", 0, MAX_RADIUS, open_low=True, what="gear pitch radius"), default=None, metavar="M", help="gear pitch radius r_g [m], > 0")
-    g.add_argument("--lead-angle-deg", type=number("deg", 0, 90, open_low=True, open_high=True, what="lead angle"), default=None, metavar="DEG",
+    g.add_argument("--r-worm", type=number("m", 0, MAX_RADIUS, open_low=True, what="worm pitch radius"), default=None,
+                   metavar="M", help="worm pitch radius r_w [m], > 0")
+    g.add_argument("--r-gear", type=number("m", 0, MAX_RADIUS, open_low=True, what="gear pitch radius"), default=None,
+                   metavar="M", help="gear pitch radius r_g [m], > 0")
+    g.add_argument("--lead-angle-deg", type=number("deg", 0, 90, open_low=True, open_high=True, what="lead angle"),
+                   default=None, metavar="DEG",
                    help="worm lead angle lambda at the pitch radius [deg], in (0, 90)")
-    g.add_argument("--pressure-angle-deg", type=number("deg", 0, 90, open_high=True, what="pressure angle"), default=None, metavar="DEG",
+    g.add_argument("--pressure-angle-deg", type=number("deg", 0, 90, open_high=True, what="pressure angle"),
+                   default=None, metavar="DEG",
                    help="normal pressure angle phi_n [deg], in [0, 90)")
     f = p.add_argument_group("forces from torques (needs --tau-in and --tau-load)")
-    f.add_argument("--tau-in", type=number("N m", -MAX_TORQUE, MAX_TORQUE, what="input torque"), default=None, metavar="NM",
+    f.add_argument("--tau-in", type=number("N m", -MAX_TORQUE, MAX_TORQUE, what="input torque"),
+                   default=None, metavar="NM",
                    help="torque on the worm shaft [N m], + drives + worm rotation")
-    f.add_argument("--tau-load", type=number("N m", -MAX_TORQUE, MAX_TORQUE, what="load torque"), default=None, metavar="NM",
+    f.add_argument("--tau-load", type=number("N m", -MAX_TORQUE, MAX_TORQUE, what="load torque"),
+                   default=None, metavar="NM",
                    help="load torque on the gear shaft [N m], + opposes the motion that + worm rotation drives")
-    f.add_argument("--omega", type=number("rad/s", -MAX_SPEED, MAX_SPEED, what="worm speed"), default=None, metavar="RAD_S",
+    f.add_argument("--omega", type=number("rad/s", -MAX_SPEED, MAX_SPEED, what="worm speed"),
+                   default=None, metavar="RAD_S",
                    help="worm speed [rad/s]; its sign is the direction of motion and its size gives the "
                         "sliding velocity and powers (default: direction of --tau-in, no powers); 0 = standstill")
     f.add_argument("--alpha-worm", type=number("rad/s^2", -MAX_ACCELERATION, MAX_ACCELERATION,
                                                       what="worm acceleration"), default=None, metavar="RAD_S2",
                    help="worm angular acceleration [rad/s^2] (default 0, quasi-static); the gear's is i times it")
-    f.add_argument("--worm-inertia", type=number("kg m^2", 0, MAX_INERTIA, what="worm inertia"), default=None, metavar="KGM2",
+    f.add_argument("--worm-inertia", type=number("kg m^2", 0, MAX_INERTIA, what="worm inertia"),
+                   default=None, metavar="KGM2",
                    help="inertia on the worm side of the measured tau_in [kg m^2] (default: the rig's worm shaft)")
-    f.add_argument("--gear-inertia", type=number("kg m^2", 0, MAX_INERTIA, what="gear inertia"), default=None, metavar="KGM2",
+    f.add_argument("--gear-inertia", type=number("kg m^2", 0, MAX_INERTIA, what="gear inertia"),
+                   default=None, metavar="KGM2",
                    help="inertia on the gear side of the measured tau_load [kg m^2] (default: the rig's gear shaft)")
-    f.add_argument("--switching-torque", type=number("N m", 0, MAX_TORQUE, what="switching torque"), default=None, metavar="NM",
+    f.add_argument("--switching-torque", type=number("N m", 0, MAX_TORQUE, what="switching torque"),
+                   default=None, metavar="NM",
                    help="switching torque tau_sw >= 0 [N m] for the mode (pseudo-resistive band); default 0")
     e = p.add_argument_group("efficiencies from a friction coefficient")
     e.add_argument("--mu", type=number("", 0, what="mu"), default=None,

@@ -31,7 +31,6 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -105,7 +104,8 @@ def read_calibration(path: str | os.PathLike[str]) -> CalibrationPoints:
     if doc.get("format") != FORMAT:
         raise ReportError(f"{origin}: field 'format' is {doc.get('format')!r}, expected {FORMAT!r}")
     if doc.get("version") != VERSION:
-        raise ReportError(f"{origin}: field 'version': unsupported version {doc.get('version')!r} (supported: {VERSION})")
+        raise ReportError(f"{origin}: field 'version': unsupported version {doc.get('version')!r} "
+                          f"(supported: {VERSION})")
     cols = {name: _column(doc, "points", name, origin) for name in COLUMNS}
     index = _column(doc, "points", "setpoint_index", origin)
     speeds = _column(doc, "grid", "speed_setpoints", origin)
@@ -126,7 +126,8 @@ def read_calibration(path: str | os.PathLike[str]) -> CalibrationPoints:
     outside = (index < 0) | (index >= np.array([len(speeds), len(torques)])) | (index != np.round(index))
     if outside.any():
         k = int(np.flatnonzero(outside.any(axis=1))[0])
-        raise ReportError(f"{origin}: field 'points.setpoint_index' is outside the grid at point {k}: {index[k].tolist()}")
+        raise ReportError(f"{origin}: field 'points.setpoint_index' is outside the grid "
+                          f"at point {k}: {index[k].tolist()}")
     rig = doc.get("rig")
     return CalibrationPoints(
         omega_worm=cols["omega_worm"], current_drive=cols["current_drive"], tau_load=cols["tau_load"],

@@ -136,7 +136,7 @@ def _weighted(values: np.ndarray, sigmas: np.ndarray) -> Estimate:
 def shape_of(records: list[CheckRecord]) -> HealthParameters:
     """The baseline's parameters: each the weighted mean of the checks' own fits."""
     mean = []
-    for k, name in enumerate(NAMES):
+    for name in NAMES:
         est = _weighted(np.array([getattr(r.parameters, name) for r in records]),
                         np.array([r.sigma[name] for r in records]))
         mean.append(est.value if math.isfinite(est.value) else getattr(records[0].parameters, name))

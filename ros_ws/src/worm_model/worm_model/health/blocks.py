@@ -142,7 +142,8 @@ def blocks_from_data(data: MeasuredData, ratio: float, block_time: float = BLOCK
         take = index[: m * size]
 
         def cut(values):
-            return None if values is None else np.asarray(values, dtype=float)[take].reshape(m, size)
+            return None if values is None else (
+                np.asarray(values, dtype=float)[take].reshape(m, size))  # noqa: B023 - cut runs only in this iteration
 
         sums = block_sums(cut(data.omega_worm), cut(data.current_drive), cut(data.tau_load),
                           ratio * cut(data.theta_worm), cut(te_all), cut(data.temperature), axis=1)

@@ -18,7 +18,8 @@ version 1 (current). Line 1 is the header ``{"format": "worm_gearbox_health_tren
 ``steady_points`` is the evidence: the run's steady points (worm_model.health.points.Points, SI), so
 that a later baseline can fit the check again. ``hours`` is null where unknown, ``backlash`` null
 without a gear encoder. The file is rewritten whole and atomically on every append (it is small: a
-line per check), so a crash leaves the old file or the new one. Every problem reading it raises :class:`TrendError` naming the file and the
+line per check), so a crash leaves the old file or the new one. Every problem reading it raises
+:class:`TrendError` naming the file and the
 line (``trend.jsonl: line 4: parameters.mu_scale: expected a finite number``).
 """
 from __future__ import annotations

@@ -164,7 +164,8 @@ class LiveModel:
         finite = np.isfinite(omega) & np.isfinite(current) & np.isfinite(load)
         valid = np.broadcast_to(f.valid, omega.shape)
         mu_valid = np.broadcast_to(f.mu_valid, omega.shape)
-        flags = np.where(~finite, _INVALID_INPUT, np.where(~valid, _STANDSTILL, np.where(~mu_valid, _MU_OUT_OF_BOUND, 0)))
+        flags = np.where(~finite, _INVALID_INPUT,
+                         np.where(~valid, _STANDSTILL, np.where(~mu_valid, _MU_OUT_OF_BOUND, 0)))
         mu_max = float(rig.gearbox.mu_engagement_max)
         columns = (f.normal_force, f.friction_force, f.mu, tau_sw, load, tau_in, mode, f.flank, flags)
         rows = zip(*(np.broadcast_to(c, omega.shape).tolist() for c in columns))

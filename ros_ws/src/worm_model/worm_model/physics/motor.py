@@ -41,7 +41,8 @@ def shaft_torque(motor: Motor, current: ArrayLike, omega: ArrayLike) -> FloatArr
 
 def steady_state_current(motor: Motor, voltage: ArrayLike, omega: ArrayLike) -> FloatArray:
     """i_ss = (V - K_e omega) / R [A]: Eq. 29 with di/dt = 0."""
-    return (np.asarray(voltage, dtype=float) - motor.back_emf_constant * np.asarray(omega, dtype=float)) / motor.resistance
+    return ((np.asarray(voltage, dtype=float) - motor.back_emf_constant * np.asarray(omega, dtype=float))
+            / motor.resistance)
 
 
 def exact_current_step(

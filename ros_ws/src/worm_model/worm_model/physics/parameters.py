@@ -445,7 +445,8 @@ def check_rig(rig: Rig, origin: str) -> None:
                 "in another unit?)")
     if rig.supply_voltage > SUPPLY_OVER_MOTOR * rig.drive_motor.max_voltage:
         raise ParameterError(
-            origin, "supply_voltage", f"{rig.supply_voltage:g} V is {rig.supply_voltage / rig.drive_motor.max_voltage:.3g}"
+            origin, "supply_voltage",
+            f"{rig.supply_voltage:g} V is {rig.supply_voltage / rig.drive_motor.max_voltage:.3g}"
             f" x the drive motor's max_voltage {rig.drive_motor.max_voltage:g} V: not a supply that motor runs on "
             "(a unit slip?)")
     if rig.friction.model not in FRICTION_MODELS:

@@ -88,7 +88,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "mu and inertias are never fitted below 0")
     p.add_argument("--candidates", default=",".join(EFFECTS),
                    help="comma-separated candidate effects to consider")
-    p.add_argument("--holdout-fraction", type=number("", 0, 1, open_low=True, open_high=True), default=d.holdout_fraction,
+    p.add_argument("--holdout-fraction", type=number("", 0, 1, open_low=True, open_high=True),
+                   default=d.holdout_fraction,
                    help="share of the time blocks held out (never fitted; used to rank and accept effects)")
     p.add_argument("--block", type=number("s", 0, 3600, open_low=True), default=d.block_seconds,
                    help="length of one block of the interleaved train/held-out split [s]")
@@ -98,14 +99,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="samples with |omega_worm| below this [rad/s] are not used (the model is kinetic)")
     p.add_argument("--min-improvement", type=number("", 0, 1, open_high=True), default=d.min_improvement,
                    help="relative held-out RMS improvement an effect must bring (besides a lower BIC) to be added")
-    p.add_argument("--max-effects", type=integer(0, len(EFFECTS)), default=d.max_effects, help="stop after this many effects")
+    p.add_argument("--max-effects", type=integer(0, len(EFFECTS)), default=d.max_effects,
+                   help="stop after this many effects")
     p.add_argument("--alpha-filter", type=number("s", 0, 10, open_low=True), default=ALPHA_TIME_CONSTANT,
                    help="time constant [s] of the zero-phase low-pass around the derivative of omega_worm "
                         "that gives the acceleration of the inertia term")
     p.add_argument("--reference-temperature", type=number("degC", -60, 250), default=d.reference_temperature,
                    help="oil temperature [degC] at which the rig file's mu holds: the oil_temperature effect scales "
                         "mu by 1 + mu_per_kelvin (T - this) when the data has a temperature column")
-    p.add_argument("--confidence", type=number("", 0, 1, open_low=True, open_high=True), default=d.confidence, help="level of the confidence intervals")
+    p.add_argument("--confidence", type=number("", 0, 1, open_low=True, open_high=True), default=d.confidence,
+                   help="level of the confidence intervals")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_epos_arguments(p)

@@ -69,7 +69,8 @@ class ExtendedModel:
         n = len(w)
         th = np.broadcast_to(np.asarray(theta_worm, dtype=float), (n,))
         return Signals(
-            t=np.arange(n) / self.rig.sensors.sample_rate_hz if t is None else np.broadcast_to(np.asarray(t, float), (n,)),
+            t=np.arange(n) / self.rig.sensors.sample_rate_hz if t is None
+            else np.broadcast_to(np.asarray(t, float), (n,)),
             omega=w, alpha=np.broadcast_to(np.asarray(alpha_worm, dtype=float), (n,)),
             theta_worm=th,
             theta_gear=self.rig.gearbox.ratio * th if theta_gear is None

@@ -270,7 +270,8 @@ def check_free(names: Iterable[str], origin: str = "<free>") -> list[str]:
     out: list[str] = []
     for k, name in enumerate(names):
         if not isinstance(name, str) or name.strip() not in FREE_PARAMETERS:
-            raise ParameterError(origin, f"free[{k}]", f"{name!r} cannot be free (allowed: {', '.join(FREE_PARAMETERS)})")
+            raise ParameterError(origin, f"free[{k}]", f"{name!r} cannot be free "
+                                                       f"(allowed: {', '.join(FREE_PARAMETERS)})")
         if name.strip() not in out:
             out.append(name.strip())
     return out

@@ -245,9 +245,11 @@ def write_plots(out: Path, problem: Problem, result: Analysis, progress: Callabl
     fig, axes = plt.subplots(2, 1, figsize=(10, 6.5))
     ho = split.held_out
     t = sig.t[ho]
-    axes[0].plot(t, declared.residual[ho], ".", ms=1, alpha=0.4, label=f"declared model: RMS {declared.rms_held_out:.4f} A")
+    axes[0].plot(t, declared.residual[ho], ".", ms=1, alpha=0.4,
+                 label=f"declared model: RMS {declared.rms_held_out:.4f} A")
     axes[0].plot(t, final.residual[ho], ".", ms=1, alpha=0.4, label=f"with effects: RMS {final.rms_held_out:.4f} A")
-    axes[0].set(xlabel="t [s]", ylabel="residual (measured - model) [A]", title="held-out residual of the drive current")
+    axes[0].set(xlabel="t [s]", ylabel="residual (measured - model) [A]",
+                title="held-out residual of the drive current")
     axes[0].legend(markerscale=8, loc="upper right")
     lim = np.nanpercentile(np.abs(declared.residual[ho]), 99.5) * 1.2 if ho.any() else 1.0
     bins = np.linspace(-lim, lim, 80)
@@ -423,7 +425,8 @@ def console_summary(problem: Problem, result: Analysis, tau_d: dict[str, float])
     if d.te is not None and f.te is not None:
         lines.append(f"held-out RMS error of the transmission error (theta_gear fitted too): before "
                      f"{d.te.rms_held_out * 1e3:.4f} mrad, after {f.te.rms_held_out * 1e3:.4f} mrad")
-    lines.append(f"held-out RMS error of tau_d estimated from the current: before {tau_d.get('before', math.nan):.5f} N m, "
+    lines.append("held-out RMS error of tau_d estimated from the current: "
+                 f"before {tau_d.get('before', math.nan):.5f} N m, "
                  f"after {tau_d.get('after', math.nan):.5f} N m per sample; averaged over 20 ms: before "
                  f"{tau_d.get('before_20ms', math.nan):.5f} N m, after {tau_d.get('after_20ms', math.nan):.5f} N m")
     lines.append(found_line(result))

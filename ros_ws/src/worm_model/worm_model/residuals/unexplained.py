@@ -79,13 +79,15 @@ def describe_unexplained(problem: Problem, final: Fit, noise: NoiseFloor) -> Une
         explained, centre, mean = explained_by_bins(x[held], r, bins, floor)
         peak = centre[np.argmax(np.abs(mean))] if len(mean) else math.nan
         found.append(Correlation(name, min(explained / excess, 1.0),
-                                 f"binned over {label}; largest bin mean {np.max(np.abs(mean)) if len(mean) else 0:.3g} A "
+                                 f"binned over {label}; "
+                                 f"largest bin mean {np.max(np.abs(mean)) if len(mean) else 0:.3g} A "
                                  f"at {peak:.3g}"))
     sigma = direction(sig)[held]
     for name, angle, orders in angles(sig):
         k, explained, amplitude = explained_by_orders(angle[held], sigma, r, orders, floor)
         found.append(Correlation(name, min(explained / excess, 1.0),
-                                 f"best order {k:g} per turn, amplitude {amplitude:.3g} A (each direction its own phase)"))
+                                 f"best order {k:g} per turn, amplitude {amplitude:.3g} A "
+                                 "(each direction its own phase)"))
     found.sort(key=lambda c: -c.share)
     rms_after = float(np.sqrt(np.mean(r**2)))
     return Unexplained(math.sqrt(excess), rms_after / floor, found)

@@ -34,7 +34,6 @@ from worm_model.rig_data.schema import (
 )
 from worm_model.rig_data.samples import SAMPLE_TOPICS, SAMPLE_TYPES, iter_samples, recorded_name
 from worm_model.bags.reader import BagReader
-from worm_model.bags.typestore import BagRecordingError
 from worm_model.files.writing import Output, atomic_dir, atomic_file
 from worm_model.rig_data.plausibility import check_rig_data
 from worm_model.bags.writer import BagWriter
@@ -268,7 +267,8 @@ def csv_to_bag(csv_path: Path | str, bag: Path | str, storage: str = 'mcap',
     """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample; returns the message count.
 
     The CSV is read and checked whole first (every stamp a bag can hold; with ``rig``, its units against
-    the rig as every reader of rig data checks them, worm_model.rig_data.plausibility), and the bag is written in a temporary folder beside
+    the rig as every reader of rig data checks them, worm_model.rig_data.plausibility), and the bag is
+    written in a temporary folder beside
     ``bag`` and renamed at the end, so a bad file or a failed write leaves no bag (worm_model.files.writing:
     ``force`` replaces only a bag ``bag import`` wrote).
 

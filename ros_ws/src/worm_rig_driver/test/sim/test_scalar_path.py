@@ -236,7 +236,7 @@ def test_truth_and_applied_load_need_a_sample_first() -> None:
     with pytest.raises(RuntimeError):
         sim.truth()
     with pytest.raises(RuntimeError):
-        sim.applied_load_torque
+        sim.applied_load_torque  # noqa: B018 - reading the property is what must raise
     sim.sample()
     assert sim.truth().omega_worm.shape == (1,)
 

@@ -26,7 +26,9 @@ RIPPLE_ORDER = RIG.sensors.tacho_ripple_order  # 7 on the bundled rig
 
 
 def _state(n: int, current=0.0, omega=0.0, theta=0.0, current_load=0.0) -> PlantState:
-    full = (lambda x: np.broadcast_to(np.asarray(x, float), (n,)).copy())
+    def full(x):
+        return np.broadcast_to(np.asarray(x, float), (n,)).copy()
+
     return PlantState(full(current), full(omega), full(theta), full(current_load))
 
 
@@ -225,7 +227,8 @@ def test_load_torque_is_load_torque_constant_times_summed_load_currents() -> Non
                                rtol=1e-12, atol=1e-15)
     # and it estimates the applied torque count * K_t * i within the noise
     applied = RIG.load_motor_count * RIG.load_motor.torque_constant * per_motor
-    assert np.abs(m.tau_load - applied).max() < RIG.load_motor.torque_constant * 2 * (5 * RIG.sensors.current_noise_std + LSB)
+    assert (np.abs(m.tau_load - applied).max()
+            < RIG.load_motor.torque_constant * 2 * (5 * RIG.sensors.current_noise_std + LSB))
 
 
 def test_status_and_voltage_pass_through() -> None:

@@ -111,7 +111,8 @@ class FilPlant:
         mean = float(self.load_currents.mean())
         # The plant's load model is a current source: hold it at what the armatures carry.
         self.sim.plant.state.current_load[:] = mean
-        self.sim.command(voltage_drive=volts[0], load_torque=rig.load_motor_count * rig.load_motor.torque_constant * mean)
+        self.sim.command(voltage_drive=volts[0],
+                         load_torque=rig.load_motor_count * rig.load_motor.torque_constant * mean)
         return self.sim.sample()
 
     def analogue(self, m: Measurement, inputs: FilInputs) -> None:

@@ -213,7 +213,8 @@ def closed_loop(args: argparse.Namespace, loop: FirmwareInTheLoop, nodes: Nodes)
                                     "handshakes", "rx_discarded_bytes", "fw_rx_crc_errors", "fw_rx_seq_gaps",
                                     "fw_watchdog_stops", "fw_stack_free") if k in stats))
     rate = stats.get("telemetry_rate_hz", math.nan)
-    print(f"fil: frames={stats.get('telemetry', 0)} rate_hz={float(rate):.1f} crc_errors={stats.get('rx_crc_errors', 0)} "
+    print(f"fil: frames={stats.get('telemetry', 0)} rate_hz={float(rate):.1f} "
+          f"crc_errors={stats.get('rx_crc_errors', 0)} "
           f"seq_gaps={stats.get('seq_gaps', 0)} watchdog_stop_ms={stop_s * 1e3:.1f}", flush=True)
     return 0
 

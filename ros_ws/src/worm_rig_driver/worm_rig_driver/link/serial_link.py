@@ -143,7 +143,7 @@ class SerialLink:
                 if samples:
                     self.on_samples(samples)
                 self._drain_logs()
-            except Exception:  # a bug downstream must not end the thread that owns the port
+            except Exception:  # noqa: BLE001 - a bug downstream must not end the thread that owns the port
                 self.core.stats.internal_errors += 1
                 if self.core.stats.internal_errors == 1:
                     traceback.print_exc()

@@ -355,7 +355,8 @@ def markdown_table() -> str:
     return "\n".join(out) + "\n"
 
 
-MARK_BEGIN = "<!-- BEGIN GENERATED FRAME TABLE (python -m worm_rig_driver.protocol.table --markdown docs/protocol.md) -->"
+MARK_BEGIN = ("<!-- BEGIN GENERATED FRAME TABLE "
+              "(python -m worm_rig_driver.protocol.table --markdown docs/protocol.md) -->")
 MARK_END = "<!-- END GENERATED FRAME TABLE -->"
 
 

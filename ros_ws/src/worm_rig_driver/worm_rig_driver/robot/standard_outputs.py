@@ -16,7 +16,8 @@ max_load_torque), goes out as NaN, from the first such sample until SETTLE (10 m
 in a row: the estimate is judged on every sample, published or not, and the samples at the edges
 of a flagged stretch (a reversal's first and last few, where the estimator has lost its model or is
 finding it again) are not trusted either. Nor is the first START (50 ms) after the estimator's start
-or restart (a drive breaking away from standstill, where an observer has yet to find the load). An AMBIGUOUS estimate (the self-locking V, the filter on
+or restart (a drive breaking away from standstill, where an observer has yet to find the load). An
+AMBIGUOUS estimate (the self-locking V, the filter on
 the branch it is on, its uncertainty reaching the other) is the estimator's best value and goes out
 as it is.
 

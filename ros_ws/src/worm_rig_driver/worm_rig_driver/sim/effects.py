@@ -62,7 +62,6 @@ import os
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
@@ -1129,11 +1128,12 @@ def _main(argv: list[str] | None) -> int:
                     "effects file with every effect at its defaults, or check an effects file.")
     parser.add_argument("--list", action="store_true", help="print every effect, what it changes and its "
                         "parameters with unit, default and meaning")
-    parser.add_argument("--template", metavar="FILE", type=output_path, help="write a worm_rig_effects file with every effect at "
-                        "its defaults ('-' for stdout); an existing file is replaced only with --force, and only a template "
-                        "worm_effects wrote")
+    parser.add_argument("--template", metavar="FILE", type=output_path,
+                        help="write a worm_rig_effects file with every effect at its defaults ('-' for stdout); "
+                             "an existing file is replaced only with --force, and only a template worm_effects wrote")
     parser.add_argument("--force", action="store_true", help="let --template replace a template it wrote before")
-    parser.add_argument("--check", metavar="FILE", type=existing_file, help="read an effects file and print what it switches on")
+    parser.add_argument("--check", metavar="FILE", type=existing_file,
+                        help="read an effects file and print what it switches on")
     args = parser.parse_args(argv)
     if not (args.list or args.template is not None or args.check):
         parser.print_help()

@@ -37,7 +37,6 @@ from __future__ import annotations
 import os
 import select
 import signal
-import sys
 import time
 import tty
 from collections.abc import Callable
