@@ -526,8 +526,9 @@ def parameter_cases() -> list[Case]:
              "output:=b"), stderr_has="1bad"),
         Case("recorder an unknown storage", _node("recorder", "-p", "storage:=nosuch", "-p", "output:=b"),
              stderr_has="storage"),
-        Case("estimator_node an invalid topic name", _node("estimator_node", "-p", "input:=joint_state", "-p",
-                                                           "joint_names:=[elbow]", "-p", "joint_state_topic:=bad topic"),
+        Case("estimator_node an invalid topic name",
+             _node("estimator_node", "-p", "input:=joint_state", "-p", "joint_names:=[elbow]", "-p",
+                   "joint_state_topic:=bad topic"),
              stderr_has="bad topic"),
         Case("controller_node an invalid topic name", _node("controller_node", "-p", "feedforward_topic:=1bad"),
              stderr_has="1bad"),
@@ -725,8 +726,9 @@ def _policy_fixtures(folder: Path, f: dict[str, Path], data, cal_doc: dict, put)
     put("effects_template.yaml", template())
 
     # the shipped graph with an estimator_node beside the rig's own estimator, as a user adds one
-    graph = default_graph_file().read_text(encoding="utf-8").replace(
-        "    publish_estimate: true", "    publish_estimate: false") + "estimator_node:\n  ros__parameters:\n    method: observer\n"
+    graph = (default_graph_file().read_text(encoding="utf-8")
+             .replace("    publish_estimate: true", "    publish_estimate: false")
+             + "estimator_node:\n  ros__parameters:\n    method: observer\n")
     put("graph.yaml", graph)
     put("graph_bom.yaml", b"\xef\xbb\xbf" + graph.encode())
     put("graph_anchor.yaml",
