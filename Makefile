@@ -6,6 +6,11 @@ RUN := tools/run.sh
 ROS_DISTRO ?= kilted
 export ROS_DISTRO
 TESTS ?=
+# Test files run two at a time (pytest-xdist, a file's tests together in one worker; each worker's DDS domains
+# are its own, worm_model.ros.testing.local_domain): most system tests wait on the rig's real time, not on a
+# core. JOBS=1 runs them one after another.
+JOBS ?= 2
+PARALLEL := $(if $(filter 1,$(JOBS)),,-n $(JOBS) --dist loadfile)
 
 setup:
 	@bash tools/setup.sh
@@ -19,7 +24,7 @@ evaluate: setup
 	@$(RUN) python -m torque_estimator.evaluation.evaluate --out out/evaluate --force
 
 test: setup
-	@$(RUN) python -m pytest $(TESTS)
+	@$(RUN) python -m pytest $(PARALLEL) $(TESTS)
 
 # The system tests: nodes as processes over DDS, the driver over a pty, the firmware in simavr, the demo, the
 # README's commands, Foxglove decoding our bags. Left out: the tests that never touch ROS (residual analysis on
@@ -29,7 +34,7 @@ NOT_SYSTEM := tests/test_residuals_cases.py tests/test_residuals_sim.py tests/te
               tests/test_layout.py tests/test_package_deps.py tests/test_lint.py
 SYSTEM_TESTS := $(filter-out $(NOT_SYSTEM),$(sort $(wildcard tests/test_*.py)))
 test-system: setup
-	@$(RUN) python -m pytest $(SYSTEM_TESTS) $(TESTS)
+	@$(RUN) python -m pytest $(PARALLEL) $(SYSTEM_TESTS) $(TESTS)
 
 bench: setup
 	@$(RUN) python bench/run_all.py

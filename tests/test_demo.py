@@ -8,17 +8,17 @@ hold the live runs' estimates.
 from __future__ import annotations
 
 import os
-import random
 import re
 import subprocess
 import sys
 from pathlib import Path
 
 from worm_model.bags.writer import read_bag_counts
+from worm_model.ros.testing import local_domain
 
 
 def test_demo_runs_end_to_end(tmp_path: Path) -> None:
-    env = dict(os.environ, ROS_DOMAIN_ID=str(random.randint(100, 230)), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    env = dict(os.environ, **local_domain({}))  # a domain of its own (this xdist worker's share)
     out = tmp_path / "demo"
     done = subprocess.run([sys.executable, "-m", "torque_estimator.demo.demo", "--out", str(out)],
                           env=env, capture_output=True, text=True, timeout=300)

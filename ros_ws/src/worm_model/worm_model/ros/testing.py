@@ -29,14 +29,25 @@ from rclpy.node import Node
 RANDOM_DOMAINS = (100, 230)
 
 
+def _domains() -> tuple[int, int]:
+    """RANDOM_DOMAINS, or this pytest-xdist worker's share of them (workers gw0, gw1, ... draw from disjoint
+    ranges, so two test modules running at once never meet on one domain)."""
+    low, high = RANDOM_DOMAINS
+    worker, count = os.environ.get("PYTEST_XDIST_WORKER", ""), os.environ.get("PYTEST_XDIST_WORKER_COUNT", "")
+    if not (worker.startswith("gw") and worker[2:].isdigit() and count.isdigit() and int(count) > 1):
+        return low, high
+    size = (high - low + 1) // int(count)
+    first = low + int(worker[2:]) % int(count) * size
+    return first, first + size - 1
+
+
 def local_domain(environ: Mapping[str, str] | None = None) -> dict[str, str]:
     """ROS_DOMAIN_ID and ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST for a run of its own.
 
     Args:
         environ: where a ROS_DOMAIN_ID set by the caller is looked for; ``os.environ`` when None.
     """
-    domain = (os.environ if environ is None else environ).get("ROS_DOMAIN_ID") or str(
-        random.randint(*RANDOM_DOMAINS))
+    domain = (os.environ if environ is None else environ).get("ROS_DOMAIN_ID") or str(random.randint(*_domains()))
     return {"ROS_DOMAIN_ID": domain, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
 
 
