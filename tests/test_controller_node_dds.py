@@ -217,7 +217,9 @@ controller_node:
         executor.spin_until_future_complete(future, timeout_sec=30.0)
         assert future.done() and all(r.successful for r in future.result().results), future.result()
         pi_alone = step_response(0.2)
-    # measured in 8 runs (4 with a CPU hog): 0.97-1.07 with the rig's feedforward, 0.32-0.36 without
-    assert at_rig > 0.8 and pi_alone < 0.45, (at_rig, pi_alone, f"logs in {graph.log_dir}")
+    # measured in 8 runs (4 with a CPU hog): 0.97-1.07 with the rig's feedforward, 0.32-0.36 without; 0.79 once
+    # with another test file running beside it (the step detector fired a few samples later): the bar sits
+    # between that and twice what the PI alone gets
+    assert at_rig > 0.7 and pi_alone < 0.45, (at_rig, pi_alone, f"logs in {graph.log_dir}")
     assert not graph.failed(), graph.failed()
     assert set(graph.stop().values()) == {0}
