@@ -58,3 +58,17 @@ def start_graph(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactor
                     .read_text(errors="replace")[-4000:] for logs, c in unclean.items() for name, code in c.items()
                     if code != 0)
     assert not unclean, f"nodes did not exit cleanly (exit codes by log folder): {unclean}{tails}"
+
+
+#: the test files that take minutes each: `make test` runs files two at a time (pytest-xdist, in collection
+#: order), so they start first; started last, they would leave one worker alone at the end
+SLOWEST_FILES = ("tests/test_residuals_cases.py", "tests/test_readme_figures.py", "tests/test_bad_input_probe.py",
+                 "torque_estimator/test/health/test_study.py")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    def rank(item: pytest.Item) -> int:  # the longest first; the rest as found (a stable sort)
+        path = item.path.as_posix()
+        return next((k for k, name in enumerate(SLOWEST_FILES) if path.endswith(name)), len(SLOWEST_FILES))
+
+    items.sort(key=rank)
