@@ -6,12 +6,16 @@ worm_model.ros.testing, so that the bench scripts can use them too.
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
 
 from torque_estimator.graph.runner import Graph, process_file_name
+
+# the tests' own helper modules (markdown_tables): importable by name from every test here
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 from worm_model.ros.testing import local_domain
 
 

@@ -16,6 +16,7 @@ import re
 from pathlib import Path
 
 import pytest
+from markdown_tables import table
 
 REPO = Path(__file__).resolve().parents[1]
 SRC = REPO / "ros_ws" / "src"
@@ -30,18 +31,6 @@ def text(path: Path) -> str:
 def prose(page: str) -> str:
     """The page without its fenced code blocks (commands and program output are quoted, not stated)."""
     return re.sub(r"^```.*?^```", "", page, flags=re.S | re.M)
-
-
-def table(page: str, first_header: str) -> list[list[str]]:
-    """The rows (cells stripped) of the markdown table whose header row starts with ``| first_header |``."""
-    lines = page.splitlines()
-    start = next(i for i, line in enumerate(lines) if line.startswith(f"| {first_header} |"))
-    rows = []
-    for line in lines[start + 2:]:
-        if not line.startswith("|"):
-            break
-        rows.append([cell.strip() for cell in line.strip().strip("|").split("|")])
-    return rows
 
 
 def names(cell: str) -> list[str]:
@@ -193,7 +182,7 @@ def console_scripts(package: str) -> set[str]:
 
 
 def test_the_package_table_names_every_executable() -> None:
-    rows = table(text(REPO / "README.md"), "package")
+    rows = table(text(REPO / "README.md"), "| package |")
     stated = {names(row[0])[0]: set(names(row[1])) for row in rows}
     assert set(stated) == set(PACKAGES)
     for package in PACKAGES:
@@ -207,8 +196,8 @@ def source_text() -> str:
 
 def test_the_topic_tables_name_topics_the_code_uses() -> None:
     code = source_text()
-    readme = {t for row in table(text(REPO / "README.md"), "topic") for t in names(row[0])}
-    full = {t for row in table(text(REPO / "docs" / "running.md"), "topic") for t in names(row[0])}
+    readme = {t for row in table(text(REPO / "README.md"), "| topic |") for t in names(row[0])}
+    full = {t for row in table(text(REPO / "docs" / "running.md"), "| topic |") for t in names(row[0])}
     assert readme == full, readme ^ full
     for topic in full:
         assert f'"{topic}"' in code, f"{topic}: no such topic in the sources"
@@ -216,7 +205,7 @@ def test_the_topic_tables_name_topics_the_code_uses() -> None:
 
 def test_the_csv_schema_table_is_the_schema() -> None:
     from worm_model.rig_data.schema import OPTIONAL_COLUMNS, REQUIRED_COLUMNS
-    rows = table(text(REPO / "docs" / "bags-and-tools.md"), "column")
+    rows = table(text(REPO / "docs" / "bags-and-tools.md"), "| column |")
     units = {"N·m": "N m", "°C": "degC"}
     stated = {names(row[0])[0]: (units.get(row[1], row[1]), row[2].startswith("required")) for row in rows}
     expected = {**{c: (u, True) for c, u in REQUIRED_COLUMNS.items()},
@@ -226,7 +215,7 @@ def test_the_csv_schema_table_is_the_schema() -> None:
 
 
 def test_the_distribution_table_is_the_lock_files() -> None:
-    for row in table(text(REPO / "docs" / "distributions.md"), "`ROS_DISTRO`"):
+    for row in table(text(REPO / "docs" / "distributions.md"), "| `ROS_DISTRO` |"):
         lock = names(row[1])[0]
         version = re.match(r"[\d.]+", row[2]).group(0)
         assert re.search(rf"^ros-rclpy=={re.escape(version)}$", text(REPO / lock), flags=re.M), (lock, version)

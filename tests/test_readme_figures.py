@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from markdown_tables import table
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.control.rig_feedforward import FEEDFORWARD_FALSE_ALARM, feedforward_estimator
@@ -43,19 +44,6 @@ GRID = CalibrationGrid.paper(RIG)
 
 def page(name: str) -> str:
     return (REPO / ("README.md" if name == "README.md" else f"docs/{name}")).read_text(encoding="utf-8")
-
-
-def table(text: str, header: str) -> list[list[str]]:
-    """The rows (cells stripped) of the markdown table whose header row starts with ``header``."""
-    lines = text.splitlines()
-    start = next((i for i, line in enumerate(lines) if line.startswith(header)), None)
-    assert start is not None, f"no table {header!r}"
-    rows = []
-    for line in lines[start + 2:]:
-        if not line.startswith("|"):
-            break
-        rows.append([cell.strip() for cell in line.strip().strip("|").split("|")])
-    return rows
 
 
 def figures(text: str) -> list[str]:
