@@ -105,10 +105,12 @@ def test_killed_model_node_leaves_the_control_path_alone_then_rejoins(graph) -> 
     g, s = graph
     s.clear()
     killed = kill(g, "model_node")
-    s.spin_for(1.0)
+    # counted, not timed: a probe starved by a busy machine receives fewer messages per second
+    assert s.spin_until(lambda: len(s.estimates) > 100 and len(s.commands) >= 20, START_TIMEOUT), (
+        f"the estimate or the commands stopped with model_node; logs in {g.log_dir}")
     # forces are stamped with their sample's stamp: none of a sample taken after the kill
     assert max((stamp_s(f.header) for f in s.forces), default=0.0) < killed, "forces after model_node died"
-    assert len(s.estimates) > 100 and all(c.feedforward_torque > 0 for c in s.commands[-20:])
+    assert all(c.feedforward_torque > 0 for c in s.commands[-20:])
     restart(g, "model_node")
     s.clear()
     assert s.spin_until(lambda: len(s.forces) > 10, START_TIMEOUT), f"model_node did not rejoin; logs in {g.log_dir}"
@@ -124,14 +126,20 @@ def test_killed_rig_restarts_and_the_graph_follows(graph) -> None:
     s.spin_for(1.0)  # keeps what was in flight: the last estimate stamp is the last one that got out
     assert max(stamp_s(x.header) for x in s.samples) < killed, "samples after the rig died"
     last = max(stamp_s(e.header) for e in s.estimates)
-    late = [c for c in s.commands if stamp_s(c.header) > last + ESTIMATE_TIMEOUT + 0.005]
-    assert len(late) > 10, f"the controller stopped sending commands ({len(late)} after the rig died)"
+
+    def commands_after_the_rig() -> list:
+        return [c for c in s.commands if stamp_s(c.header) > last + ESTIMATE_TIMEOUT + 0.005]
+    assert s.spin_until(lambda: len(commands_after_the_rig()) > 10, START_TIMEOUT), (
+        f"the controller stopped sending commands ({len(commands_after_the_rig())} after the rig died)")
+    late = commands_after_the_rig()
     assert all(c.feedforward_torque == 0.0 for c in late), "a stale estimate was fed forward"
     restart(g, "sim_node")
     assert s.spin_until(lambda: len(s.samples) > 2000, START_TIMEOUT), f"no samples after the restart ({g.log_dir})"
     s.load.publish(LoadCommand(torque=0.1))  # the restarted rig also got the latched one, if its publisher lives
     s.clear()
-    s.spin_for(1.5)
+    # 1.5 s of rig time (its samples), however long the probe takes to receive them
+    assert s.spin_until(lambda: len(s.samples) >= 1500 and len(s.estimates) > 100, START_TIMEOUT), (
+        f"{len(s.samples)} samples, {len(s.estimates)} estimates after the restart; logs in {g.log_dir}")
     assert abs(sum(x.omega_worm for x in s.samples[-200:]) / 200 - 150.0) < 3.0, "the controller did not take it"
     assert len(s.estimates) > 100 and s.commands[-1].feedforward_torque > 0
 
