@@ -25,9 +25,9 @@ model still propagates with the last valid voltage, the missing-data Kalman step
 raises. AMBIGUOUS in the self-locking V (μ(ω̂) > cos φ_n tan λ): the filter stays on the branch it
 is on (continuity), the uncertainty reaches the other branch. OUT_OF_CALIBRATION when |τ̂| − 2u
 exceeds what the load motors can apply (Rig.max_load_torque, or the calibration's range if
-larger) or |ω̂| exceeds the calibrated speeds by 10 %. TRANSIENT while the τ_d variance is above
-twice its value before the last detected jump (the estimate is still converging), and during the
-initial convergence.
+larger) or |ω̂| exceeds the calibrated speeds by 10 %. TRANSIENT while the τ_d variance is still
+converging after the filter's start or a detected jump (convergence: back within twice its value before
+the jump, or no longer falling).
 
 Cost: one :meth:`LoadObserver.update` takes ~50 us of CPU (bench/observer_bench.py,
 observer_update_cpu; ~200 us with numpy throughout). On a 7-state filter numpy's fixed cost per
@@ -52,7 +52,7 @@ from worm_model.physics.dynamics import inertia_at_flank_factor
 from worm_model.physics.parameters import Rig
 
 from torque_estimator.estimation.base import EstimateFlags
-from torque_estimator.estimation.observer.bounds import steady_filter
+from torque_estimator.estimation.observer.convergence import Convergence
 from torque_estimator.estimation.observer.discrete import (BACK_EMF_ERROR, CURRENT, N_STATES, OMEGA, RIPPLE_COS,
                                                            RIPPLE_SIN, TAU, THETA, Step, discretise)
 from torque_estimator.estimation.observer.glr import StepDetector
@@ -243,7 +243,7 @@ class LoadObserver:
         self.initialised = False
         self.voltage = 0.0  # last valid voltage [V]
         self._phi_prev: np.ndarray | None = None  # the last period's transition: onsets of the step detector
-        self.p_reference = math.inf  # τ_d variance before the last jump (TRANSIENT test)
+        self.convergence = Convergence()  # of the τ_d variance, after the start or a jump (TRANSIENT)
         self.jumps = 0  # detections so far
         self.samples = 0
         self.restarts = 0  # samples the filter was restarted from (RESTART_NIS, restart())
@@ -273,6 +273,7 @@ class LoadObserver:
                           self.noise.current_var, self.torque_limit ** 2, ripple_var, ripple_var,
                           self.load.back_emf_std ** 2])
         self.initialised = True
+        self.convergence.start()
 
     def _predict(self, voltage: float, mesh: tuple | None = None) -> None:
         """Propagate the filtered state over one period with V held (mean: nonlinear T_dist).
@@ -363,7 +364,7 @@ class LoadObserver:
         Pf = P - K @ PhT.T  # K S K' = P H' S⁻¹ H P (P symmetric)
         jump = None if self._phi_prev is None else self.detector.test(self._phi_prev, h, nu, s_inv, K)
         if jump is not None:  # corrected at once (glr): x̂ += F·Δ̂, P += F F'/C
-            self.p_reference = float(Pf[TAU, TAU])
+            self.convergence.start(float(Pf[TAU, TAU]))
             self.jumps += 1
             f = jump.signature
             xf, Pf = xf + f * jump.size, Pf + np.outer(f, f) / jump.information
@@ -379,10 +380,12 @@ class LoadObserver:
         x = self.x
         omega, tau = float(x[OMEGA]), float(x[TAU])
         mesh = self.map.mesh(omega, tau) if mesh is None else mesh
-        if self.p_reference == math.inf:
-            self.p_reference = self.steady_variance(omega, tau)
-        flags, u = judged(self.map, omega, tau, float(self.P[TAU, TAU]), mesh, (self.torque_limit, self.speed_limit),
-                          self.p_reference, extra_flags)
+        variance = float(self.P[TAU, TAU])
+        if self.convergence.transient(variance):
+            extra_flags |= EstimateFlags.TRANSIENT
+        # TRANSIENT decided above (no reference variance for judged's test)
+        flags, u = judged(self.map, omega, tau, variance, mesh, (self.torque_limit, self.speed_limit), math.inf,
+                          extra_flags)
         return ObserverEstimate(tau, u, flags, omega, float(x[CURRENT]), mesh[0], jump)
 
     def skip(self, samples: int) -> None:
@@ -404,7 +407,7 @@ class LoadObserver:
         self.initialised = False
         self.detector.clear()
         self._phi_prev = None
-        self.p_reference = math.inf
+        self.convergence.start()
 
     def _invalid(self, voltage) -> ObserverEstimate:
         bad = int(EstimateFlags.INVALID_INPUT)
@@ -418,10 +421,6 @@ class LoadObserver:
         return est
 
     # --- analysis ---------------------------------------------------------------------------
-    def steady_variance(self, omega: float, tau_d: float) -> float:
-        """Steady τ_d variance [(N m)²] of the filter (DARE, white-noise model) linearised at (ω, τ_d)."""
-        noise = self.noise.without_ripple()
-        return float(steady_filter(self.rig, omega, tau_d, self.period, noise, self.q)[2][3, 3])
 
 
 __all__ = ["MAX_SKIP", "RESTART_NIS", "STANDSTILL", "LoadObserver", "ObserverEstimate", "interval_measurement",
