@@ -15,6 +15,7 @@ Map:
 ``discrete``    the state layout and the exact zero-order-hold discretisation per J_eff
 ``noise``       NoiseFigures (from the rig file's sensors) and LoadProcess: what the gains follow from
 ``glr``         StepDetector: the generalised likelihood ratio test for load steps
+``convergence`` Convergence: whether the τ_d variance still settles after a start or a step (TRANSIENT)
 ``bounds``      the steady filter, its predicted noise, and the Cramér–Rao-type bounds
                 (steady_state_bound, jump_bound)
 ``estimator``   ObserverEstimator: the registry's "observer" (quasi-static ``estimate``, ``stream``)
