@@ -43,43 +43,6 @@ from graph_bench import cpu_seconds  # noqa: E402  (the same CPU accounting as t
 START_TIMEOUT = 60.0  # [s]
 PUBLISH_EVERY = 5
 
-PUBLISHER = """
-import sys, time
-import numpy as np
-import rclpy
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.time import Time
-from sensor_msgs.msg import JointState
-data = np.load(sys.argv[1])
-window = float(sys.argv[2])
-names = [str(n) for n in data["names"]]
-rclpy.init()
-node = rclpy.create_node("joint_state_broadcaster")
-pub = node.create_publisher(JointState, "/joint_states", QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE))
-while not pub.get_subscription_count():
-    time.sleep(0.05)
-time.sleep(2.0)  # the subscriber's side of the match
-order = list(range(len(names)))[::-1]  # the robot's order: reversed, the extra joint first
-position, velocity, effort = data["position"], data["velocity"], data["effort"]
-base = int(data["base_ns"])
-total = position.shape[0]
-print(f"publishing {total} messages", file=sys.stderr, flush=True)
-start = time.monotonic()
-for k in range(total):
-    msg = JointState(name=[names[j] for j in order], position=[float(position[k, j]) for j in order],
-                     velocity=[float(velocity[k, j]) for j in order], effort=[float(effort[k, j]) for j in order])
-    msg.header.stamp = Time(nanoseconds=base + k * 1_000_000).to_msg()
-    pub.publish(msg)
-    delay = start + (k + 1) * 1e-3 - time.monotonic()
-    if delay > 0:
-        time.sleep(delay)
-print("done", flush=True)
-time.sleep(2.5)  # /diagnostics reports at 1 Hz
-node.destroy_node()
-rclpy.try_shutdown()
-"""
 
 
 def info(text: str) -> None:
@@ -151,9 +114,11 @@ def run(args: argparse.Namespace) -> dict[str, float]:
     base = (time.time_ns() // 5_000_000) * 5_000_000
     extra = np.zeros((samples, 1))
     data = work / "joints.npz"
-    np.savez(data, names=np.array([*names, "wrist"]), base_ns=base,
-             position=np.hstack([sim["theta"] * ratio, extra]), velocity=np.hstack([sim["omega"] * ratio, extra]),
-             effort=np.hstack([sim["current"], extra]))
+    # the robot's order: reversed, an extra joint first
+    np.savez(data, names=np.array([*names, "wrist"])[::-1], base_ns=base,
+             position=np.hstack([sim["theta"] * ratio, extra])[:, ::-1],
+             velocity=np.hstack([sim["omega"] * ratio, extra])[:, ::-1],
+             effort=np.hstack([sim["current"], extra])[:, ::-1])
     graph_file = work / "graph.yaml"
     graph_file.write_text(
         "estimator_node:\n  ros__parameters:\n    input: joint_state\n"
@@ -175,7 +140,8 @@ def run(args: argparse.Namespace) -> dict[str, float]:
             deadline = time.monotonic() + START_TIMEOUT
             while not node.count_publishers(f"/torque_estimate/{names[-1]}") and time.monotonic() < deadline:
                 executor.spin_once(timeout_sec=0.1)
-            command = [sys.executable, "-c", PUBLISHER, str(data), str(args.window)]
+            # /diagnostics reports at 1 Hz: the publisher stays 2.5 s after its last message
+            command = [sys.executable, "-m", "worm_model.ros.joint_state_player", str(data), "--tail", "2.5"]
             if priority:
                 command = ["chrt", "-f", str(priority), *command]
             publisher = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=open(work / "publisher.log", "wb"),

@@ -95,35 +95,6 @@ def robot_states(true_file: Path, samples: int) -> dict[str, np.ndarray]:
     return {"position": theta * rig.gearbox.ratio, "velocity": omega * rig.gearbox.ratio, "effort": current}
 
 
-ROBOT = """
-import sys, time
-import numpy as np
-import rclpy
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.time import Time
-from sensor_msgs.msg import JointState
-data = np.load(sys.argv[1])
-rclpy.init()
-node = rclpy.create_node("joint_state_broadcaster")
-pub = node.create_publisher(JointState, "/joint_states", QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
-    durability=DurabilityPolicy.VOLATILE))
-while not pub.get_subscription_count():
-    time.sleep(0.05)
-time.sleep(1.0)
-base = time.time_ns() // 1_000_000 * 1_000_000
-start = time.monotonic()
-for k in range(len(data["velocity"])):
-    msg = JointState(name=["shoulder", "elbow"], position=[0.0, float(data["position"][k])],
-                     velocity=[0.0, float(data["velocity"][k])], effort=[0.0, float(data["effort"][k])])
-    msg.header.stamp = Time(nanoseconds=base + k * 1_000_000).to_msg()
-    pub.publish(msg)
-    delay = start + (k + 1) * 0.002 - time.monotonic()
-    if delay > 0:
-        time.sleep(delay)
-node.destroy_node()
-rclpy.try_shutdown()
-"""
 
 
 def test_every_step_of_the_page(ros_env: dict[str, str], tmp_path: Path) -> None:
@@ -162,7 +133,9 @@ def test_every_step_of_the_page(ros_env: dict[str, str], tmp_path: Path) -> None
 
     # 4. the estimator on the robot's /joint_states
     data = robot_states(true_file, 3000)
-    np.savez(tmp_path / "robot.npz", **data)
+    # the robot's joints: a shoulder (at rest) and the elbow, our drive
+    np.savez(tmp_path / "robot.npz", names=np.array(["shoulder", "elbow"]),
+             **{k: np.column_stack([np.zeros_like(v), v]) for k, v in data.items()})
     estimates: list = []
     joints: list = []
     qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=2000, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -177,7 +150,8 @@ def test_every_step_of_the_page(ros_env: dict[str, str], tmp_path: Path) -> None
             while not node.count_publishers("/torque_estimate/elbow") and time.monotonic() < deadline:
                 assert node_process.poll() is None, node_process.stdout.read()
                 executor.spin_once(timeout_sec=0.1)
-            robot = subprocess.Popen([sys.executable, "-c", ROBOT, str(tmp_path / "robot.npz")], env=ros_env)
+            robot = subprocess.Popen([sys.executable, "-m", "worm_model.ros.joint_state_player",
+                                      str(tmp_path / "robot.npz"), "--period", "0.002", "--wait", "1.0"], env=ros_env)
             while robot.poll() is None and time.monotonic() < deadline + 60.0:
                 executor.spin_once(timeout_sec=0.05)
             end = time.monotonic() + 1.0
