@@ -304,8 +304,10 @@ class MomentumObserver:
         if self.p_reference == math.inf:
             self.p_reference = steady_variance(self.rig, omega, tau, self.bandwidth, period=self.period,
                                                noise=self.noise, with_encoder=with_encoder)
-        flags, u = judged(self.map, omega, tau, float(self.P[TAU, TAU]), mesh, (self.torque_limit, self.speed_limit),
-                          self.p_reference, extra_flags)
+        variance = float(self.P[TAU, TAU])
+        if variance > 2.0 * self.p_reference:
+            extra_flags |= EstimateFlags.TRANSIENT
+        flags, u = judged(self.map, omega, tau, variance, mesh, (self.torque_limit, self.speed_limit), extra_flags)
         return ObserverEstimate(tau, u, flags, omega, self.current, mesh[0], jump)
 
     def _invalid(self) -> ObserverEstimate:

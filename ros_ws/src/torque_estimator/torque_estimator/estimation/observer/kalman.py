@@ -151,11 +151,11 @@ def interval_measurement(mean: float, var: float, low: float, high: float, unifo
 
 
 def judged(smap: StaticLoadMap, omega: float, tau: float, variance: float, mesh: tuple, limits: tuple[float, float],
-           p_reference: float, flags: int = 0) -> tuple[int, float]:
+           flags: int = 0) -> tuple[int, float]:
     """(flags, 1σ [N m]) of an estimate τ_d [N m] of ``variance`` [(N m)²] at ω [rad/s] (the module docstring's
     flags; mesh: StaticLoadMap.mesh there): AMBIGUOUS in the self-locking V, the uncertainty then reaching the
-    other arm; OUT_OF_CALIBRATION beyond the (torque [N m], speed [rad/s]) ``limits``; TRANSIENT while the
-    variance is above twice ``p_reference``. ``flags``: bits already set. The momentum observer's too."""
+    other arm; OUT_OF_CALIBRATION beyond the (torque [N m], speed [rad/s]) ``limits``. ``flags``: bits already
+    set (TRANSIENT is each observer's own test). The momentum observer's too."""
     u = math.sqrt(max(variance, 0.0))
     spread = smap.ambiguity(omega, tau, mesh[0], mesh[4], STANDSTILL)
     if spread is not None:
@@ -163,8 +163,6 @@ def judged(smap: StaticLoadMap, omega: float, tau: float, variance: float, mesh:
         u = max(u, spread)
     if abs(tau) - 2.0 * u > limits[0] or abs(omega) > limits[1]:
         flags |= EstimateFlags.OUT_OF_CALIBRATION
-    if variance > 2.0 * p_reference:
-        flags |= EstimateFlags.TRANSIENT
     return int(flags), u
 
 
@@ -383,9 +381,7 @@ class LoadObserver:
         variance = float(self.P[TAU, TAU])
         if self.convergence.transient(variance):
             extra_flags |= EstimateFlags.TRANSIENT
-        # TRANSIENT decided above (no reference variance for judged's test)
-        flags, u = judged(self.map, omega, tau, variance, mesh, (self.torque_limit, self.speed_limit), math.inf,
-                          extra_flags)
+        flags, u = judged(self.map, omega, tau, variance, mesh, (self.torque_limit, self.speed_limit), extra_flags)
         return ObserverEstimate(tau, u, flags, omega, float(x[CURRENT]), mesh[0], jump)
 
     def skip(self, samples: int) -> None:
@@ -419,8 +415,6 @@ class LoadObserver:
         self._predict(v)
         self._phi_prev = None  # no step onset across a missing sample
         return est
-
-    # --- analysis ---------------------------------------------------------------------------
 
 
 __all__ = ["MAX_SKIP", "RESTART_NIS", "STANDSTILL", "LoadObserver", "ObserverEstimate", "interval_measurement",
