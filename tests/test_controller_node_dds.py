@@ -17,7 +17,6 @@ discovery stays on this host (the ros_env fixture of tests/conftest.py).
 from __future__ import annotations
 
 import signal
-import time
 from collections.abc import Callable
 
 import pytest
@@ -27,7 +26,7 @@ from worm_msgs.msg import RigSample, RigSamples
 from torque_estimator.graph.runner import Graph
 from worm_model.rig_data.samples import unbatch
 from worm_model.ros.qos import COMMAND, STREAM
-from worm_model.ros.testing import probe_node
+from worm_model.ros.testing import probe_node, spin_until
 
 LIMIT = 3.0  # [V]
 PARAMS = f"""\
@@ -42,6 +41,15 @@ controller_node:
 """
 
 
+def rig_time(executor, last_seq: Callable[[], int | None], seconds: float, start_timeout: float,
+             timeout: float) -> None:
+    """Spin until the rig's clock has advanced by ``seconds`` (its samples' seqs; ``last_seq()``: the newest seq
+    received, None before any): the first sample within ``start_timeout`` [s], the advance within ``timeout``."""
+    assert spin_until(executor, lambda: last_seq() is not None, start_timeout), "no samples"
+    start = last_seq()
+    assert spin_until(executor, lambda: last_seq() - start >= seconds * 1000, timeout), "the rig stopped sampling"
+
+
 def test_output_limit_no_windup_and_the_watchdog_over_dds(start_graph: Callable[[str, str], Graph]) -> None:
     graph = start_graph(PARAMS, "controller")
     with probe_node("controller_test_probe") as (node, executor):
@@ -49,30 +57,21 @@ def test_output_limit_no_windup_and_the_watchdog_over_dds(start_graph: Callable[
         node.create_subscription(RigSamples, "/rig/samples", lambda m: samples.extend(unbatch(m)), STREAM)
         setpoint = node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND)
 
-        def spin_until(done: Callable[[], bool], timeout: float) -> bool:
-            deadline = time.monotonic() + timeout
-            while not done() and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.01)
-            return done()
+        def last_seq() -> int | None:
+            return samples[-1].seq if samples else None
 
-        def rig_time(seconds: float) -> None:
-            """Spin until the rig's clock has advanced by `seconds` (its samples' seqs)."""
-            assert spin_until(lambda: bool(samples), 10.0), "no samples"
-            start = samples[-1].seq
-            assert spin_until(lambda: samples[-1].seq - start >= seconds * 1000, 30.0), "the rig stopped sampling"
-
-        assert spin_until(lambda: bool(samples) and setpoint.get_subscription_count() > 0, 30.0), (
+        assert spin_until(executor, lambda: bool(samples) and setpoint.get_subscription_count() > 0, 30.0), (
             f"no samples or no controller; logs in {graph.log_dir}")
         setpoint.publish(Float64(data=300.0))
-        assert spin_until(lambda: samples[-1].voltage_drive == LIMIT, 15.0), "the limit was never reached"
+        assert spin_until(executor, lambda: samples[-1].voltage_drive == LIMIT, 15.0), "the limit was never reached"
         samples.clear()
-        rig_time(1.0)  # a worm that cannot reach the set-point
+        rig_time(executor, last_seq, 1.0, 10.0, 30.0)  # a worm that cannot reach the set-point
         assert all(s.voltage_drive == LIMIT for s in samples), sorted({s.voltage_drive for s in samples})
         assert all(s.status & RigSample.STATUS_DRIVE_LIMIT for s in samples[1:])
 
         setpoint.publish(Float64(data=0.0))
         samples.clear()
-        assert spin_until(lambda: bool(samples) and abs(samples[-1].voltage_drive) < 1.0, 15.0)
+        assert spin_until(executor, lambda: bool(samples) and abs(samples[-1].voltage_drive) < 1.0, 15.0)
         first_low = next(k for k, s in enumerate(samples) if abs(s.voltage_drive) < 1.0)
         # the first commands after the set-point change take the voltage down at once (no wound-up
         # integral to unwind: that would take seconds at ki = 0.02)
@@ -80,11 +79,11 @@ def test_output_limit_no_windup_and_the_watchdog_over_dds(start_graph: Callable[
 
         # the controller dies: the rig stops driving within its command_timeout, on its own clock
         setpoint.publish(Float64(data=40.0))
-        assert spin_until(lambda: bool(samples) and samples[-1].voltage_drive > 0.5, 15.0)
+        assert spin_until(executor, lambda: bool(samples) and samples[-1].voltage_drive > 0.5, 15.0)
         graph.processes["controller_node"].send_signal(signal.SIGKILL)
         graph.processes["controller_node"].wait(10)
         samples.clear()
-        rig_time(0.5)
+        rig_time(executor, last_seq, 0.5, 10.0, 30.0)
         stopped = next((s for s in samples if s.status & RigSample.STATUS_WATCHDOG_STOP), None)
         assert stopped is not None, "the rig kept driving without its controller"
         assert all(s.voltage_drive == 0.0 for s in samples if s.seq >= stopped.seq)
@@ -128,29 +127,20 @@ controller_node:
         node.create_subscription(RigSamples, "/rig/samples", lambda m: seqs.extend(s.seq for s in unbatch(m)), STREAM)
         load = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
 
-        def spin_until(done: Callable[[], bool], timeout: float) -> bool:
-            deadline = time.monotonic() + timeout
-            while not done() and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.05)
-            return done()
+        def last_seq() -> int | None:
+            return seqs[-1] if seqs else None
 
-        def rig_time(seconds: float) -> None:
-            """Spin until the rig's clock has advanced by `seconds` (its samples' seqs)."""
-            assert spin_until(lambda: bool(seqs), 30.0), f"no samples; logs in {graph.log_dir}"
-            start = seqs[-1]
-            assert spin_until(lambda: seqs[-1] - start >= seconds * 1000, 60.0), "the rig stopped sampling"
-
-        assert spin_until(lambda: bool(commands) and load.get_subscription_count() > 0, 30.0), (
+        assert spin_until(executor, lambda: bool(commands) and load.get_subscription_count() > 0, 30.0), (
             f"no speed commands; logs in {graph.log_dir}")
         load.publish(LoadCommand(torque=0.15))
         # the estimator may still be starting (a loaded machine: its first JointState came >3 s after the
         # controller's first command in CI): wait for the first feedforward, then for the speed to settle
-        assert spin_until(lambda: any(c.feedforward_torque for c in commands[-10:]), 60.0), (
+        assert spin_until(executor, lambda: any(c.feedforward_torque for c in commands[-10:]), 60.0), (
             f"no feedforward from the JointState source; logs in {graph.log_dir}")
-        rig_time(2.0)
+        rig_time(executor, last_seq, 2.0, 30.0, 60.0)
         commands.clear()
-        rig_time(1.0)
-        assert spin_until(lambda: len(commands) >= 100, 30.0), len(commands)
+        rig_time(executor, last_seq, 1.0, 30.0, 60.0)
+        assert spin_until(executor, lambda: len(commands) >= 100, 30.0), len(commands)
     expected = float(balancing_torque(load_rig(), 0.15, 150.0))
     fed = [c.feedforward_torque for c in commands]
     assert sum(fed) / len(fed) == pytest.approx(expected, rel=0.1), (
@@ -189,25 +179,17 @@ controller_node:
         node.create_subscription(RigSamples, "/rig/samples", lambda m: samples.extend(unbatch(m)), STREAM)
         load = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
 
-        def rig_time(seconds: float) -> None:
-            """Spin until the rig's clock has advanced by `seconds` (its samples' seqs)."""
-            deadline = time.monotonic() + 60.0
-            while not samples and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.01)
-            assert samples, f"no samples; logs in {graph.log_dir}"
-            start = samples[-1].seq
-            while samples[-1].seq - start < seconds * 1000 and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.01)
-            assert samples[-1].seq - start >= seconds * 1000, "the rig stopped sampling"
+        def last_seq() -> int | None:
+            return samples[-1].seq if samples else None
 
         def step_response(torque: float) -> float:
             """Apply a load step once the speed has settled; the voltage's mean change 5-15 samples after it,
             as a fraction of its change to the new steady state. Windows by the samples' seqs: a probe starved
             by a busy machine may miss some samples (best-effort stream), and must not shift the windows."""
-            rig_time(1.5)
+            rig_time(executor, last_seq, 1.5, 60.0, 60.0)
             first = len(samples)
             load.publish(LoadCommand(torque=torque))
-            rig_time(1.5)
+            rig_time(executor, last_seq, 1.5, 60.0, 60.0)
             start = max(first - 300, 0)
             got, new = samples[start:], first - start
             seq = np.array([s.seq for s in got])
@@ -222,11 +204,10 @@ controller_node:
             after = volts[seq > seq[-1] - 300].mean()
             return float((volts[(seq >= k + 5) & (seq < k + 16)].mean() - before) / (after - before))
 
-        deadline = time.monotonic() + 60.0  # the controller running and the worm up to speed
-        while (load.get_subscription_count() == 0 or not samples or samples[-1].omega_worm < 140.0) \
-                and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-        assert samples and samples[-1].omega_worm >= 140.0, f"the worm never reached speed; logs in {graph.log_dir}"
+        # the controller running and the worm up to speed
+        assert spin_until(executor, lambda: load.get_subscription_count() > 0 and bool(samples)
+                          and samples[-1].omega_worm >= 140.0, 60.0), (
+            f"the worm never reached speed; logs in {graph.log_dir}")
         at_rig = step_response(0.2)
         load.publish(LoadCommand(torque=0.0))
         client = AsyncParameterClient(node, "controller_node")  # what `ros2 param set` calls

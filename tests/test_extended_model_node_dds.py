@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +19,7 @@ import yaml
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from worm_msgs.msg import RigSamples, TorqueEstimate
 
-from worm_model.ros.testing import probe_node, rig_samples
+from worm_model.ros.testing import probe_node, rig_samples, spin_until
 from worm_model.physics.parameters import default_rig_path
 from worm_model.residuals.extended import ExtendedModel
 
@@ -43,13 +42,6 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     return model, calibration
-
-
-def spin_until(executor, done, timeout: float) -> bool:
-    deadline = time.monotonic() + timeout
-    while not done() and time.monotonic() < deadline:
-        executor.spin_once(timeout_sec=0.01)
-    return done()
 
 
 def steady_current(model_file: Path) -> float:

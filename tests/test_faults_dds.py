@@ -28,7 +28,7 @@ from torque_estimator.graph.runner import Graph, parse_overrides
 from worm_model.rig_data.samples import unbatch
 from worm_model.ros.ament import find_executable
 from worm_model.ros.qos import COMMAND, STREAM
-from worm_model.ros.testing import probe_node
+from worm_model.ros.testing import probe_node, spin_until
 
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
@@ -56,10 +56,7 @@ class Streams:
         self.load = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
 
     def spin_until(self, done: Callable[[], bool], timeout: float) -> bool:
-        deadline = time.monotonic() + timeout
-        while not done() and time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.02)
-        return done()
+        return spin_until(self.executor, done, timeout, step=0.02)
 
     def spin_for(self, seconds: float) -> None:
         self.spin_until(lambda: False, seconds)

@@ -41,7 +41,7 @@ from torque_estimator.estimation.database import load_database
 from torque_estimator.graph.runner import Graph, parse_overrides
 from worm_model.rig_data.samples import TRUTH_FIELDS, command_latencies, stamp_ns, unbatch
 from worm_model.ros.qos import COMMAND
-from worm_model.ros.testing import probe_node
+from worm_model.ros.testing import probe_node, spin_until
 
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
@@ -334,13 +334,8 @@ def test_sim_truth_samples_carry_every_sample_once_in_the_rig_batches(graph: Run
         node.create_subscription(RigSamples, "/rig/samples", lambda m: batches.setdefault(m.first_seq, m), PROBE_QOS)
         load = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
 
-        def spin_until(done: Callable[[], bool], timeout: float) -> bool:
-            deadline = time.monotonic() + timeout
-            while not done() and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.05)
-            return done()
-
-        assert spin_until(lambda: bool(truths and batches) and load.get_subscription_count() >= 1, START_TIMEOUT), \
+        assert spin_until(executor, lambda: bool(truths and batches) and load.get_subscription_count() >= 1,
+                          START_TIMEOUT), \
             f"/sim/truth_samples: {len(truths)} messages, /rig/samples: {len(batches)}\n{graph.logs()}"
         first, phase = truths[0][1].first_seq, None
 
@@ -353,12 +348,13 @@ def test_sim_truth_samples_carry_every_sample_once_in_the_rig_batches(graph: Run
             return newest - first >= TRUTH_SPAN
 
         try:
-            assert spin_until(stepping, 60.0), (f"/sim/truth_samples: {truths[-1][1].first_seq - first} samples "
-                                                f"of {TRUTH_SPAN} in 60 s\n{graph.logs()}")
+            assert spin_until(executor, stepping, 60.0), (
+                f"/sim/truth_samples: {truths[-1][1].first_seq - first} samples of {TRUTH_SPAN} in 60 s\n"
+                f"{graph.logs()}")
         finally:
             load.publish(LoadCommand(torque=0.0))  # no load for the tests after this one: wait till the rig has it
             end = truths[-1][1].first_seq
-            spin_until(lambda: truths[-1][1].first_seq > end and abs(truths[-1][1].tau_load[-1]) < 0.01, 10.0)
+            spin_until(executor, lambda: truths[-1][1].first_seq > end and abs(truths[-1][1].tau_load[-1]) < 0.01, 10.0)
     graph.assert_alive()
 
     # every batch whole; consecutive DDS numbers hold consecutive samples (a missed message: BATCH samples per number)

@@ -20,7 +20,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from worm_model.rig_data.samples import unbatch
 from worm_model.ros.ament import find_executable
 from worm_model.ros.qos import STREAM
-from worm_model.ros.testing import probe_node, stop_process
+from worm_model.ros.testing import probe_node, stop_process, spin_until
 
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
@@ -99,26 +99,20 @@ def test_every_documented_command(ros_env: dict[str, str], tmp_path: Path) -> No
             probe.create_subscription(__import__("worm_msgs.msg", fromlist=["RigSamples"]).RigSamples,
                                       "/rig/samples", lambda m: samples.extend(unbatch(m)), STREAM)
 
-            def spin_until(done, timeout: float) -> bool:
-                deadline = time.monotonic() + timeout
-                while not done() and time.monotonic() < deadline:
-                    executor.spin_once(timeout_sec=0.05)
-                return done()
-
-            assert spin_until(lambda: bool(samples), START_TIMEOUT), "the documented nodes did not stream"
+            assert spin_until(executor, lambda: bool(samples), START_TIMEOUT), "the documented nodes did not stream"
             recorder = subprocess.Popen(command(known["recorder"][0], tmp_path), env=ros_env,
                                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
             # the recorder has subscribed (model, this probe and it)
-            assert spin_until(lambda: probe.count_subscribers("/rig/samples") >= 3, START_TIMEOUT)
+            assert spin_until(executor, lambda: probe.count_subscribers("/rig/samples") >= 3, START_TIMEOUT)
             published = [topic_pub(probe, line) for line in pubs]
-            assert spin_until(lambda: all(pub.get_subscription_count() >= 1 for pub, _ in published), 30.0)
+            assert spin_until(executor, lambda: all(pub.get_subscription_count() >= 1 for pub, _ in published), 30.0)
             for pub, msg in published:  # `ros2 topic pub` repeats at 1 Hz: twice is enough here
                 pub.publish(msg)
-            spin_until(lambda: False, 1.0)
+            spin_until(executor, lambda: False, 1.0)
             for pub, msg in published:
                 pub.publish(msg)
             samples.clear()
-            spin_until(lambda: False, 3.0)
+            spin_until(executor, lambda: False, 3.0)
             speed = sum(s.omega_worm for s in samples[-500:]) / 500
             load = sum(s.tau_load for s in samples[-500:]) / 500
             assert speed == pytest.approx(150.0, abs=3.0) and load == pytest.approx(0.2, abs=0.01), (speed, load)

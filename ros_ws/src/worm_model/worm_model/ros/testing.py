@@ -6,6 +6,8 @@
   on this host.
 * :func:`probe_node`: a node in the test's own process, with its own context,
   taken down in the order rclpy needs (see lifecycle.py).
+* :func:`spin_until`: spins a probe's executor until a condition holds or a timeout
+  passes.
 * :func:`stop_process`: stops a node's process the way Ctrl-C does, and SIGKILLs
   it if it hangs.
 * :func:`rig_samples`: a worm_msgs/RigSamples batch with every field filled, from
@@ -17,6 +19,7 @@ import os
 import random
 import signal
 import subprocess
+import time
 from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 
@@ -70,6 +73,15 @@ def probe_node(name: str, executor_type: Callable[..., Executor] = SingleThreade
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def spin_until(executor: Executor, done: Callable[[], bool], timeout: float, step: float = 0.05) -> bool:
+    """Spin ``executor`` until ``done()`` is true or ``timeout`` [s] has passed (monotonic clock), each wait at
+    most ``step`` [s]; returns ``done()``."""
+    deadline = time.monotonic() + timeout
+    while not done() and time.monotonic() < deadline:
+        executor.spin_once(timeout_sec=step)
+    return done()
 
 
 def stop_process(process: subprocess.Popen, grace: float = 15.0) -> int:
