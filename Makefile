@@ -31,7 +31,7 @@ test: setup
 # the simulator, the README's computed figures, static import/dependency checks, ruff). CI's run on the second
 # distribution (.ci/run: make test-system ROS_DISTRO=jazzy).
 NOT_SYSTEM := tests/test_residuals_cases.py tests/test_residuals_sim.py tests/test_readme_figures.py tests/test_docs.py \
-              tests/test_layout.py tests/test_package_deps.py tests/test_lint.py
+              tests/test_layout.py tests/test_package_deps.py tests/test_lint.py tests/test_bench_scripts.py
 SYSTEM_TESTS := $(filter-out $(NOT_SYSTEM),$(sort $(wildcard tests/test_*.py)))
 test-system: setup
 	@$(RUN) python -m pytest $(PARALLEL) $(SYSTEM_TESTS) $(TESTS)

@@ -84,12 +84,21 @@ def metric(name: str, value: float, unit: str) -> None:
 
 
 def graph_parameters(path: Path | None, overrides: list[str]) -> dict:
-    """estimator_node and controller_node parameters of a graph file (default: the installed
-    sim_graph.yaml), with 'node.param=value' overrides (values parsed as YAML)."""
+    """The estimator's and controller_node's parameters of a graph file (default: the installed
+    sim_graph.yaml), with 'node.param=value' overrides (values parsed as YAML). The estimator's are
+    estimator_node's where the graph runs one, else the rig's feedforward estimator's (sim_node's
+    feedforward_estimator as ``method``, every option at its default): both under "estimator_node"."""
     path = path or default_graph_file()
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     info(f"[controller_bench] parameters from {path}")
-    params = {node: dict(doc[node]["ros__parameters"]) for node in ("estimator_node", "controller_node")}
+
+    def section(node: str) -> dict | None:
+        return dict((doc.get(node) or {}).get("ros__parameters") or {}) if node in doc else None
+
+    estimator = section("estimator_node")
+    if estimator is None:
+        estimator = {"method": (section("sim_node") or {}).get("feedforward_estimator") or "observer"}
+    params = {"estimator_node": estimator, "controller_node": section("controller_node") or {}}
     for item in overrides:
         target, sep, value = item.partition("=")
         node, dot, name = target.partition(".")
