@@ -54,6 +54,8 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from worm_model.cli.errors import restore_ctrl_c
+
 VERDICTS = ("ok", "traceback", "silent", "hang", "lost", "leftover", "message")
 
 
@@ -896,6 +898,7 @@ def _timed(case: Case, fixtures: dict[str, Path], work: Path, timeout: float) ->
 def probe(selected: list[Case], jobs: int = 2, timeout: float = 30.0, verbose: bool = True
           ) -> dict[str, list[tuple[str, str]]]:
     """Run the cases; returns verdict -> [(case name, detail)]."""
+    restore_ctrl_c()  # the ctrl-c cases run as under a terminal, even if the probe runs in the background
     work = Path(tempfile.mkdtemp(prefix="probe_bad_input_"))
     try:
         fixtures = build_fixtures(work / "fixtures")

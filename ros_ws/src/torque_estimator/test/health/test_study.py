@@ -7,10 +7,12 @@ docs/health.md states.
 from __future__ import annotations
 
 import math
+from statistics import NormalDist
 
 import numpy as np
 import pytest
 
+from worm_model.health.bound import detection_probability
 from worm_model.physics.parameters import load_rig
 from torque_estimator.health.study import (LUBRICANT_AT, GEARBOX_EFFECTS, draw_lives, live_lines, live_reference,
                                            live_run, live_scenarios, operation, run_lives, run_study, _with)
@@ -27,6 +29,10 @@ def test_a_few_lives_measured_and_estimated() -> None:
     lines = result.lines()
     assert lines[0].startswith("health: change=mu+15% detected_in_checks=1 ") and lines[0].endswith("measured")
     assert any(line.startswith("health: false_alarms=0 of 6 temperature=estimated") for line in lines)
+    # a 15 % rise, the checks in the temperatures seen: any monitor finds it at the first check, almost surely
+    assert all(0.01 < s < result.sigma["measured"] * 1.5 for s in result.bound[(0.15, "measured")]), result.bound
+    assert any(line.startswith("health: change=mu+15% in_first_check=2 of 2 bound=2.0 worst_bound_sigma_pct=")
+               and line.endswith("temperature=measured") for line in lines), lines
 
 
 def test_each_check_runs_at_its_own_oil_temperature_and_load() -> None:
@@ -68,6 +74,20 @@ def test_the_study_meets_the_figures_docs_health_states() -> None:
     assert np.median([n or 99 for n in small]) <= 4 and within(small, 8) >= 19
     assert np.median([n or 99 for n in small_estimated]) <= 6.5 and within(small_estimated, 8) >= 13
     assert result.false_alarms == {"measured": (0, 1000), "estimated": (0, 1000)}
+    # one check's bound (worm_model.health.bound): found by the first check after the change, against the most any
+    # monitor could expect at the same bar; the worst gearbox's sigma_B puts a 10 % rise below 3.1 sigma
+    for mode, first, bound, worst in (("measured", 17, 17.3, 0.0320), ("estimated", 7, 8.9, 0.0605)):
+        found, sigmas = result.detected[(0.10, mode)], result.bound[(0.10, mode)]
+        assert sum(n == 1 for n in found) == first, (mode, found)
+        assert sum(detection_probability(0.10, s, result.limits) for s in sigmas) == pytest.approx(bound, abs=0.05)
+        assert max(sigmas) == pytest.approx(worst, abs=0.0005)
+        assert 0.10 / max(sigmas) < 3.13, mode
+        assert 1000 * (1 - NormalDist().cdf(3.1)) == pytest.approx(0.97, abs=0.005)
+    # that gearbox (the lives of the 10 % rise: seed 1, the change after 9 healthy checks): 53 degC, 12 K warmer
+    # than any check before it (27-41 degC)
+    oil = draw_lives(20, 12, 1)[int(np.argmax(result.bound[(0.10, "measured")]))].temperature
+    check, earlier = oil[9], oil[:9]
+    assert (round(check), round(check - earlier.max()), round(earlier.min()), round(earlier.max())) == (53, 12, 27, 41)
     assert result.sigma["measured"] == pytest.approx(0.0187, abs=0.001)
     assert result.sigma["estimated"] == pytest.approx(0.0260, abs=0.001)
     traces = live_scenarios(RIG, 0)

@@ -28,13 +28,14 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from worm_model.health.assess import Z95, assess_trend
+from worm_model.health.assess import Z95, assess_trend, baseline_of
+from worm_model.health.bound import detection_probability, one_check_sigma
 from worm_model.health.blocks import Blocks
 from worm_model.health.fit import FitError, Temperature, fit_points
 from worm_model.health.model import HealthParameters
 from worm_model.health.points import steady_points
 from worm_model.health.record import CheckRecord
-from worm_model.health.settings import HealthSettings
+from worm_model.health.settings import HealthSettings, Limits
 from worm_model.health.thermal import ThermalEstimate
 from worm_model.physics.parameters import Rig
 
@@ -130,6 +131,18 @@ def levels(life: Life, mode: str, rig: Rig, settings: HealthSettings) -> list[st
     return [a.level for a in assess_trend(records, settings, rig) if a is not None]
 
 
+def first_check_bound(life: Life, mode: str, rig: Rig, settings: HealthSettings) -> float:
+    """The least standard uncertainty any monitor could judge the first check after the change with
+    (worm_model.health.bound's sigma_B, at the true temperature law; NaN: no changed check)."""
+    first_changed = int(np.argmax(life.rise > 0))
+    records = life.records[mode]
+    if not first_changed or first_changed >= len(records):
+        return math.nan
+    earlier = records[:first_changed]
+    baseline = baseline_of(earlier, settings, rig)
+    return one_check_sigma(records[first_changed], earlier, baseline, TRUE_MU_PER_KELVIN, settings, rig)
+
+
 def detection_checks(life: Life, mode: str, rig: Rig, settings: HealthSettings) -> int | None:
     """Checks after the change until the first WARN or ERROR (1 = the first check after it); None: never."""
     first_changed = int(np.argmax(life.rise > 0))
@@ -148,6 +161,9 @@ class StudyResult:
     detected: dict[tuple[float, str], list[int | None]]  # (rise, mode) -> checks to detection per gearbox
     false_alarms: dict[str, tuple[int, int]]  # mode -> (alarms, healthy checks assessed)
     sigma: dict[str, float] = field(default_factory=dict)  # mode -> median sigma of a healthy check's mu change
+    #: (rise, mode) -> per gearbox, the least sigma any monitor could judge its first changed check with
+    bound: dict[tuple[float, str], list[float]] = field(default_factory=dict)
+    limits: Limits = field(default_factory=Limits)  # the alarm limits the checks were judged with
     example: list[CheckRecord] | None = None  # a gearbox with the largest rise, oil measured (for the plot)
     example_rise: float = 0.0
     example_first: int = 0  # index of its first changed check
@@ -160,6 +176,11 @@ class StudyResult:
             median = float(np.median([n if n is not None else math.inf for n in found]))
             out.append(f"health: change=mu+{rise:.0%} detected_in_checks={worst if not missed else 'never'} "
                        f"median={median:g} missed={missed} of {len(found)} temperature={mode}")
+            if (rise, mode) in self.bound:
+                sigmas = self.bound[rise, mode]
+                chance = sum(detection_probability(rise, s, self.limits) for s in sigmas)
+                out.append(f"health: change=mu+{rise:.0%} in_first_check={sum(n == 1 for n in found)} of {len(found)} "
+                           f"bound={chance:.1f} worst_bound_sigma_pct={100 * max(sigmas):.2f} temperature={mode}")
         for mode, (alarms, total) in self.false_alarms.items():
             out.append(f"health: false_alarms={alarms} of {total} temperature={mode}")
         if self.sigma:
@@ -193,14 +214,17 @@ def run_study(rig: Rig, *, gearboxes: int = 50, baseline: int = 5, healthy: int 
         sigma[mode] = float(np.median([a.mu_change.sigma for a in assessed])) if assessed else math.nan
     detected = {(rise, mode): [detection_checks(life, mode, rig, settings) for life in lives]
                 for rise, lives in changed.items() for mode in MODES}
+    # what one check can do is bounded (worm_model.health.bound); the rises one check is meant to find
+    bound = {(rise, mode): [first_check_bound(life, mode, rig, settings) for life in lives]
+             for rise, lives in changed.items() if rise > settings.limits.check_warn for mode in MODES}
     top = max(changed) if changed else None
     example = changed[top][0].records["measured"] if top is not None else None
     first = int(np.argmax(changed[top][0].rise > 0)) if top is not None else 0
-    return StudyResult(detected, false_alarms, sigma, example, top or 0.0, first)
+    return StudyResult(detected, false_alarms, sigma, bound, settings.limits, example, top or 0.0, first)
 
 
 __all__ = ["GEARBOX_EFFECTS", "Life", "MODES", "StudyResult", "TRUE_MU_PER_KELVIN", "detection_checks",
-           "draw_lives", "levels", "run_lives", "run_study"]
+           "draw_lives", "first_check_bound", "levels", "run_lives", "run_study"]
 
 
 # --- live ------------------------------------------------------------------------------------------------

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from worm_model.health.assess import (assess, assess_trend, baseline_from_rig, baseline_of, learn_law, mu_change)
+from worm_model.health.bound import detection_probability, one_check_sigma
 from worm_model.health.fit import Temperature
 from worm_model.health.model import NAMES, HealthParameters
 from worm_model.health.record import CheckRecord
@@ -130,3 +131,30 @@ def test_the_rig_file_as_baseline() -> None:
     result = assess(record(25.0, rng=rng), baseline, [], SETTINGS, RIG)
     assert result.mu_change.value == pytest.approx(S_TRUE - 1.0, abs=0.05)
     assert result.mu_change.sigma > 0.1 * S_TRUE  # the rig file's 10 % allowance
+
+
+def test_no_check_is_judged_surer_than_the_bound_allows() -> None:
+    """worm_model.health.bound: the least sigma of a check's mu change given the earlier checks. It grows as the
+    check's oil leaves the temperatures the earlier ones saw (25-55 degC here), never falls below the check's own
+    error, and the verdict's own sigma is never below it (else the bound or the verdict is wrong)."""
+    records = healthy_trend(9, seed=12)
+    baseline = baseline_of(records, SETTINGS, RIG)
+    rng = np.random.default_rng(13)
+    bounds = []
+    for temperature in (40.0, 60.0, 75.0, 90.0):
+        check = record(temperature, 0.10, rng=rng)
+        bound = one_check_sigma(check, records, baseline, K_TRUE, SETTINGS, RIG)
+        verdict = assess(check, baseline, records[SETTINGS.limits.baseline_checks:], SETTINGS, RIG)
+        assert NOISE < bound <= verdict.mu_change.sigma * 1.02, (temperature, bound, verdict.mu_change.sigma)
+        bounds.append(bound)
+    assert bounds == sorted(bounds) and bounds[-1] > 1.5 * bounds[0], bounds
+
+
+def test_the_chance_one_check_finds_a_rise() -> None:
+    limits = SETTINGS.limits
+    sigma = 0.02
+    assert detection_probability(limits.z_min * sigma, sigma, limits) == pytest.approx(0.5)
+    # Phi((0.10 - 0.07) / 0.02) = Phi(1.5)
+    assert detection_probability(0.10, sigma, limits) == pytest.approx(0.9332, abs=1e-4)
+    # a sure but small change stays below the limit: the bar is check_warn (6 %) where z_min sigma is less
+    assert detection_probability(limits.check_warn, 0.01, limits) == pytest.approx(0.5)

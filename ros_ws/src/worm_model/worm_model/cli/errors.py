@@ -48,6 +48,19 @@ def _terminate_as_interrupt() -> None:
         signal.signal(signal.SIGTERM, _raise_interrupt)
 
 
+def restore_ctrl_c() -> None:
+    """Make Ctrl-C raise KeyboardInterrupt again in this process and in those it starts, where SIGINT is ignored.
+
+    A shell without job control starts a background command with SIGINT ignored (`nohup cmd &`, `cmd &` in a
+    script, some CI runners); every process below it inherits that, and Python then leaves it ignored. What
+    starts tools in order to interrupt them as a terminal's Ctrl-C does (the tests, the bad-input probe) calls
+    this first: its own handler back, and the processes it starts begin with SIGINT at its default. Main
+    thread only.
+    """
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 def run_tool(tool: str, main: Callable[[], int], bad_input: Sequence[type[BaseException]] = ()) -> int:
     """Run a tool's ``main`` and turn what escapes it into an exit code and one stderr line.
 

@@ -17,6 +17,8 @@ Map (dependencies point up this list):
 ``record``      a check's record and the gearbox's trend file (JSON Lines)
 ``assess``      the baseline, mu's learned temperature law, the verdict on a check
                 and on the trend
+``bound``       the least uncertainty any comparison of a check with the earlier ones can
+                have, and the chance one check finds a rise (a Cramér–Rao bound)
 ``live``        the live monitor's core: a sliding window over the stream
 ``plots``       the trend with its alarm bands
 ==============  ==============================================================
