@@ -651,10 +651,12 @@ def test_a_foreign_stack_reads_the_estimate_in_standard_types(graph: RunningGrap
     true_load = sum(t.tau_load for t in rec.messages["/sim/truth"]) / len(rec.messages["/sim/truth"])
     assert all(j.name == ["gear"] and len(j.effort) == 1 for j in joints)
     assert all(w.header.frame_id == "gear_output" and w.wrench.force.x == 0.0 for w in wrenches)
-    # an estimate the observer flags (a false step alarm's few TRANSIENT samples) goes out as NaN: rare here
+    # An estimate the observer flags goes out as NaN (a false step alarm's TRANSIENT samples: offline at this
+    # point 0-2 alarms in 30 s, 13-20 samples each). Seen here: none in most runs; once 13 of 240 on a machine
+    # busy with two other test files. What this guards: the standard outputs carry the estimate, not NaN.
     efforts = [j.effort[0] for j in joints if math.isfinite(j.effort[0])]
     torques = [w.wrench.torque.z for w in wrenches if math.isfinite(w.wrench.torque.z)]
-    assert len(efforts) >= 0.95 * len(joints) and len(torques) >= 0.95 * len(wrenches), (len(efforts), len(joints))
+    assert len(efforts) >= 0.8 * len(joints) and len(torques) >= 0.8 * len(wrenches), (len(efforts), len(joints))
     effort = sum(efforts) / len(efforts)
     torque = sum(torques) / len(torques)
     tolerance = 0.05 * load_database(graph.calibration_file).torque_range
