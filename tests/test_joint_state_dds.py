@@ -219,9 +219,14 @@ def test_joint_states_estimate_as_the_rig_samples_do(start_graph, tmp_path: Path
         common = sorted(set(from_joints) & set(from_rig))
         # 600 estimates per road (every 5th sample); the probe, best effort, may miss a few
         assert len(common) >= 0.8 * SAMPLES / 5, (joint, len(from_joints), len(from_rig), len(common))
-        worst = max(abs(from_joints[s].torque - from_rig[s].torque) for s in common)
-        assert worst <= ROUND_OFF, (joint, worst)
-        assert all(from_joints[s].flags == from_rig[s].flags for s in common), joint
+        # equal to round-off wherever neither node lost a message: a message lost (best effort, a busy machine)
+        # is bridged without its measurement, and that road's estimate differs for a while after it
+        diverged = {s for s in common if abs(from_joints[s].torque - from_rig[s].torque) > ROUND_OFF}
+        lost = (int(joint_diag.get(f"{joint}.samples_lost", 0))
+                + int(diagnostics_values(got["diagnostics"], f"/{joint}/estimator_node").get("samples_lost", 0)))
+        assert not diverged or lost > 0, (joint, len(diverged), "estimates differ with no message lost")
+        assert len(diverged) < 0.5 * len(common), (joint, len(diverged), len(common))
+        assert all(from_joints[s].flags == from_rig[s].flags for s in common if s not in diverged), joint
         assert all(from_joints[s].header.frame_id == joint and from_joints[s].method == "extended_model"
                    for s in common)
         # and the estimate is the load: 0.5 s after its step, within 5 % of the NMRV030's load range
