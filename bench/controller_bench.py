@@ -91,14 +91,11 @@ def graph_parameters(path: Path | None, overrides: list[str]) -> dict:
     path = path or default_graph_file()
     doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     info(f"[controller_bench] parameters from {path}")
-
-    def section(node: str) -> dict | None:
-        return dict((doc.get(node) or {}).get("ros__parameters") or {}) if node in doc else None
-
-    estimator = section("estimator_node")
-    if estimator is None:
-        estimator = {"method": (section("sim_node") or {}).get("feedforward_estimator") or "observer"}
-    params = {"estimator_node": estimator, "controller_node": section("controller_node") or {}}
+    if "estimator_node" in doc:
+        estimator = dict(doc["estimator_node"]["ros__parameters"])
+    else:
+        estimator = {"method": doc["sim_node"]["ros__parameters"].get("feedforward_estimator") or "observer"}
+    params = {"estimator_node": estimator, "controller_node": dict(doc["controller_node"]["ros__parameters"])}
     for item in overrides:
         target, sep, value = item.partition("=")
         node, dot, name = target.partition(".")

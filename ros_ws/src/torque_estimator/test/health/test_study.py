@@ -82,7 +82,7 @@ def test_the_study_meets_the_figures_docs_health_states() -> None:
         assert sum(detection_probability(0.10, s, result.limits) for s in sigmas) == pytest.approx(bound, abs=0.05)
         assert max(sigmas) == pytest.approx(worst, abs=0.0005)
         assert 0.10 / max(sigmas) < 3.13, mode
-        assert 1000 * (1 - NormalDist().cdf(3.1)) == pytest.approx(0.97, abs=0.005)
+    assert 1000 * (1 - NormalDist().cdf(3.1)) == pytest.approx(0.97, abs=0.005)  # false alarms per 1000 at 3.1 sigma
     # that gearbox (the lives of the 10 % rise: seed 1, the change after 9 healthy checks): 53 degC, 12 K warmer
     # than any check before it (27-41 degC)
     oil = draw_lives(20, 12, 1)[int(np.argmax(result.bound[(0.10, "measured")]))].temperature

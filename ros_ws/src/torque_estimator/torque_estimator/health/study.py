@@ -67,6 +67,11 @@ class Life:
     heat_error: float  # the thermal estimate's misjudgement of the heat (factor - 1)
     records: dict[str, list[CheckRecord]] = field(default_factory=dict)  # mode -> fitted checks
 
+    @property
+    def first_changed(self) -> int:
+        """Index of the first check after the change (0: mu never rises)."""
+        return int(np.argmax(self.rise > 0))
+
 
 def draw_lives(gearboxes: int, checks: int, seed: int, rises: np.ndarray | None = None,
                settings: HealthSettings = HealthSettings()) -> list[Life]:
@@ -134,7 +139,7 @@ def levels(life: Life, mode: str, rig: Rig, settings: HealthSettings) -> list[st
 def first_check_bound(life: Life, mode: str, rig: Rig, settings: HealthSettings) -> float:
     """The least standard uncertainty any monitor could judge the first check after the change with
     (worm_model.health.bound's sigma_B, at the true temperature law; NaN: no changed check)."""
-    first_changed = int(np.argmax(life.rise > 0))
+    first_changed = life.first_changed
     records = life.records[mode]
     if not first_changed or first_changed >= len(records):
         return math.nan
@@ -145,7 +150,7 @@ def first_check_bound(life: Life, mode: str, rig: Rig, settings: HealthSettings)
 
 def detection_checks(life: Life, mode: str, rig: Rig, settings: HealthSettings) -> int | None:
     """Checks after the change until the first WARN or ERROR (1 = the first check after it); None: never."""
-    first_changed = int(np.argmax(life.rise > 0))
+    first_changed = life.first_changed
     result = levels(life, mode, rig, settings)
     n = settings.limits.baseline_checks
     for i, level in enumerate(result):
@@ -219,7 +224,7 @@ def run_study(rig: Rig, *, gearboxes: int = 50, baseline: int = 5, healthy: int 
              for rise, lives in changed.items() if rise > settings.limits.check_warn for mode in MODES}
     top = max(changed) if changed else None
     example = changed[top][0].records["measured"] if top is not None else None
-    first = int(np.argmax(changed[top][0].rise > 0)) if top is not None else 0
+    first = changed[top][0].first_changed if top is not None else 0
     return StudyResult(detected, false_alarms, sigma, bound, settings.limits, example, top or 0.0, first)
 
 
