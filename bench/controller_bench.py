@@ -22,7 +22,7 @@ Three timings, one table each:
   firmware  the rig's PI on every sample; the estimate of one sample feeds the
             period after next (the estimator beside the rig, one sample late);
   graph     as the node graph runs it: the controller gets the estimator's
-            newest estimate once per /rig/samples batch (5 samples) and its speed
+            newest estimate once per /rig/samples batch (5 samples: GRAPH_BATCH) and its speed
             command drives the rig --graph-latency sample periods after the next
             one (bench/graph_bench.py measures that latency on the live graph).
             Live, where a load step falls in its batch is chance: each seed runs
@@ -110,7 +110,9 @@ def graph_parameters(path: Path | None, overrides: list[str]) -> dict:
 #: first period its command drives, less the one period that is always there (graph_latency_p50 of
 #: bench/graph_bench.py in ms, minus 1): see --graph-latency.
 GRAPH_LATENCY = 1
-GRAPH_BATCH = 5  # sim_graph.yaml's batch_size
+#: samples per /rig/samples batch of the graph timing: 5, a graph that feeds forward through its batches at
+#: 200 Hz (the shipped graph feeds forward at the rig and batches 10: through it, later still)
+GRAPH_BATCH = 5
 SETTLE = 0.8  # [s] after a change before the live estimate counts as steady (run_analysis.analyse_run)
 
 

@@ -3,8 +3,8 @@
     python bench/health_bench.py       (run_all.py runs it with its own ROS_DOMAIN_ID)
 
 Builds the real HealthMonitorNode (rclpy, bundled rig, reference from the rig file, the oil temperature
-estimated: the thermal model runs too), prepares the RigSamples messages (5 consecutive samples each, as
-the rig publishes them at 1 kHz) of a simulated run of the paper's rig at work (every effect a real
+estimated: the thermal model runs too), prepares the RigSamples messages (the shipped graph's batch_size of
+consecutive samples each, as the rig publishes them at 1 kHz) of a simulated run of the paper's rig at work (every effect a real
 gearbox has, speeds 120-280 rad/s, the load motors stepping every 5 s: health.study.operation), and feeds
 them as the executor would: on_samples for every message, process() every publish_period (0.2 s) of rig
 time, which runs the live window and publishes the GearboxHealth message (to no subscriber: the DDS write,
@@ -26,12 +26,13 @@ import rclpy
 from worm_msgs.msg import RigSamples
 
 from worm_model.physics.parameters import load_rig
+from torque_estimator.graph.runner import default_graph_file, graph_sections
 from torque_estimator.health.monitor_node import HealthMonitorNode
 from torque_estimator.health.study import GEARBOX_EFFECTS, operation
 
 ROUNDS = 3
 SECONDS = 20.0  # of rig time per round
-BATCH = 5  # samples per message (sim_graph.yaml's batch_size)
+BATCH = graph_sections(default_graph_file())["sim_node"]["batch_size"]  # samples per message, as shipped
 PUBLISH_PERIOD = 0.2  # [s] the node's default
 
 

@@ -1,18 +1,18 @@
-"""Benchmark of model_node's work: its /rig/samples callback (a batch of 5 samples), timed in-process.
+"""Benchmark of model_node's work: its /rig/samples callback (a batch of the shipped graph's batch_size), timed in-process.
 
     python bench/model_node_bench.py       (run_all.py runs it with its own ROS_DOMAIN_ID)
 
-Builds the real ModelNode (rclpy, bundled rig), prepares RigSamples messages (5
-consecutive samples each, as the rig publishes them) of a simulated run (speed swings
+Builds the real ModelNode (rclpy, bundled rig), prepares RigSamples messages (the
+shipped graph's batch_size of consecutive samples each, as the rig publishes them) of a simulated run (speed swings
 through both directions, load torque sweeps all modes, the current the model needs
 plus sensor noise), and calls node.on_samples(msg) on each in turn, timing every call
 with perf_counter_ns, in 3 rounds of 2000 calls.  Each call is the whole callback:
-filter updates, Eqs 21-23 for the 5 samples, modes, the GearboxForces message of the
+filter updates, Eqs 21-23 for the batch's samples, modes, the GearboxForces message of the
 newest and its publish (to no subscriber, so the DDS write but no delivery).  Executor dispatch
 and DDS transport to a subscriber are not included (the graph benchmark measures those end to
 end).  Prints to stdout:
 
-  model_node_latency_p99: <x> us     p99 of one on_samples call, 5 samples (lowest of the 3
+  model_node_latency_p99: <x> us     p99 of one on_samples call, one batch (lowest of the 3
                                      rounds: on a shared machine the tail is mostly other processes)
   model_node_latency_p50: <x> us     median of the same (lowest round)
   model_node_cpu_p99: <x> us         p99 of the thread CPU time of one call (what the code
@@ -34,11 +34,12 @@ from worm_model.physics.dynamics import reflected_input_torque
 from worm_model.physics.friction import friction_coefficient
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.nodes.model_node import ModelNode
+from torque_estimator.graph.runner import default_graph_file, graph_sections
 
 N = 2000  # calls per round
 ROUNDS = 3
 WARMUP = 200
-BATCH = 5  # samples per message (sim_graph.yaml's batch_size)
+BATCH = graph_sections(default_graph_file())["sim_node"]["batch_size"]  # samples per message, as shipped
 
 
 def info(text: str) -> None:

@@ -42,7 +42,8 @@ class FeedforwardGate:
     ``now - stamp``.
     """
 
-    UNUSABLE = EstimateFlags.INVALID_INPUT | EstimateFlags.OUT_OF_CALIBRATION
+    #: a plain int: IntFlag arithmetic costs microseconds, and load() runs on every rig sample
+    UNUSABLE = int(EstimateFlags.INVALID_INPUT | EstimateFlags.OUT_OF_CALIBRATION)
 
     def __init__(self, timeout: float, enabled: bool = True, max_load: float = math.inf,
                  max_drift: float = 0.05) -> None:

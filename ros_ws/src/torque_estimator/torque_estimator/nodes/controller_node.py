@@ -11,9 +11,10 @@ worm, the PI gains and the voltage limit), all relative to the node's namespace.
 A command goes out with an estimate (computed the moment it arrives): with every one
 while this node's own feedforward is in use (it rides on the command); otherwise
 (feedforward at the rig, or off) when the set-point, gains or feedforward settings
-changed, or ``command_period`` has passed since the last; and at least every
-``command_period`` without estimates, so the rig's watchdog (command_timeout) stops the
-drive only when this node is gone.
+changed, or ``command_period`` has passed since the last on the estimates' own stamps (so
+one every 20 ms of the rig's clock, however the estimates' transit jitters); and at least
+every ``command_period`` without estimates, so the rig's watchdog (command_timeout) stops
+the drive only when this node is gone.
 
 The estimate comes from /torque_estimate by default (``feedforward_source``
 torque_estimate: worm_msgs/TorqueEstimate, with its quality flags), or from
@@ -116,6 +117,8 @@ class ControllerNode(Node):
         self.create_timer(self.command_period, self.on_timer)
         self.estimate: TorqueEstimate | None = None
         self.last_sent = -math.inf  # [s] node clock
+        self._estimate_stamp = 0.0  # [s] the newest estimate's stamp (the rig's clock)
+        self._sent_stamp = -math.inf  # [s] that stamp when the last command went out
         self._sent_terms: tuple | None = None  # what the last command said, but its feedforward torque
         self.last_estimate_at = -math.inf  # [s] node clock
         self.commands = 0
@@ -140,7 +143,8 @@ class ControllerNode(Node):
         self.speed_setpoint = msg.data
 
     def on_estimate(self, msg: TorqueEstimate) -> None:
-        self.gate.offer(msg.torque, msg.flags, seconds(msg.header.stamp), self.clock_seconds())
+        self._estimate_stamp = seconds(msg.header.stamp)
+        self.gate.offer(msg.torque, msg.flags, self._estimate_stamp, self.clock_seconds())
         self._check_late()
         self.estimate = msg
         self.last_estimate_at = self.clock_seconds()
@@ -152,10 +156,15 @@ class ControllerNode(Node):
 
     def _command_due(self) -> bool:
         """Whether an estimate that just arrived sends a command (module docstring): always while this node's
-        feedforward rides on the commands; else on a change of what they say, or after command_period."""
+        feedforward rides on the commands; else on a change of what they say, or after command_period on the
+        estimates' stamps (exact on the rig's clock, where arrival times jitter: a 20 ms period judged on
+        arrivals 10 ms apart would often wait for a third estimate). A stamp that went back (the rig started
+        again) or a stream clock that stalls against this node's (1.5 periods) sends at once."""
         if self.gate.enabled and not self.feedforward_at_rig:
             return True
-        return self._terms() != self._sent_terms or self.clock_seconds() - self.last_sent >= self.command_period
+        since = self._estimate_stamp - self._sent_stamp
+        return (self._terms() != self._sent_terms or not 0.0 <= since < self.command_period - 1e-9
+                or self.clock_seconds() - self.last_sent >= 1.5 * self.command_period)
 
     def _check_late(self) -> None:
         """Count, and say at most once a second, that an estimate arrived too late to be fed forward."""
@@ -179,7 +188,8 @@ class ControllerNode(Node):
 
     def _offer_plain(self, tau_d: float, header) -> None:
         """An estimate from a standard message: no seq, no flags (only freshness and plausibility)."""
-        self.gate.offer(tau_d, 0, seconds(header.stamp), self.clock_seconds())
+        self._estimate_stamp = seconds(header.stamp)
+        self.gate.offer(tau_d, 0, self._estimate_stamp, self.clock_seconds())
         self._check_late()
         self.estimate = None
         self.last_estimate_at = self.clock_seconds()
@@ -216,6 +226,7 @@ class ControllerNode(Node):
         cmd.header.stamp = clock_now.to_msg()
         self.pub.publish(cmd)
         self._sent_terms = self._terms()
+        self._sent_stamp = self._estimate_stamp
         self.commands += 1
         self.last_sent = clock_now.nanoseconds * 1e-9
 

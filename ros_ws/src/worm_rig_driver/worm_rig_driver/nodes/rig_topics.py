@@ -96,6 +96,7 @@ class RigTopics:
         self.pub_joints = node.create_publisher(JointState, "rig/joint_states", STREAM)
         self.pub_encoders = node.create_publisher(EncoderCounts, "rig/encoders", STREAM)
         self._batch = _Batch()
+        self._single = False  # rig/sample has subscribers (asked when a batch opens)
         self.published = 0  # samples published on /rig/samples
 
     def add(self, seq: int, stamp_ns: int, values: dict[str, float | int], command_seq: int) -> None:
@@ -107,10 +108,13 @@ class RigTopics:
             batch = self._batch
         if not len(batch):
             batch.first_seq, batch.first_stamp_ns = seq, stamp_ns
+            # asked once a batch, not every sample (a few microseconds each at 1 kHz): a subscriber that
+            # appears mid-batch gets rig/sample from the next batch on
+            self._single = self.pub_sample.get_subscription_count() > 0
         for name in FIELDS:
             batch.columns[name].append(values[name])
         batch.columns["command_seq"].append(command_seq)
-        single = self.pub_sample.get_subscription_count() > 0
+        single = self._single
         channels = seq % self.decimation == 0 and (self.pub_currents.get_subscription_count()
                                                    or self.pub_joints.get_subscription_count()
                                                    or self.pub_encoders.get_subscription_count())

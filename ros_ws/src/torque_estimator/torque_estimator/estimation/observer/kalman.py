@@ -95,6 +95,12 @@ class ObserverEstimate:
     disturbance: float
     jump: bool = False
 
+    def with_torque(self, torque: float) -> "ObserverEstimate":
+        """This estimate with τ̂_d [N·m] replaced (what dataclasses.replace gives, at a fifth of its cost:
+        the streams call it on every sample)."""
+        return ObserverEstimate(torque, self.uncertainty, self.flags, self.omega_worm, self.current_drive,
+                                self.disturbance, self.jump)
+
 
 _SQRT2 = math.sqrt(2.0)
 #: rows of the identity over the state (the encoder's Jacobian is the θ row)

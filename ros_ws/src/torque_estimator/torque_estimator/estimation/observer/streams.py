@@ -8,7 +8,6 @@ observer's. ObserverEstimator.stream stacks them. Units SI; τ_d [N·m] on the g
 from __future__ import annotations
 
 import math
-from dataclasses import replace
 from typing import Any
 
 from torque_estimator.estimation.base import EstimateStream
@@ -30,7 +29,7 @@ class CorrectedStream:
         c = self.correction
         est = self.stream.update(voltage, (current - c.drive_offset) * self._gain, omega, theta)
         torque = est.torque - (c.load_gain * est.torque + c.load_offset)
-        return replace(est, torque=torque)
+        return est.with_torque(torque)
 
     def skip(self, samples: int) -> None:
         self.stream.skip(samples)
@@ -50,7 +49,7 @@ class BiasedStream:
         est = self.stream.update(voltage, current, omega, theta)
         if not math.isfinite(est.torque):
             return est
-        return replace(est, torque=est.torque + self.bias(est.omega_worm, est.torque))
+        return est.with_torque(est.torque + self.bias(est.omega_worm, est.torque))
 
     def skip(self, samples: int) -> None:
         self.stream.skip(samples)
