@@ -2,15 +2,15 @@
 
     python bench/health_bench.py       (run_all.py runs it with its own ROS_DOMAIN_ID)
 
-Builds the real HealthMonitorNode (rclpy, bundled rig, reference from the rig file, the oil temperature
-estimated: the thermal model runs too), prepares the RigSamples messages (the shipped graph's batch_size of
-consecutive samples each, as the rig publishes them at 1 kHz) of a simulated run of the paper's rig at work (every effect a real
-gearbox has, speeds 120-280 rad/s, the load motors stepping every 5 s: health.study.operation), and feeds
-them as the executor would: on_samples for every message, process() every publish_period (0.2 s) of rig
-time, which runs the live window and publishes the GearboxHealth message (to no subscriber: the DDS write,
-no delivery). Each round covers 20 s of rig time; the thread CPU time of all the calls over the rig time
-they cover is the monitor's share of a core. Message deserialisation and the executor's dispatch are not
-included (the graph benchmark measures a whole graph). Prints to stdout:
+Builds the real HealthMonitorNode (rclpy, bundled rig, reference from the rig file, the oil temperature estimated:
+the thermal model runs too), prepares the RigSamples messages (the shipped graph's batch_size of consecutive
+samples each, as the rig publishes them at 1 kHz) of a simulated run of the paper's rig at work (every effect a
+real gearbox has, speeds 120-280 rad/s, the load motors stepping every 5 s: health.study.operation), and feeds them
+as the executor would: on_samples for every message, process() every publish_period (0.2 s) of rig time, which runs
+the live window and publishes the GearboxHealth message (to no subscriber: the DDS write, no delivery). Each round
+covers 20 s of rig time; the thread CPU time of all the calls over the rig time they cover is the monitor's share
+of a core. Message deserialisation and the executor's dispatch are not included (the graph benchmark measures a
+whole graph). Prints to stdout:
 
   health_monitor_cpu_cores: <x> cores         thread CPU time / rig time, lowest of 3 rounds (the target: <= 0.05)
   health_monitor_cpu_per_sample: <x> us       the same per rig sample

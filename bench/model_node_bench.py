@@ -1,4 +1,4 @@
-"""Benchmark of model_node's work: its /rig/samples callback (a batch of the shipped graph's batch_size), timed in-process.
+"""Benchmark of model_node's work: its /rig/samples callback (one batch as shipped), timed in-process.
 
     python bench/model_node_bench.py       (run_all.py runs it with its own ROS_DOMAIN_ID)
 
