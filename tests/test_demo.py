@@ -16,10 +16,9 @@ from pathlib import Path
 from worm_model.bags.writer import read_bag_counts
 from worm_model.ros.testing import local_domain
 
-from torque_estimator.graph.runner import default_graph_file, graph_sections
+from torque_estimator.graph.runner import batch_rate, default_graph_file
 
-#: [Hz] the shipped graph's /rig/samples messages (and estimates): the rig's 1 kHz over its batch_size
-BATCH_RATE = 1000.0 / graph_sections(default_graph_file())["sim_node"]["batch_size"]
+BATCH_RATE = batch_rate(default_graph_file())  # [Hz] the shipped graph's /rig/samples messages and estimates
 
 
 def test_demo_runs_end_to_end(tmp_path: Path) -> None:

@@ -30,6 +30,7 @@ import yaml
 
 from worm_model.cli.errors import InputError
 from worm_model.files.reading import load_parameter_file, load_yaml
+from worm_model.physics.parameters import load_rig
 from worm_model.ros.ament import ament_prefixes, find_executable
 from worm_rig_driver.drive.realtime import realtime_permitted
 
@@ -76,6 +77,15 @@ def graph_sections(params_file: Path) -> dict[str, dict[str, Any]]:
     if not named:
         raise GraphError(f"graph file {params_file}: expected node names at the top level")
     return named
+
+
+def batch_rate(params_file: Path, node: str = "sim_node") -> float:
+    """[Hz] of the rig/samples messages a graph's rig node publishes, which is also the rate of the rig's
+    estimates (one per batch): the rig's sample rate (its ``sample_rate``, else its rig file's) over its
+    ``batch_size`` (which the graph file must set)."""
+    params = graph_sections(params_file)[node]
+    rate = float(params.get("sample_rate", 0.0)) or load_rig(params.get("rig_file") or None).sensors.sample_rate_hz
+    return rate / int(params["batch_size"])
 
 
 def graph_nodes(params_file: Path) -> list[str]:
@@ -133,12 +143,12 @@ def rig_computer(params_file: Path) -> dict:
     --together <the others> --priority 40``); what the demo and the graph benchmark run.
 
     Why the rig alone: its sample thread runs the speed loop and, for the feedforward at the rig, an
-    estimator on every sample (~0.3 core of Python), and the estimator, model and controller nodes take
-    ~0.5 core more; in one process all of that waits on one interpreter lock, which then sat near
-    saturation: in 4 demo runs on an idle machine the executor fell behind the rig by up to 1 s in every
-    one (2 failed the live error bound); with the rig in its own process, 7 runs (3 under a CPU hog) saw
-    at most one late estimate, at start-up. (Measured
-    earlier: the model node in a process of its own costs ~0.14 core more and shortens no latency.)"""
+    estimator on every sample (~0.3 core of Python); in one process with the other nodes all of that waits
+    on one interpreter lock. Measured with an estimator_node in the graph as well (~0.5 core more): the
+    lock sat near saturation, and in 4 demo runs on an idle machine the executor fell behind the rig by up
+    to 1 s in every one (2 failed the live error bound); with the rig in its own process, 7 runs (3 under
+    a CPU hog) saw at most one late estimate, at start-up. The model node in a process of its own costs
+    ~0.14 core more and shortens no latency."""
     groups: dict[str, list[str]] = {}
     for node in graph_nodes(params_file):
         namespace, name = split_name(node)
