@@ -145,7 +145,10 @@ def test_driver_node_feeds_forward_its_own_estimate_of_the_load(graph: dict) -> 
             _spin(graph, 0.02)
         assert samples[-1].seq >= end, "the rig stopped ticking"
 
-    def step_response(at_rig: bool, torque: float) -> float:
+    def step_response(at_rig: bool, torque: float) -> float | None:
+        """How far the voltage has gone 5-15 samples after a load step; None if rig/sample (best effort) lost
+        samples around the step: the first one seen under the new load would then be a later one."""
+        graph["load"].publish(LoadCommand(torque=0.0))
         hold(at_rig, 2.0)  # settled at the set-point under the present load
         first = len(samples)
         graph["load"].publish(LoadCommand(torque=torque))
@@ -156,17 +159,26 @@ def test_driver_node_feeds_forward_its_own_estimate_of_the_load(graph: dict) -> 
         volts = np.array([s.voltage_drive for s in window])
         k = int(np.argmax(np.abs(tau - torque) < 0.05))  # the first sample under the new load
         step = seq[k]
+        if k < 20 or np.any(np.diff(seq[k - 20:k + 16]) != 1):
+            return None
         before = volts[(seq >= step - 200) & (seq < step)].mean()
         after = volts[seq >= seq[-1] - 300].mean()
         soon = volts[(seq >= step + 5) & (seq <= step + 15)]
         assert len(soon) >= 5 and k >= 100, (len(soon), k)
         return float((soon.mean() - before) / (after - before))
 
+    def measured(at_rig: bool) -> float:
+        """step_response, again while samples were lost around the step (a busy CI machine: pi_alone read
+        0.94 once, the PI's progress some samples after the step)."""
+        for _ in range(3):
+            if (ratio := step_response(at_rig, 0.2)) is not None:
+                return ratio
+        pytest.fail("samples lost around the load step in 3 tries")
+
     graph["load"].publish(LoadCommand(torque=0.0))
     hold(True, 1.0)
     assert abs(samples[-1].omega_worm - 150.0) < 10.0, samples[-1]
-    at_rig = step_response(True, 0.2)
-    graph["load"].publish(LoadCommand(torque=0.0))
-    pi_alone = step_response(False, 0.2)
+    at_rig = measured(True)
+    pi_alone = measured(False)
     # measured in 5 runs (3 with a CPU hog): 0.89-1.17 with the feedforward, 0.37-0.43 without
     assert at_rig > 0.75 and pi_alone < 0.55, (at_rig, pi_alone, graph["driver_log"].read_text()[-2000:])
