@@ -26,13 +26,13 @@ import rclpy
 from worm_msgs.msg import RigSamples
 
 from worm_model.physics.parameters import load_rig
-from torque_estimator.graph.runner import default_graph_file, graph_sections
+from torque_estimator.graph.runner import batch_size, default_graph_file
 from torque_estimator.health.monitor_node import HealthMonitorNode
 from torque_estimator.health.study import GEARBOX_EFFECTS, operation
 
 ROUNDS = 3
 SECONDS = 20.0  # of rig time per round
-BATCH = graph_sections(default_graph_file())["sim_node"]["batch_size"]  # samples per message, as shipped
+BATCH = batch_size(default_graph_file())  # samples per message, as shipped
 PUBLISH_PERIOD = 0.2  # [s] the node's default
 
 

@@ -33,12 +33,12 @@ from worm_model.physics.dynamics import reflected_input_torque
 from worm_model.physics.friction import friction_coefficient
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.nodes.model_node import ModelNode
-from torque_estimator.graph.runner import default_graph_file, graph_sections
+from torque_estimator.graph.runner import batch_size, default_graph_file
 
 N = 2000  # publish periods per round
 ROUNDS = 3
 WARMUP = 200
-BATCH = graph_sections(default_graph_file())["sim_node"]["batch_size"]  # samples per message, as shipped
+BATCH = batch_size(default_graph_file())  # samples per message, as shipped
 
 
 def info(text: str) -> None:

@@ -32,7 +32,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from torque_estimator.graph.runner import Graph, graph_sections, parse_overrides
+from torque_estimator.graph.runner import Graph, batch_size, parse_overrides
 from worm_model.ros.ament import find_executable
 from torque_estimator.offline.replay import (ESTIMATE_FIELDS, ESTIMATE_TOPIC, FORCE_FIELDS, FORCES_TOPIC, compare,
                                            difference, node_parameters, replay)
@@ -42,7 +42,7 @@ from worm_model.bags.reader import BagReader
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
 TOPICS = ("/rig/samples", ESTIMATE_TOPIC, FORCES_TOPIC)
-BATCH = graph_sections(GRAPH_FILE)["sim_node"]["batch_size"]  # the nodes answer each batch once
+BATCH = batch_size(GRAPH_FILE)  # the nodes answer each batch once
 METHOD = "knn"  # the estimator_node method under test (see the module docstring)
 FORCES_EVERY = 20  # model_node's publish_period in samples
 RECORD_S = 7.0  # [s] of recording once all three topics are recorded

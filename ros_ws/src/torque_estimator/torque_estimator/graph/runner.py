@@ -79,13 +79,18 @@ def graph_sections(params_file: Path) -> dict[str, dict[str, Any]]:
     return named
 
 
+def batch_size(params_file: Path, node: str = "sim_node") -> int:
+    """Samples per rig/samples message of a graph's rig node (its ``batch_size``, which the graph file must set)."""
+    return int(graph_sections(params_file)[node]["batch_size"])
+
+
 def batch_rate(params_file: Path, node: str = "sim_node") -> float:
     """[Hz] of the rig/samples messages a graph's rig node publishes, which is also the rate of the rig's
     estimates (one per batch): the rig's sample rate (its ``sample_rate``, else its rig file's) over its
-    ``batch_size`` (which the graph file must set)."""
+    :func:`batch_size`."""
     params = graph_sections(params_file)[node]
     rate = float(params.get("sample_rate", 0.0)) or load_rig(params.get("rig_file") or None).sensors.sample_rate_hz
-    return rate / int(params["batch_size"])
+    return rate / batch_size(params_file, node)
 
 
 def graph_nodes(params_file: Path) -> list[str]:
