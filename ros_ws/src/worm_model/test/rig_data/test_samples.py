@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from worm_msgs.msg import RigSample, RigSamples, SimTruth, SimTruths
 
-from worm_model.rig_data.samples import FIELDS, TRUTH_FIELDS, batch_stamps_ns, stamp_ns, unbatch
+from worm_model.rig_data.samples import FIELDS, TRUTH_FIELDS, batch_stamps_ns, command_latencies, stamp_ns, unbatch
 
 
 def test_batched_fields_are_the_single_messages_fields_in_order() -> None:
@@ -27,3 +27,16 @@ def test_sample_k_of_a_batch_is_stamped_k_periods_after_the_first() -> None:
     samples.header.stamp = truths.header.stamp
     assert [stamp_ns(s.header.stamp) for s in unbatch(samples)] == batch_stamps_ns(truths, 5)
     assert [s.seq for s in unbatch(samples)] == list(range(41, 46))
+
+
+def test_command_latency_is_counted_from_the_source_sample_to_the_first_period_it_drove() -> None:
+    # (seq, command_seq): command 3 was in force before the window (skipped: its first period is unknown),
+    # command 5 first drives the period of sample 7 (1 period late), command 9 that of sample 10 (0)
+    stream = [(4, 3), (5, 3), (6, 3), (7, 5), (8, 5), (9, 5), (10, 9), (11, 9)]
+    batch = RigSamples(first_seq=4, sample_period=1e-3, command_seq=[command for _, command in stream],
+                       **{name: [0] * len(stream) for name in FIELDS})
+    assert [s.seq for s in unbatch(batch)] == [seq for seq, _ in stream]
+    assert command_latencies(unbatch(batch)) == [1, 0]
+    # a run from its start: no command at first (command_seq 0), then each one counted
+    start = RigSamples(first_seq=1, sample_period=1e-3, command_seq=[0, 1], **{name: [0] * 2 for name in FIELDS})
+    assert command_latencies(unbatch(start)) == [0]

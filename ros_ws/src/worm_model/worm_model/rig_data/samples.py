@@ -153,12 +153,16 @@ def command_latencies(samples: Iterator[Any]) -> list[int]:
     RigSamples' definition): a command computed from sample ``s`` first drives the
     period of sample ``k``; its latency is ``k - 1 - s`` periods (0: it drove the very
     next period). Commands are told apart by their source ``s``; samples without one
-    (``command_seq`` 0) are skipped.
+    (``command_seq`` 0) are skipped, and so is the command in force at the first sample:
+    it may have driven periods before it (a window cut out of a longer run).
     """
     first_seen: dict[int, int] = {}
+    in_force = None
     for sample in samples:
         source = int(sample.command_seq)
-        if source and source not in first_seen:
+        if in_force is None:
+            in_force = source
+        if source and source != in_force and source not in first_seen:
             first_seen[source] = int(sample.seq)
     return [k - 1 - s for s, k in first_seen.items()]
 

@@ -12,7 +12,7 @@ of them there, and with none they are /rig/samples, ... Out (sensor-data QoS):
                                            tau_load is positive OPPOSING positive rotation)
   torque_estimate, torque_estimate/joint_states, torque_estimate/wrench   the load estimate of the
                                            rig's feedforward estimator (``feedforward_estimator``) for
-                                           each batch's newest sample, right after the batch, as
+                                           each batch's newest sample, right before the batch, as
                                            estimator_node publishes its own (estimate_topics): the
                                            estimate the graph sees is the one fed forward
                                            (``publish_estimate``: RigEstimate)
@@ -129,6 +129,10 @@ class RigTopics:
         batch = self._batch
         return not len(batch) or seq != batch.first_seq + len(batch)
 
+    def closes_batch(self, seq: int) -> bool:
+        """Whether ``add(seq)`` publishes a full batch (a rig node publishes its estimate of that sample first)."""
+        return (0 if self.opens_batch(seq) else len(self._batch)) + 1 >= self.batch_size
+
     @property
     def pending(self) -> int:
         """Samples of the open batch, not yet published (0 right after add() published a full batch)."""
@@ -201,8 +205,8 @@ def declare_rig_feedforward(node: Node, rig: Rig, sample_period: float) -> RigFe
 
 
 class RigEstimate:
-    """The rig's feedforward estimate on the graph (module docstring): after each batch of rig/samples, the
-    estimate of its newest sample, on estimate_topics' single-joint topics.
+    """The rig's feedforward estimate on the graph (module docstring): with each batch of rig/samples (just
+    before it), the estimate of its newest sample, on estimate_topics' single-joint topics.
 
     Args:
         node: the rig's node (declares ``publish_estimate``, ``joint_name``, ``wrench_frame``).
@@ -227,14 +231,15 @@ class RigEstimate:
                                       sample_period=1.0 / rig.sensors.sample_rate_hz, wrench_frame=wrench_frame)
                        if self.feedforward is not None else None)
 
-    def after_sample(self, rig_topics: "RigTopics", seq: int, stamp_ns: int) -> None:
-        """Sample ``seq`` (stamped ``stamp_ns``) went to rig_topics and to the feedforward: judge its estimate
-        for the standard outputs, and publish it if the sample closed a batch."""
+    def after_sample(self, seq: int, stamp_ns: int, closes_batch: bool) -> None:
+        """Sample ``seq`` (stamped ``stamp_ns``) went to the feedforward: judge its estimate for the standard
+        outputs, and publish it if the sample closes a batch of rig/samples (``RigTopics.closes_batch``).
+        Called before that batch is published: the estimate is what the controller waits for."""
         estimate = self.feedforward.last if self.topics is not None else None
         if estimate is None:
             return
         self.topics.observe(0, estimate.flags, estimate.torque)
-        if not rig_topics.pending:
+        if closes_batch:
             self.topics.publish(stamp_ns, self.frame_id, [(seq, estimate)])
 
     def report(self) -> dict[str, int]:

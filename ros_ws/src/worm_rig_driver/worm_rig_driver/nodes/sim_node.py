@@ -196,8 +196,9 @@ class SimNode(Node):
         }
         stamp_ns = self._start_ns + int(round(seq * self.period * 1e9))
         opens = self.pub_truths is not None and self.topics.opens_batch(seq)
-        self.topics.add(seq, stamp_ns, values, command_seq)  # the graph's stream first
-        self.estimate.after_sample(self.topics, seq, stamp_ns)  # then its estimate (observed above)
+        # the estimate (observed above) before the graph's stream: the controller waits for the estimate
+        self.estimate.after_sample(seq, stamp_ns, self.topics.closes_batch(seq))
+        self.topics.add(seq, stamp_ns, values, command_seq)
         if opens:
             # a /rig/samples batch started here: so does a truth batch, if anyone listens (asked once a batch)
             self._flush_truths()
