@@ -114,7 +114,8 @@ class ControllerNode(Node):
                    "wrench": self.on_wrench}[source]
         self.create_subscription(msg_type, topic or default_topic, handler, STREAM)
         subscribe_command(self, Float64, "controller/speed_setpoint", self.on_setpoint)
-        self.create_timer(self.command_period, self.on_timer)
+        # the backstop for when estimates stop: restarted by each estimate, so it wakes nobody while they come
+        self._backstop = self.create_timer(self.command_period, self.on_timer)
         self.estimate: TorqueEstimate | None = None
         self.last_sent = -math.inf  # [s] node clock
         self._estimate_stamp = 0.0  # [s] the newest estimate's stamp (the rig's clock)
@@ -150,6 +151,7 @@ class ControllerNode(Node):
         self.last_estimate_at = self.clock_seconds()
         if self._command_due():
             self.send()
+        self._backstop.reset()  # after the command, which must not wait for it
 
     def _terms(self) -> tuple:
         return (self.speed_setpoint, self.kp, self.ki, self.voltage_limit, self.gate.enabled, self.feedforward_at_rig)
@@ -195,11 +197,15 @@ class ControllerNode(Node):
         self.last_estimate_at = self.clock_seconds()
         if self._command_due():
             self.send()
+        self._backstop.reset()  # after the command, which must not wait for it
 
     def on_timer(self) -> None:
-        """Commands without estimates (none arrive, or too rarely): the rig's watchdog must not starve."""
+        """Commands without estimates (none arrive, or too rarely): the rig's watchdog must not starve. The
+        timer restarts with each estimate, so it fires a command_period after the last one (0.9 of it
+        allows for the timer's clock against this node's)."""
         now = self.clock_seconds()
-        if now - self.last_estimate_at >= self.command_period and now - self.last_sent >= 0.5 * self.command_period:
+        if (now - self.last_estimate_at >= 0.9 * self.command_period
+                and now - self.last_sent >= 0.5 * self.command_period):
             self.send()
 
     def clock_seconds(self) -> float:
