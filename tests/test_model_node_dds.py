@@ -11,7 +11,6 @@ discovery stays on this host (the ros_env fixture of tests/conftest.py).
 """
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 
 from worm_msgs.msg import GearboxForces, RigSamples
@@ -38,11 +37,10 @@ def test_forces_follow_the_streams_clock_and_a_stalled_stream_is_processed(
     graph = start_graph(f"model_node:\n  ros__parameters:\n    publish_period: {PERIOD}\n", "model_node")
     with probe_node("model_node_probe") as (node, executor):
         forces: list = []
-        node.create_subscription(GearboxForces, "/gearbox/forces", forces.append, STREAM)
+        sub = node.create_subscription(GearboxForces, "/gearbox/forces", forces.append, STREAM)
         pub = node.create_publisher(RigSamples, "/rig/samples", STREAM)
-        assert spin_until(executor, lambda: pub.get_subscription_count() > 0
-                          and node.count_publishers("/gearbox/forces") > 0, 30.0), f"logs in {graph.log_dir}"
-        time.sleep(0.5)  # the probe's subscription matched too (both sides see it within discovery's round)
+        assert spin_until(executor, lambda: pub.get_subscription_count() > 0 and sub.get_publisher_count() > 0,
+                          30.0), f"logs in {graph.log_dir}"
 
         # 20 messages of 2 samples 10 ms apart (a period of stream each), sent within ~40 ms of the node's
         # clock: one forces message per message, for its newest sample. A node that processed on its own

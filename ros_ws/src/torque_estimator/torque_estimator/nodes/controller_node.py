@@ -144,14 +144,20 @@ class ControllerNode(Node):
         self.speed_setpoint = msg.data
 
     def on_estimate(self, msg: TorqueEstimate) -> None:
-        self._estimate_stamp = seconds(msg.header.stamp)
-        self.gate.offer(msg.torque, msg.flags, self._estimate_stamp, self.clock_seconds())
+        self._offer(msg.torque, msg.flags, msg.header, msg)
+
+    def _offer(self, tau_d: float, flags: int, header, estimate: TorqueEstimate | None) -> None:
+        """An estimate arrived (``estimate``: its TorqueEstimate; None from a standard message, which has no
+        seq and no flags): to the gate, then a command if one is due, then the backstop starts its period again
+        (after the command, which must not wait for it)."""
+        self._estimate_stamp = seconds(header.stamp)
+        self.gate.offer(tau_d, flags, self._estimate_stamp, self.clock_seconds())
         self._check_late()
-        self.estimate = msg
+        self.estimate = estimate
         self.last_estimate_at = self.clock_seconds()
         if self._command_due():
             self.send()
-        self._backstop.reset()  # after the command, which must not wait for it
+        self._backstop.reset()
 
     def _terms(self) -> tuple:
         return (self.speed_setpoint, self.kp, self.ki, self.voltage_limit, self.gate.enabled, self.feedforward_at_rig)
@@ -183,21 +189,10 @@ class ControllerNode(Node):
             return
         k = msg.name.index(self.joint_name)
         effort = msg.effort[k] if k < len(msg.effort) else math.nan
-        self._offer_plain(-effort, msg.header)
+        self._offer(-effort, 0, msg.header, None)  # only freshness and plausibility
 
     def on_wrench(self, msg: WrenchStamped) -> None:
-        self._offer_plain(-msg.wrench.torque.z, msg.header)
-
-    def _offer_plain(self, tau_d: float, header) -> None:
-        """An estimate from a standard message: no seq, no flags (only freshness and plausibility)."""
-        self._estimate_stamp = seconds(header.stamp)
-        self.gate.offer(tau_d, 0, self._estimate_stamp, self.clock_seconds())
-        self._check_late()
-        self.estimate = None
-        self.last_estimate_at = self.clock_seconds()
-        if self._command_due():
-            self.send()
-        self._backstop.reset()  # after the command, which must not wait for it
+        self._offer(-msg.wrench.torque.z, 0, msg.header, None)
 
     def on_timer(self) -> None:
         """Commands without estimates (none arrive, or too rarely): the rig's watchdog must not starve. The
