@@ -276,10 +276,9 @@ def test_every_topic_flows_at_its_configured_rate(graph: RunningGraph, probe: Pr
     forces = [m.seq for m in rec.messages["/gearbox/forces"] if seqs[0] <= m.seq <= seqs[-1]]
     report.append(f"/gearbox/forces {len(forces)}")
     assert set(forces) <= ends, "/gearbox/forces: answers for samples that end no batch"
-    # published every 20 ms of the samples' clock as the batches reach model_node: they keep coming (134 and
-    # 135 of 150 seen in loaded CI runs when a timer of the node's clock published them), each chunk within
-    # half a second of the last (one gap of 335 samples once, with a CPU hog on one core: a Python node waits
-    # when the machine does)
+    # a timer publishes them (every 20 ms of the node's clock, not the rig's): they keep coming (134 and 135 of
+    # 150 seen in loaded CI runs), each chunk within half a second of the last (one gap of 335 samples once,
+    # with a CPU hog on one core: a wall-clock timer of a Python node waits when the machine does)
     gaps = [b - a for a, b in zip(forces, forces[1:])]
     assert len(forces) >= 0.6 * span / FORCES_EVERY and max(gaps) <= 25 * FORCES_EVERY, (len(forces), max(gaps))
     commands = rec.messages["/rig/speed_command"]

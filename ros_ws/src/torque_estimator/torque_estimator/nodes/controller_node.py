@@ -114,8 +114,7 @@ class ControllerNode(Node):
                    "wrench": self.on_wrench}[source]
         self.create_subscription(msg_type, topic or default_topic, handler, STREAM)
         subscribe_command(self, Float64, "controller/speed_setpoint", self.on_setpoint)
-        # the backstop for when estimates stop: restarted by each estimate, so it wakes nobody while they come
-        self._backstop = self.create_timer(self.command_period, self.on_timer)
+        self.create_timer(self.command_period, self.on_timer)
         self.estimate: TorqueEstimate | None = None
         self.last_sent = -math.inf  # [s] node clock
         self._estimate_stamp = 0.0  # [s] the newest estimate's stamp (the rig's clock)
@@ -144,20 +143,13 @@ class ControllerNode(Node):
         self.speed_setpoint = msg.data
 
     def on_estimate(self, msg: TorqueEstimate) -> None:
-        self._offer(msg.torque, msg.flags, msg.header, msg)
-
-    def _offer(self, tau_d: float, flags: int, header, estimate: TorqueEstimate | None) -> None:
-        """An estimate arrived (``estimate``: its TorqueEstimate; None from a standard message, which has no
-        seq and no flags): to the gate, then a command if one is due, then the backstop starts its period again
-        (after the command, which must not wait for it)."""
-        self._estimate_stamp = seconds(header.stamp)
-        self.gate.offer(tau_d, flags, self._estimate_stamp, self.clock_seconds())
+        self._estimate_stamp = seconds(msg.header.stamp)
+        self.gate.offer(msg.torque, msg.flags, self._estimate_stamp, self.clock_seconds())
         self._check_late()
-        self.estimate = estimate
+        self.estimate = msg
         self.last_estimate_at = self.clock_seconds()
         if self._command_due():
             self.send()
-        self._backstop.reset()
 
     def _terms(self) -> tuple:
         return (self.speed_setpoint, self.kp, self.ki, self.voltage_limit, self.gate.enabled, self.feedforward_at_rig)
@@ -189,18 +181,25 @@ class ControllerNode(Node):
             return
         k = msg.name.index(self.joint_name)
         effort = msg.effort[k] if k < len(msg.effort) else math.nan
-        self._offer(-effort, 0, msg.header, None)  # only freshness and plausibility
+        self._offer_plain(-effort, msg.header)
 
     def on_wrench(self, msg: WrenchStamped) -> None:
-        self._offer(-msg.wrench.torque.z, 0, msg.header, None)
+        self._offer_plain(-msg.wrench.torque.z, msg.header)
+
+    def _offer_plain(self, tau_d: float, header) -> None:
+        """An estimate from a standard message: no seq, no flags (only freshness and plausibility)."""
+        self._estimate_stamp = seconds(header.stamp)
+        self.gate.offer(tau_d, 0, self._estimate_stamp, self.clock_seconds())
+        self._check_late()
+        self.estimate = None
+        self.last_estimate_at = self.clock_seconds()
+        if self._command_due():
+            self.send()
 
     def on_timer(self) -> None:
-        """Commands without estimates (none arrive, or too rarely): the rig's watchdog must not starve. The
-        timer restarts with each estimate, so it fires a command_period after the last one (0.9 of it
-        allows for the timer's clock against this node's)."""
+        """Commands without estimates (none arrive, or too rarely): the rig's watchdog must not starve."""
         now = self.clock_seconds()
-        if (now - self.last_estimate_at >= 0.9 * self.command_period
-                and now - self.last_sent >= 0.5 * self.command_period):
+        if now - self.last_estimate_at >= self.command_period and now - self.last_sent >= 0.5 * self.command_period:
             self.send()
 
     def clock_seconds(self) -> float:

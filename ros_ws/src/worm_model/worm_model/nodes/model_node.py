@@ -13,20 +13,14 @@ Input (``input``), every topic relative to the node's namespace:
   (torque_estimate/<joint>, worm_msgs/TorqueEstimate: tau_d), NaN (forces flagged INVALID_INPUT)
   until one arrives; forces so computed are the model's view of the estimated load.
 
-Sensor-data QoS. The samples are queued as they come and processed all at once when the queue
-spans ``publish_period`` on the stream's own clock (its stamps: every second rig/samples message
-of 10 samples), or when ``publish_period`` passes on this node's clock without that (a slow or
-stalled stream). The forces are for watching (plots, recordings, other stacks), not for the rig's
-control path, which in a composed graph shares this process's executor and must not wait behind
-them: the rig publishes its estimate just before the batch that completes the span, so the
-controller has answered it by then, and no timer wakes the process in between (the span is
-counted in the batches' sample_period, the joint states' sample_rate).
-
-The per-sample work is live_model.LiveModel (the same class the offline replay runs): the input
-torque at the worm is the drive motor's torque less its declared drags (Eq. 29); the gear shaft
-carries the load plus the load motors' declared drag; the worm acceleration comes from the filtered
-tachogenerator speed. This node only wires it to parameters and topics and counts the flags for
-/diagnostics.
+Sensor-data QoS. The samples are queued as they come and processed on the ``publish_period``
+timer, all at once: the forces are for watching (plots, recordings, other stacks), not for the
+rig's control path, which in a composed graph shares this process's executor and must not wait
+behind them. The per-sample work is live_model.LiveModel (the same class the offline replay runs):
+the input torque at the worm is the drive motor's torque less its declared drags (Eq. 29); the gear
+shaft carries the load plus the load motors' declared drag; the worm acceleration comes from the
+filtered tachogenerator speed. This node only wires it to parameters and topics and counts the flags
+for /diagnostics.
 """
 from __future__ import annotations
 
@@ -74,10 +68,9 @@ class ModelNode(Node):
                                    "Use the worm acceleration (Eqs 19-20); false = quasi-static (a_w = 0).")
         tau = declare(self, "acceleration_filter", 0.01,
                       "Time constant [s] of the low-pass on speed and acceleration.", low=0.0, high=1.0)
-        self.publish_period = declare(self, "publish_period", 0.02,
-                                      "Period [s] of the processing of the queued samples and of the forces "
-                                      "published for the newest (on the samples' stamps; on this node's clock "
-                                      "when they do not come).", low=0.001, high=10.0)
+        period = declare(self, "publish_period", 0.02,
+                         "Period [s] of the processing of the queued samples and of the forces published for "
+                         "the newest.", low=0.001, high=10.0)
         self.received = 0
         self.malformed = 0  # rig/samples messages refused
         self.invalid = 0
@@ -90,9 +83,7 @@ class ModelNode(Node):
             self.pub = self.create_publisher(GearboxForces, "gearbox/forces", STREAM)
             self.create_subscription(RigSamples, "rig/samples", self.on_samples, STREAM)
             self.queue: list[RigSamples] = []
-        self._queued_span = 0.0  # [s] of samples queued, on the stream's clock
-        # the backstop: restarted by every processing, so it fires only when the stream does not fill a period
-        self._backstop = self.create_timer(self.publish_period, self.process)
+        self.create_timer(period, self.process)
         Diagnostics(self, self.report)
 
     def _start_joint_state(self, rig_file: str, use_acceleration: bool, tau: float) -> None:
@@ -132,7 +123,6 @@ class ModelNode(Node):
             return
         if len(batch.omega_worm):
             self.queue.append(batch)
-            self._queue_span(len(batch.omega_worm) * batch.sample_period)
 
     def on_joint_state(self, msg: JointState) -> None:
         stamp = Time.from_msg(msg.header.stamp).nanoseconds
@@ -140,19 +130,10 @@ class ModelNode(Node):
                                                                msg.effort)):
             if sample is not None:
                 joint.queue.append((sample.seq, stamp, sample.omega_worm, sample.current_drive, joint.load))
-        self._queue_span(self.reader.period_ns * 1e-9)
-
-    def _queue_span(self, span: float) -> None:
-        """``span`` [s] more of the stream queued: process once the queue holds a publish period of it."""
-        self._queued_span += span
-        if self._queued_span >= self.publish_period - 1e-9:
-            self.process()
 
     # --- processing --------------------------------------------------------------------------------
     def process(self) -> None:
         """Run the model over every queued sample; publish the forces of the newest."""
-        self._backstop.reset()
-        self._queued_span = 0.0
         if self.input == "joint_state":
             for joint in self.joints:
                 self._process_joint(joint)
