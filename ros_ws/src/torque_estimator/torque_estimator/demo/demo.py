@@ -138,7 +138,8 @@ def _demo(args: argparse.Namespace, out: Path, final: Path) -> int:
         runs[name] = load_run(out / f"bag_{tag}", start)
         r = runs[name]
         metrics[name] = analyse_run(DEMO_SCENARIO, r["t_speed"], r["omega"], r["setpoint"], r["t_est"],
-                                    r["estimate"], r["t_truth"], r["truth"], r["modes"], db.torque_range)
+                                    r["estimate"], r["t_truth"], r["truth"], r["modes"], db.torque_range,
+                                    flags=r["flags"])
 
     # the load steps as the record holds them, on the simulator's true speed at every sample
     steps = {name: recorded_load_steps(r["t_truth"], r["truth"], r["t_truth"], r["omega_truth"], r["setpoint_truth"])
@@ -159,6 +160,9 @@ def _demo(args: argparse.Namespace, out: Path, final: Path) -> int:
           f"of the calibrated range ({db.torque_range:.3f} N m)")
     print(f"  live estimation error (steady parts):  mean {on.estimate_mae_pct:.2f} %, "
           f"worst segment {on.estimate_max_pct:.2f} %")
+    flagged = (f", worst {on.flagged_max_pct:.1f} % off" if on.steady_flagged else "")
+    print(f"  flagged in the steady parts (not above): {on.steady_flagged} of {on.steady_estimates} estimates"
+          f"{flagged}")
     print(f"  modes visited: {', '.join(mode_names.get(m, str(m)) for m in on.modes_seen if m)}")
     print("  speed tracking              RMS error   peak dip after load step   IAE")
     for name, m in metrics.items():

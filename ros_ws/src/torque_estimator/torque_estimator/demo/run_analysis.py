@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from worm_rig_driver.robot.standard_outputs import UNTRUSTED
+
 from torque_estimator.evaluation.scenario import segment_starts
 
 #: [s] after a set-point or load change that counts as transient (the steady part starts after it)
@@ -22,9 +24,12 @@ class RunMetrics:
     speed_rms_error: float  # [rad/s] RMS of omega - set-point over the whole run after the first segment
     peak_dip: float  # [rad/s] largest |omega - set-point| in the transient after a load step
     iae: float  # [rad] integral of |omega - set-point| over the run after the first segment
-    estimate_mae_pct: float  # mean |estimate - truth| in steady parts, % of the calibrated range
-    estimate_max_pct: float  # largest steady-part segment-mean error, % of the calibrated range
+    estimate_mae_pct: float  # mean |estimate - truth| over the trusted estimates of the steady parts, % of the range
+    estimate_max_pct: float  # largest steady-part segment-mean error (trusted estimates), % of the calibrated range
     modes_seen: tuple[int, ...]  # worm_model.physics.modes.Mode values the truth visited
+    steady_estimates: int = 0  # estimates in the steady parts
+    steady_flagged: int = 0  # of them, flagged untrusted (standard_outputs.UNTRUSTED): left out of the two above
+    flagged_max_pct: float = float("nan")  # largest |estimate - truth| among the flagged ones, % of the range
 
 
 def load_steps(scenario) -> list[int]:
@@ -152,8 +157,14 @@ def _steady_mask(t: np.ndarray, scenario, settle: float) -> np.ndarray:
 
 
 def analyse_run(scenario, t_speed, omega, setpoint, t_est, estimate, t_truth, truth, modes,
-                torque_range: float, settle: float = SETTLE) -> RunMetrics:
-    """Tracking and estimation figures of one run (see module docstring)."""
+                torque_range: float, settle: float = SETTLE, flags=None) -> RunMetrics:
+    """Tracking and estimation figures of one run (see module docstring).
+
+    ``flags``: the estimates' TorqueEstimate flags (None: all trusted). The estimation error is the
+    trusted estimates' (what the standard outputs carry as a load); the flagged ones in the steady parts
+    (a step detector's false alarm at a constant load, say) are counted and their worst error reported
+    apart, so that one flagged spike does not stand for a segment's accuracy, nor vanish.
+    """
     after_first = t_speed >= scenario[0].duration
     error = omega - setpoint
     dt = np.diff(t_speed, prepend=t_speed[0])
@@ -164,8 +175,11 @@ def analyse_run(scenario, t_speed, omega, setpoint, t_est, estimate, t_truth, tr
         dips.append(np.max(np.abs(error[window])) if window.any() else np.nan)
 
     truth_at_est = np.interp(t_est, t_truth, truth)
-    steady = _steady_mask(t_est, scenario, settle) & np.isfinite(estimate)
+    in_steady = _steady_mask(t_est, scenario, settle)
+    flagged = np.zeros(np.shape(t_est), bool) if flags is None else (np.asarray(flags, int) & UNTRUSTED) != 0
+    steady = in_steady & np.isfinite(estimate) & ~flagged
     abs_err = np.abs(estimate - truth_at_est)
+    flagged_err = abs_err[in_steady & flagged & np.isfinite(estimate)]
     seg_index = np.searchsorted(starts, t_est, side="right") - 1
     seg_means = [np.mean(abs_err[steady & (seg_index == k)]) for k in range(len(scenario))
                  if np.any(steady & (seg_index == k))]
@@ -176,4 +190,7 @@ def analyse_run(scenario, t_speed, omega, setpoint, t_est, estimate, t_truth, tr
         estimate_mae_pct=float(100 * np.mean(abs_err[steady]) / torque_range),
         estimate_max_pct=float(100 * np.max(seg_means) / torque_range),
         modes_seen=tuple(sorted(set(int(m) for m in modes))),
+        steady_estimates=int(np.sum(in_steady)),
+        steady_flagged=int(np.sum(in_steady & flagged)),
+        flagged_max_pct=float(100 * flagged_err.max() / torque_range) if flagged_err.size else float("nan"),
     )
