@@ -171,25 +171,20 @@ def recordings(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory
                                  durability=DurabilityPolicy.TRANSIENT_LOCAL)
             load = probe.create_publisher(LoadCommand, "/rig/load_command", latched)
             setpoint = probe.create_publisher(Float64, "/controller/speed_setpoint", latched)
-            deadline = time.monotonic() + START_TIMEOUT
-            while not all("Recording /torque_estimate" in log.read_text(errors="replace")
-                          and "Recording /rig/load_command" in log.read_text(errors="replace")
-                          for _, log in recorders.values()):
-                assert not graph.failed() and all(p.poll() is None for p, _ in recorders.values()), \
-                    {name: log.read_text(errors="replace") for name, (_, log) in recorders.items()}
-                assert time.monotonic() < deadline, \
-                    {name: log.read_text(errors="replace") for name, (_, log) in recorders.items()}
-                load.publish(LoadCommand(torque=0.1))
-                setpoint.publish(Float64(data=150.0))
-                executor.spin_once(timeout_sec=0.2)
-            # the window starts with the worm at the set-point: on a busy machine the controller's process can
-            # come up seconds after the rig's, whose topics the recorders already record
+            # the window starts once every recorder records and the worm is at the set-point: on a busy machine
+            # the controller's process can come up seconds after the rig's, whose topics the recorders record
             speeds: list[float] = []
             probe.create_subscription(JointState, "/rig/joint_states",
                                       lambda m: speeds.append(m.velocity[0]), qos_profile_sensor_data)
-            while not (speeds and abs(speeds[-1] - 150.0) < 5.0):
-                assert not graph.failed(), graph.failed()
-                assert time.monotonic() < deadline, f"the worm did not reach 150 rad/s: {speeds[-5:]}"
+
+            def logs() -> dict[str, str]:
+                return {name: log.read_text(errors="replace") for name, (_, log) in recorders.items()}
+
+            deadline = time.monotonic() + START_TIMEOUT
+            while not (all("Recording /torque_estimate" in text and "Recording /rig/load_command" in text
+                           for text in logs().values()) and speeds and abs(speeds[-1] - 150.0) < 5.0):
+                assert not graph.failed() and all(p.poll() is None for p, _ in recorders.values()), logs()
+                assert time.monotonic() < deadline, (f"the worm at {speeds[-5:]} rad/s", logs())
                 load.publish(LoadCommand(torque=0.1))
                 setpoint.publish(Float64(data=150.0))
                 executor.spin_once(timeout_sec=0.2)

@@ -27,9 +27,9 @@ class RunMetrics:
     estimate_mae_pct: float  # mean |estimate - truth| over the trusted estimates of the steady parts, % of the range
     estimate_max_pct: float  # largest steady-part segment-mean error (trusted estimates), % of the calibrated range
     modes_seen: tuple[int, ...]  # worm_model.physics.modes.Mode values the truth visited
-    steady_estimates: int = 0  # estimates in the steady parts
-    steady_flagged: int = 0  # of them, flagged untrusted (standard_outputs.UNTRUSTED): left out of the two above
-    flagged_max_pct: float = float("nan")  # largest |estimate - truth| among the flagged ones, % of the range
+    steady_estimates: int  # estimates in the steady parts
+    steady_flagged: int  # of them, flagged untrusted (standard_outputs.UNTRUSTED): left out of the two above
+    flagged_max_pct: float  # largest |estimate - truth| among the flagged ones, % of the range (nan: none)
 
 
 def load_steps(scenario) -> list[int]:
@@ -177,9 +177,10 @@ def analyse_run(scenario, t_speed, omega, setpoint, t_est, estimate, t_truth, tr
     truth_at_est = np.interp(t_est, t_truth, truth)
     in_steady = _steady_mask(t_est, scenario, settle)
     flagged = np.zeros(np.shape(t_est), bool) if flags is None else (np.asarray(flags, int) & UNTRUSTED) != 0
+    steady_flagged = in_steady & flagged
     steady = in_steady & np.isfinite(estimate) & ~flagged
     abs_err = np.abs(estimate - truth_at_est)
-    flagged_err = abs_err[in_steady & flagged & np.isfinite(estimate)]
+    flagged_err = abs_err[steady_flagged & np.isfinite(estimate)]
     seg_index = np.searchsorted(starts, t_est, side="right") - 1
     seg_means = [np.mean(abs_err[steady & (seg_index == k)]) for k in range(len(scenario))
                  if np.any(steady & (seg_index == k))]
@@ -191,6 +192,6 @@ def analyse_run(scenario, t_speed, omega, setpoint, t_est, estimate, t_truth, tr
         estimate_max_pct=float(100 * np.max(seg_means) / torque_range),
         modes_seen=tuple(sorted(set(int(m) for m in modes))),
         steady_estimates=int(np.sum(in_steady)),
-        steady_flagged=int(np.sum(in_steady & flagged)),
+        steady_flagged=int(np.sum(steady_flagged)),
         flagged_max_pct=float(100 * flagged_err.max() / torque_range) if flagged_err.size else float("nan"),
     )
