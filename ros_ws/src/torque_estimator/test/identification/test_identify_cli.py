@@ -24,7 +24,8 @@ from torque_estimator.identification.identify import main
 from torque_estimator.identification.simulated import record_on_simulator
 
 RIG = load_rig()
-LINE = re.compile(r"^identify: rig_time_s=30\.0 samples=30000 found=\S+ rms_before=[\d.]+ rms_after=[\d.]+ A -> \S+$")
+LINE = re.compile(r"^identify: rig_time_s=30\.0 samples=30000 road=time_series found=\S+ held=\S+ rms_before=[\d.]+ "
+                  r"rms_after=[\d.]+ A -> \S+$")
 
 
 @pytest.fixture(scope="module")
@@ -59,10 +60,11 @@ def test_identify_from_a_record(record, tmp_path, capsys) -> None:
 
 
 def test_default_set_is_the_standard_set_whatever_the_provenance(tmp_path) -> None:
-    """mu, K_t and the drags vary from gearbox to gearbox: a measured or catalogue source: does not exempt them; the
-    rig file's free: list adds to the set, --free replaces it; the geometry is never in the default set."""
+    """mu, K_t and the drags vary from gearbox to gearbox: a measured or catalogue source: does not exempt them; nor
+    does a datasheet give the output's inertia; the rig file's free: list adds to the set, --free replaces it; the
+    geometry is never in the default set."""
     fitted, why = default_refit(None)
-    assert fitted == list(STANDARD_REFIT) and "whatever the provenance" in why
+    assert fitted == [*STANDARD_REFIT, "gearbox.gear_inertia"] and "whatever the provenance" in why
     assert not any(name.startswith("gearbox.") and "inertia" not in name for name in fitted)
     document = yaml.safe_load(Path(load_rig().source).read_text())
     node = document["drive_motor"]["torque_constant"]
@@ -72,7 +74,7 @@ def test_default_set_is_the_standard_set_whatever_the_provenance(tmp_path) -> No
     document["free"] = ["load_motor.viscous_drag"]
     (tmp_path / "measured.yaml").write_text(yaml.safe_dump(document))
     fitted, why = default_refit(tmp_path / "measured.yaml")
-    assert fitted == [*STANDARD_REFIT, "load_motor.viscous_drag"] and "free: list" in why
+    assert fitted == [*STANDARD_REFIT, "gearbox.gear_inertia", "load_motor.viscous_drag"] and "free: list" in why
     assert default_refit(None, ["friction.scale"]) == (["friction.scale"], "--free")
 
 

@@ -7,8 +7,14 @@ Map (dependencies point up this list; rclpy only in ``identify_node``):
 ``recording``     walking the timeline on the rig's sample clock, recording every
                   sample, the resumable journal
 ``simulated``     the excitation on the simulated rig in-process (tests, evaluate, bench)
-``fit``           the rig's uncertain parameters and the effects, by worm_model's
-                  residual analysis; the extended rig file with its ``identification:``
+``steady``        the road of a record held at speeds: one point a run, the base
+                  unknowns and the terms a cross-fitted selection accepts
+``identifiability`` what a record can tell: each parameter's band against its tolerance,
+                  its bound, what the record is (held speeds, a torque channel)
+``noise``         the sensors' noise as the record shows it
+``fit``           both roads (steady points, or worm_model's residual analysis of a time
+                  series), the parameters the record pins, the sensors
+``writing``       the extended rig file with its ``identification:``, checked readable
 ``identify_node`` the ROS shell of a live run (set-points out, /rig/samples in)
 ``identify``      the ``identify`` CLI (live or ``--from`` a log)
 ================  ============================================================

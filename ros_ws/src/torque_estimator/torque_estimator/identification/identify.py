@@ -52,7 +52,8 @@ from worm_model.rig_data.schema import RigDataError, is_rig_csv, write_rig_csv
 from torque_estimator.calibration.live import LiveRigError
 from torque_estimator.identification.excitation import (DEFAULT_DURATION, MAX_DURATION, default_excitation,
                                                         total_duration)
-from torque_estimator.identification.fit import IdentificationError, identify, write_identified
+from torque_estimator.identification.fit import IdentificationError, identify
+from torque_estimator.identification.writing import write_identified
 from torque_estimator.identification.recording import ExcitationRun, Journal, JournalError, journal_paths, run_settings
 
 PROG = "identify"
@@ -208,10 +209,10 @@ def _main(argv: list[str] | None) -> int:
         journal.remove()
     for line in summary(ident, time.monotonic() - start):
         print(line)
-    print(f"{PROG}: rig_time_s={ident.rig_time:.1f} samples={ident.samples} "
-          f"found={','.join(ident.model.names) or 'none'} "
-          f"rms_before={ident.analysis.rms_before:.4f} "
-          f"rms_after={ident.analysis.final.rms_held_out:.4f} A -> {args.out}")
+    print(f"{PROG}: rig_time_s={ident.rig_time:.1f} samples={ident.samples} road={ident.road.replace(' ', '_')} "
+          f"found={','.join(ident.found) or 'none'} "
+          f"held={','.join(h.parameter for h in ident.held) or 'none'} "
+          f"rms_before={ident.rms_before:.4f} rms_after={ident.rms_after:.4f} A -> {args.out}")
     return 0
 
 
@@ -233,14 +234,19 @@ def _record_live(args, rig):
 
 def summary(ident, wall: float) -> list[str]:
     """What was fitted and found, for the console."""
-    lines = [f"record: {ident.samples} samples, {ident.rig_time:.1f} s of rig time; speeds up to "
-             f"{ident.speed_max:.0f} rad/s, loads {ident.torque_range[0]:+.3f} .. {ident.torque_range[1]:+.3f} N m",
-             f"fitted ({ident.choice}): {', '.join(ident.fitted) or 'none'}"]
+    loads = (f"{ident.loads} load, trusted {ident.torque_range[0]:+.4g} .. {ident.torque_range[1]:+.4g} N m"
+             if ident.loads == 1 else f"loads {ident.torque_range[0]:+.4g} .. {ident.torque_range[1]:+.4g} N m")
+    lines = [f"record ({ident.road}): {ident.samples} samples, {ident.rig_time:.1f} s of rig time; speeds up to "
+             f"{ident.speed_max:.4g} rad/s, {loads}",
+             f"candidates ({ident.choice})",
+             f"fitted: {', '.join(ident.fitted) or 'none'}"]
     lines += [f"  {line}" for line in ident.correction_lines()]
-    lines.append(f"effects: {', '.join(ident.model.names) or 'none'}; held-out current RMS "
-                 f"{ident.analysis.rms_before:.4f} A (rig file as declared) "
-                 f"-> {ident.analysis.final.rms_held_out:.4f} A; "
-                 f"{wall:.1f} s")
+    lines += [held.line() for held in ident.held]
+    lines += ident.report
+    if ident.noise is not None:
+        lines += ident.noise.lines()
+    lines.append(f"found: {', '.join(ident.found) or 'none'}; held-out current RMS {ident.rms_before:.4g} A (rig file "
+                 f"as declared) -> {ident.rms_after:.4g} A; {wall:.1f} s")
     return lines
 
 

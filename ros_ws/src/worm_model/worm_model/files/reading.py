@@ -26,6 +26,7 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Final
 
@@ -56,6 +57,22 @@ def _note(path: Path) -> None:
 def inputs_read() -> list[Path]:
     """Every file or folder this process read through :func:`check_input` (resolved), in reading order."""
     return list(_READ)
+
+
+@contextmanager
+def not_an_input(path: str | os.PathLike[str]) -> Iterator[None]:
+    """Reading ``path`` inside this block does not make it an input (a tool looking at its own earlier output to
+    recognise it); a path read before stays one."""
+    try:
+        resolved = Path(path).resolve()
+    except (OSError, RuntimeError):
+        resolved = None
+    before = resolved in _READ
+    try:
+        yield
+    finally:
+        if resolved is not None and not before:
+            _READ.pop(resolved, None)
 
 
 def check_input(path: str | os.PathLike[str], what: str = "file", *, folder: bool = False,

@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Final
 
 from worm_model.cli.errors import InputError
-from worm_model.files.reading import inputs_read
+from worm_model.files.reading import inputs_read, not_an_input
 
 #: the file every output folder holds, naming the tool that wrote it (what lets --force replace it)
 MARKER: Final = ".written-by"
@@ -135,7 +135,8 @@ def _ours(target: Path, output: Output | None, folder: bool) -> bool:
     if output is None or output.recognise is None or not target.is_file():
         return False
     try:
-        return bool(output.recognise(target))
+        with not_an_input(target):  # looking at our own earlier output does not make it an input
+            return bool(output.recognise(target))
     except Exception:  # noqa: BLE001 - a file the predicate cannot read is not ours
         return False
 

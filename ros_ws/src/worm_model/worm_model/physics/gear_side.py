@@ -16,25 +16,28 @@ from collections.abc import Callable
 
 import numpy as np
 
+from worm_model.physics.motor import coulomb_friction, make_coulomb_friction_float
 from worm_model.physics.parameters import Rig
 
 
 def gear_side_drag(rig: Rig, omega_worm) -> np.ndarray:
-    """Drag torque of the load motors on the gear shaft [N m], opposing the gear's motion."""
+    """Drag torque of the load motors on the gear shaft [N m], opposing the gear's motion: each one's viscous
+    drag and its Coulomb drag with the low-speed rise (worm_model.physics.motor.coulomb_friction)."""
     load = rig.load_motor
     omega_gear = rig.gearbox.ratio * np.asarray(omega_worm, dtype=float)
-    return rig.load_motor_count * (load.viscous_drag * omega_gear + load.coulomb_drag * np.sign(omega_gear))
+    return rig.load_motor_count * (load.viscous_drag * omega_gear + coulomb_friction(load, omega_gear))
 
 
 def make_gear_side_drag_float(rig: Rig) -> Callable[[float], float]:
     """:func:`gear_side_drag` at one float worm speed [rad/s], in plain math (per-sample loops): the same
-    operations in the same order, so the same number."""
+    operations in the same order, so the same number (the rise's exp to round-off)."""
     count, ratio = rig.load_motor_count, rig.gearbox.ratio
-    viscous, coulomb = rig.load_motor.viscous_drag, rig.load_motor.coulomb_drag
+    viscous = rig.load_motor.viscous_drag
+    coulomb = make_coulomb_friction_float(rig.load_motor)
 
     def drag(omega_worm: float) -> float:
         omega_gear = ratio * omega_worm
-        return count * (viscous * omega_gear + coulomb * ((omega_gear > 0) - (omega_gear < 0)))
+        return count * (viscous * omega_gear + coulomb(omega_gear))
 
     return drag
 

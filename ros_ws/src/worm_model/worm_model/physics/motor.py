@@ -7,6 +7,8 @@ the drive motor, rigid coupling), all signed in the same fixed frame; torques [N
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -29,14 +31,47 @@ def electromagnetic_torque(motor: Motor, current: ArrayLike) -> FloatArray:
     return motor.torque_constant * np.asarray(current, dtype=float)
 
 
+def coulomb_magnitude(motor: Motor, omega: ArrayLike) -> FloatArray:
+    """|Coulomb drag| of the shaft at speed omega [rad/s]: c + c_s exp(-|omega| / omega_s) [N m] (c =
+    ``coulomb_drag``, c_s = ``stribeck_rise``, omega_s = ``stribeck_speed`` of this shaft): a support's
+    (bearings', seals', brushes') Stribeck friction, higher at breakaway than sliding; c where there is no rise."""
+    w = np.asarray(omega, dtype=float)
+    if motor.stribeck_rise == 0.0:
+        return np.full(w.shape, motor.coulomb_drag)
+    return motor.coulomb_drag + motor.stribeck_rise * np.exp(-np.abs(w) / motor.stribeck_speed)
+
+
+def coulomb_friction(motor: Motor, omega: ArrayLike) -> FloatArray:
+    """The shaft's Coulomb drag with its low-speed rise [N m], opposing the motion (+ along + rotation):
+    :func:`coulomb_magnitude` x sign(omega) (0 at omega = 0)."""
+    w = np.asarray(omega, dtype=float)
+    if motor.stribeck_rise == 0.0:
+        return motor.coulomb_drag * np.sign(w)
+    return coulomb_magnitude(motor, w) * np.sign(w)
+
+
+def make_coulomb_friction_float(motor: Motor) -> Callable[[float], float]:
+    """:func:`coulomb_friction` at one float speed [rad/s], in plain math (per-sample loops)."""
+    c, rise, speed = motor.coulomb_drag, motor.stribeck_rise, motor.stribeck_speed
+
+    def friction(omega: float) -> float:
+        sign = (omega > 0) - (omega < 0)
+        if rise == 0.0:
+            return c * sign
+        return (c + rise * math.exp(-abs(omega) / speed)) * sign
+
+    return friction
+
+
 def shaft_torque(motor: Motor, current: ArrayLike, omega: ArrayLike) -> FloatArray:
-    """Torque reaching the coupling: K_t i - b omega - c sign(omega) [N m] (Eq. 30 without rotor inertia).
+    """Torque reaching the coupling: K_t i - b omega - c(omega) sign(omega) [N m] (Eq. 30 without rotor inertia;
+    c(omega) with its low-speed rise, :func:`coulomb_friction`).
 
     The rotor inertia J_m belongs to the shaft's total inertia, not to this torque.
     At omega = 0 the Coulomb term is 0 (static drag is the simulator's business).
     """
     w = np.asarray(omega, dtype=float)
-    return electromagnetic_torque(motor, current) - motor.viscous_drag * w - motor.coulomb_drag * np.sign(w)
+    return electromagnetic_torque(motor, current) - motor.viscous_drag * w - coulomb_friction(motor, w)
 
 
 def steady_state_current(motor: Motor, voltage: ArrayLike, omega: ArrayLike) -> FloatArray:

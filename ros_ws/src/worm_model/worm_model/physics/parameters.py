@@ -185,7 +185,12 @@ class Friction:
 
 @dataclass(frozen=True)
 class Motor:
-    """PMDC motor, Eq. 29 (SI)."""
+    """PMDC motor, Eq. 29 (SI), with its shaft's drags: viscous b, Coulomb c and c's low-speed rise.
+
+    ``stribeck_rise`` and ``stribeck_speed`` are optional (0 and 1 rad/s when left out): the Coulomb drag is
+    (c + c_s exp(-|omega| / omega_s)) sign(omega) (worm_model.physics.motor.coulomb_friction). For the
+    ``load_motor`` section of a drive without load motors they are the output shaft supports' friction.
+    """
 
     resistance: float = _num("resistance")  # R [ohm]
     inductance: float = _num("inductance")  # L [H]
@@ -196,6 +201,10 @@ class Motor:
     coulomb_drag: float = _num("torque", "nonnegative")  # c [N m]
     rated_current: float = _num("current")  # continuous [A]
     max_voltage: float = _num("voltage")  # [V]
+    # the Coulomb drag's rise at low speed (a support's Stribeck friction, motor.coulomb_friction): c_s [N m] at
+    # standstill, decaying over stribeck_speed [rad/s of this motor's shaft]; optional (0: none)
+    stribeck_rise: float = _num("torque", "nonnegative", default=0.0)
+    stribeck_speed: float = _num("angular_velocity", "positive", (1e-6, 1e4), default=1.0)
 
 
 #: The firmware's analogue conversion order within one sample period (firmware/adc_mux.c): per motor its

@@ -86,6 +86,8 @@ class Fit:
     n_eff: float
     n_params: int  # of the current model (free parameters, current effects' parameters and grids)
     te: TeFit | None = None
+    #: correlation matrix of the free parameters' estimates (order: ``free``); None without any
+    free_correlation: np.ndarray | None = None
 
     @property
     def bic(self) -> float:
@@ -347,6 +349,7 @@ def fit(problem: Problem, specs: Sequence[tuple[Effect, dict[str, float]]], prev
     n_eff = effective_samples(res, train, problem.signals.run)
     # least-squares covariance, inflated for autocorrelation
     free_ci: dict[str, float] = {}
+    free_correlation = None
     cis: list[dict[str, float]] = [{} for _ in cur]
     if len(theta):
         J = problem.jacobian(theta, cur, train, shapes)
@@ -355,6 +358,9 @@ def fit(problem: Problem, specs: Sequence[tuple[Effect, dict[str, float]]], prev
         half = norm.ppf(0.5 + problem.settings.confidence / 2.0) * np.sqrt(np.clip(np.diag(cov), 0.0, None))
         nf = len(problem.free)
         free_ci = dict(zip(problem.free, half[:nf].tolist()))
+        sd = np.sqrt(np.clip(np.diag(cov)[:nf], 0.0, None))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            free_correlation = cov[:nf, :nf] / np.outer(sd, sd)
         k = nf
         for idx, (effect, _g) in enumerate(cur):
             p = len(effect.parameters)
@@ -372,6 +378,6 @@ def fit(problem: Problem, specs: Sequence[tuple[Effect, dict[str, float]]], prev
     return Fit(rig=rig, free=list(problem.free), free_values={p: get_value(rig, p) for p in problem.free},
                free_ci=free_ci, effects=effects, prediction=state.current, residual=res,
                rms_train=rms_of(res[train]), rms_held_out=rms_of(res[held]), rss_train=rss, n_train=n_train,
-               n_eff=n_eff, n_params=len(theta) + grid_count(problem, cur), te=te)
+               n_eff=n_eff, n_params=len(theta) + grid_count(problem, cur), te=te, free_correlation=free_correlation)
 
 

@@ -10,7 +10,7 @@ the frame of motion sigma = sign(omega_worm):
     G   = sigma (tau_load + gear-side drag + tau_gear) + J_g i sigma alpha     mesh demand on the gear side
     s   = sign(G)  (+1 at 0)                                                   engaged flank
     T   = J_w sigma alpha + (r_w / r_g) K_s(mu, s) G                           Eq. 28 solved for T
-    K_t i_true = b omega + c sigma + sigma T + tau_worm                        Eq. 30, drags of the drive motor
+    K_t i_true = b omega + c(omega) sigma + sigma T + tau_worm                 Eq. 30, drags of the drive motor
     i_measured = (1 + g) i_true + i_offset
 
 with J_w, J_g the shafts' total inertias (rig.total_worm_inertia/total_gear_inertia) plus
@@ -37,6 +37,7 @@ from scipy.signal import filtfilt
 from worm_model.physics.efficiency import flank_factor
 from worm_model.physics.friction import friction_coefficient
 from worm_model.physics.gear_side import gear_side_drag
+from worm_model.physics.motor import coulomb_magnitude
 from worm_model.physics.parameters import Rig
 from worm_model.rig_data.schema import MeasuredData
 from worm_model.physics.units import FloatArray
@@ -225,7 +226,7 @@ def evaluate(rig: Rig, signals: Signals, channels: Channels | None = None) -> Mo
     den = s * cphi * cl - mu * sl
     dk = (cl * den + sl * (s * cphi * sl + mu * cl)) / den**2  # d/dmu of (s c sl + mu cl)/(s c cl - mu sl)
     T = jw * sigma * a + gb.radius_ratio * K * G
-    torque = motor.viscous_drag * w + motor.coulomb_drag * sigma + sigma * T + ch.worm_torque
+    torque = motor.viscous_drag * w + coulomb_magnitude(motor, w) * sigma + sigma * T + ch.worm_torque
     i_true = torque / motor.torque_constant
     gain = 1.0 + np.asarray(ch.current_gain, dtype=float)
     current = gain * i_true + ch.current

@@ -546,7 +546,8 @@ def to_measured(exports: list[EposExport], settings: EposSettings, source: str) 
                         theta_worm=joined["theta_worm"], tau_load=np.full(len(joined["t"]), settings.load_torque),
                         source=source, run=joined["run"].astype(int), lines=joined["lines"],
                         skipped={"dirty rows": skipped} if skipped else {}, notes=tuple(notes),
-                        run_sources=tuple(ex.source for ex in exports))
+                        run_sources=tuple(ex.source for ex in exports),
+                        current_from_torque=any("current" not in ex.values for ex in exports))
 
 
 def read_epos_data(path: str | Path, settings: EposSettings | None) -> MeasuredData:

@@ -119,6 +119,9 @@ class MeasuredData:
     """What the reader derived or tolerated and the user should know (rows skipped, channels derived)."""
     run_sources: tuple[str, ...] = ()
     """The file each run came from, when the runs are several files (a folder of exports); else empty."""
+    current_from_torque: bool = False
+    """``current_drive`` is a motor torque the drive reported, divided by K_t (an EPOS export's torque
+    channel): K_t x current is what was measured, so nothing in it can tell K_t."""
 
     def __post_init__(self) -> None:
         n = len(self.t)

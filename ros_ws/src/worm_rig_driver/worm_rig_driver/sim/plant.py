@@ -10,8 +10,9 @@ contact, whatever the helix hand). The load torque tau_load on the gear shaft is
 positive when it opposes positive rotation.
 
 What acts on the two shafts:
-  worm shaft  tau_in = K_t*i - b*omega - c*sign(omega) + effects            (Eq. 29, section 7)
-  gear shaft  gear_load = tau_em,load + count*(b_l*omega_g + c_l*sign(omega_g)) + effects
+  worm shaft  tau_in = K_t*i - b*omega - c(omega)*sign(omega) + effects     (Eq. 29, section 7)
+  gear shaft  gear_load = tau_em,load + count*(b_l*omega_g + c_l(omega_g)*sign(omega_g)) + effects
+  (c(omega): the Coulomb drag with its low-speed rise, worm_model.physics.motor.coulomb_friction)
 where tau_em,load = count * K_t,load * i_load is what the load motors' current
 says (the calibration's "known" tau_d) and the rest is the load motors' own drag,
 which the mesh must also overcome. That gear-side drag is what gives the rig a

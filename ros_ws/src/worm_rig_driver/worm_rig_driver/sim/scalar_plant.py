@@ -167,6 +167,9 @@ class ScalarPlant:
         self._count, self._kt_load = rig.load_motor_count, load.torque_constant
         self._load_scale = self._count * self._kt_load  # [N m/A] all load motors together
         self._load_b, self._load_c = load.viscous_drag, load.coulomb_drag
+        # the Coulomb drags' low-speed rise (motor.coulomb_friction): (c_s, omega_s) per shaft, None without one
+        self._rise = (motor.stribeck_rise, motor.stribeck_speed) if motor.stribeck_rise else None
+        self._load_rise = (load.stribeck_rise, load.stribeck_speed) if load.stribeck_rise else None
         self._supply, self._max_load = rig.supply_voltage, rig.max_load_torque
         # what _forces reads, unpacked there in one go (attribute loads add up on this hot path)
         self._force_constants = (self._kt, self._b, self._c, self._ratio, self._count, self._load_b, self._load_c,
@@ -220,10 +223,14 @@ class ScalarPlant:
         """(tau_in, gear_load, mu, worm effect torque, gear effect torque): RigPlant._forces for floats."""
         kt, b, c, ratio, count, load_b, load_c, r_w, cos_lead = self._force_constants
         w = omega_worm
+        g = ratio * (omega_gear / ratio)
+        if self._rise is not None:
+            c = c + self._rise[0] * math.exp(-abs(w) / self._rise[1])
+        if self._load_rise is not None:
+            load_c = load_c + self._load_rise[0] * math.exp(-abs(g) / self._load_rise[1])
         # motor.shaft_torque: K_t i - b w - c sign(w)
         tau_in = kt * current - b * w - c * (1.0 if w > 0.0 else (-1.0 if w < 0.0 else 0.0))
         # gear_side_load(rig, tau_load, omega_gear / ratio): the drag at ratio * (omega_gear / ratio)
-        g = ratio * (omega_gear / ratio)
         gear_load = tau_load + count * (load_b * g + load_c * (1.0 if g > 0.0 else (-1.0 if g < 0.0 else 0.0)))
         # friction.sliding_velocity: |w| r_w / cos(lambda)
         v_sliding = 0.0 if static else abs(w) * r_w / cos_lead
@@ -387,9 +394,13 @@ class ScalarPlant:
             return self._step_rigid(dt, tau_load)  # at rest: breakaway
         kt, b, c, ratio, count, load_b, load_c, r_w, cos_lead = self._force_constants
         sigma = 1.0 if omega > 0.0 else -1.0
+        g = ratio * ((ratio * omega) / ratio)
+        if self._rise is not None:
+            c = c + self._rise[0] * math.exp(-abs(omega) / self._rise[1])
+        if self._load_rise is not None:
+            load_c = load_c + self._load_rise[0] * math.exp(-abs(g) / self._load_rise[1])
         # _forces(omega, ratio * omega, ...)
         tau_in = kt * self.current_drive - b * omega - c * sigma
-        g = ratio * ((ratio * omega) / ratio)
         gear_load = tau_load + count * (load_b * g + load_c * (1.0 if g > 0.0 else (-1.0 if g < 0.0 else 0.0)))
         mu = self._mu_law(abs(omega) * r_w / cos_lead)
         # _acceleration: Eq. 28 with the self-consistent flank

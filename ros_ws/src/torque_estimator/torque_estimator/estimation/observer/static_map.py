@@ -6,7 +6,7 @@ From Eq. 28 in the frame of motion (σ = sign ω, +1 at 0):
     T_dist(ω, τ_d) = c·sign ω + σ·(r_w/r_g)·K_s(μ(ω))·D,   D = σ·(τ_d + τ_drag,g(ω)),
     s = +1 (driving flank) for D >= 0, −1 (coast) for D < 0,
 
-with c the drive motor's Coulomb drag, τ_drag,g the load motors' drag the gear shaft also
+with c the drive motor's Coulomb drag (with its low-speed rise, worm_model.physics.motor.coulomb_friction), τ_drag,g the load motors' drag the gear shaft also
 carries (worm_model.physics.gear_side: it sets the switching torque, so the pseudo-resistive
 mode is D >= 0 with τ_d < 0), μ(ω) the rig's friction model (worm_model.physics.friction, AGMA,
 speed dependent) and K_s the flank factor (worm_model.physics.efficiency: K_+ = tan(λ+ρ'),
@@ -30,6 +30,7 @@ from worm_model.physics.dynamics import load_per_flank, make_reflected_input_tor
 from worm_model.physics.efficiency import flank_factor
 from worm_model.physics.friction import friction_coefficient, make_friction_coefficient_float
 from worm_model.physics.gear_side import gear_side_drag, make_gear_side_drag_float
+from worm_model.physics.motor import coulomb_friction, make_coulomb_friction_float
 from worm_model.physics.parameters import Rig
 
 from torque_estimator.estimation.base import EstimateFlags
@@ -48,7 +49,7 @@ class StaticLoadMap:
         self.rig = rig
         gb = rig.gearbox
         self.k = gb.radius_ratio
-        self.coulomb = rig.drive_motor.coulomb_drag
+        self._coulomb_float = make_coulomb_friction_float(rig.drive_motor)  # c(ω) sign ω, one float
         self.self_locking_mu = gb.self_locking_mu
         self._mu_float = make_friction_coefficient_float(rig.friction, gb)  # μ(ω), one float
         self._drag_float = make_gear_side_drag_float(rig)  # τ_drag,g(ω), one float
@@ -74,9 +75,8 @@ class StaticLoadMap:
         the same numbers up to the friction law's last bit (make_friction_coefficient_float).
         """
         mu = self._mu_float(omega)
-        sign = (omega > 0) - (omega < 0)
         torque, factor, flank = self._input_torque_float(mu, tau_d + self._drag_float(omega), omega)
-        return self.coulomb * sign + torque, self.k * factor, flank, factor, mu
+        return self._coulomb_float(omega) + torque, self.k * factor, flank, factor, mu
 
     def worm_torque(self, omega: float, tau_d: float) -> tuple[float, float, int]:
         """(T_dist [N m], ∂T_dist/∂τ_d [1], flank s) at one (ω, τ_d)."""
@@ -103,7 +103,7 @@ class StaticLoadMap:
         """
         w, t = np.broadcast_arrays(np.asarray(omega, dtype=float), np.asarray(t_dist, dtype=float))
         drag = self.gear_drag(w)
-        driving, coast = load_per_flank(self.rig.gearbox, self.mu(w), t - self.coulomb * np.sign(w), w)
+        driving, coast = load_per_flank(self.rig.gearbox, self.mu(w), t - coulomb_friction(self.rig.drive_motor, w), w)
         driving, coast = driving - drag, coast - drag
         ok_plus, ok_minus = ~np.isnan(driving), ~np.isnan(coast)
         flags = np.where(ok_plus & ok_minus, int(EstimateFlags.AMBIGUOUS), 0)
