@@ -111,7 +111,7 @@ def test_self_locking_standstill_is_ambiguous(estimators) -> None:
     assert int(res.flags) & EstimateFlags.AMBIGUOUS
     arms = est.torques[[np.argmin(np.abs(column[:low] - current)), low + np.argmin(np.abs(column[low:] - current))]]
     assert float(res.torque) == pytest.approx(arms.max(), abs=2 * est.torque_step)  # the driving flank
-    assert float(res.uncertainty) >= np.ptp(arms) - 2 * est.torque_step  # reaches the other arm
+    assert float(res.other) == pytest.approx(arms.min(), abs=2 * est.torque_step)  # the other arm's candidate
     assert not int(est.estimate(150.0, current).flags) & EstimateFlags.AMBIGUOUS  # monotone at speed
 
 

@@ -17,7 +17,7 @@ import pytest
 
 from torque_estimator.calibration.batch import CalibrationGrid
 from torque_estimator.estimation.base import EstimateFlags
-from torque_estimator.estimation.registry import ESTIMATORS, METHODS, make_estimator
+from torque_estimator.estimation.registry import ESTIMATORS, METHODS, PRIOR_OPTIONS, make_estimator
 from torque_estimator.evaluation.held_out import held_out_setpoints
 from torque_estimator.estimation.observer import (LoadObserver, ObserverEstimator, StaticLoadMap, jump_bound,
                                        predicted_noise, steady_state_bound)
@@ -35,7 +35,7 @@ def nominal_step():
 
 
 def test_registry() -> None:
-    assert "observer" in ESTIMATORS and METHODS["observer"].options == () and METHODS["observer"].reads_model_file
+    assert "observer" in ESTIMATORS and METHODS["observer"].options == PRIOR_OPTIONS and METHODS["observer"].reads_model_file
     est = make_estimator("observer", None)
     assert callable(est.stream) and isinstance(est.stream(0.001), LoadObserver)
 
@@ -64,7 +64,12 @@ def test_self_locking_v_is_ambiguous() -> None:
     assert int(result.flags) & EstimateFlags.AMBIGUOUS
     assert float(result.torque) == pytest.approx(0.1, abs=1e-9)  # the driving flank is reported
     driving, coast, _flags, _chosen = smap.invert(2.0, t_dist)
-    assert float(coast) < 0 and float(result.uncertainty) >= abs(float(coast) - 0.1) - 1e-12
+    assert float(coast) < 0 and float(result.other) == pytest.approx(float(coast), abs=1e-12)  # the other arm
+    # a prior that admits only the coast arm's load takes that one, and nothing is ambiguous
+    only_coast = ObserverEstimator(None, load_min=float(coast) - 0.01, load_max=float(coast) + 0.01).estimate(
+        2.0, current)
+    assert float(only_coast.torque) == pytest.approx(float(coast), abs=1e-9)
+    assert not int(only_coast.flags) & EstimateFlags.AMBIGUOUS and np.isnan(float(only_coast.other))
 
 
 def test_step_response(nominal_step) -> None:

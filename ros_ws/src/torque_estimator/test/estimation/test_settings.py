@@ -19,7 +19,7 @@ from torque_estimator.estimation.extended_model import ExtendedModelEstimator
 from torque_estimator.estimation.knn import KnnEstimator
 from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.estimation.observer import LoadObserver, LoadProcess, ObserverEstimator
-from torque_estimator.estimation.registry import MAP_OPTIONS, METHODS
+from torque_estimator.estimation.registry import MAP_OPTIONS, METHODS, PRIOR_OPTIONS
 from torque_estimator.estimation.settings import ALL_OPTIONS, EstimatorSettings, build_estimator
 
 RIG = load_rig()
@@ -57,10 +57,10 @@ def test_every_option_default_is_its_class_default() -> None:
 def test_each_method_reads_only_its_options() -> None:
     """The map's filters are read by the quasi-static maps, not by the observer, which follows the rig itself."""
     assert {o.name for o in METHODS["knn"].options} == {"k", "weighting", *(o.name for o in MAP_OPTIONS)}
-    assert {o.name for o in METHODS["extended_model"].options} == {o.name for o in MAP_OPTIONS}
-    assert METHODS["observer"].options == ()
+    assert {o.name for o in METHODS["extended_model"].options} == {o.name for o in MAP_OPTIONS + PRIOR_OPTIONS}
+    assert METHODS["observer"].options == PRIOR_OPTIONS  # the load prior only
     parameters = {"method": "observer", "k": 9, "input_filter": 0.1, "calibration_file": ""}
-    assert EstimatorSettings.from_parameters(parameters).options == {}
+    assert EstimatorSettings.from_parameters(parameters).options == {"load_min": 0.0, "load_max": 0.0}
     knn = EstimatorSettings.from_parameters(parameters, "knn")
     assert knn.estimator_options == {"k": 9, "weighting": "inverse_distance"}
     assert knn.live_options["input_filter"] == 0.1 and knn.live_options["change_threshold"] == 4.0

@@ -48,6 +48,9 @@ class EstimateFlags(IntFlag):
     INVALID_INPUT = 4
     #: The motor was accelerating; a quasi-static map reads inertia as load.
     TRANSIENT = 8
+    #: The worm stands: static friction (a self-locked mesh) holds the load, so the current says nothing of it;
+    #: the last estimate is held, its uncertainty growing.
+    STANDSTILL = 16
 
 
 @dataclass(frozen=True, eq=False)
@@ -56,13 +59,17 @@ class TorqueEstimates:
 
     Attributes:
         torque: estimated τ_d [N·m], NaN for invalid input.
-        uncertainty: 1-sigma-like spread of the estimate [N·m].
+        uncertainty: 1-sigma-like spread of the estimate [N·m] (where ``other`` is given: of this candidate alone).
         flags: :class:`EstimateFlags` bits per sample (integer array).
+        other: where AMBIGUOUS, the other candidate load [N·m] (the V's other arm), NaN elsewhere; None from an
+            estimator that never gives one. A caller that reports an estimate as ambiguous widens its
+            uncertainty to reach the other candidate (estimation.live.LiveEstimator.judge).
     """
 
     torque: NDArray[np.float64]
     uncertainty: NDArray[np.float64]
     flags: NDArray[np.int64]
+    other: NDArray[np.float64] | None = None
 
 
 class SampleEstimate(Protocol):

@@ -8,6 +8,10 @@ The model is a worm_model ``ExtendedModel`` read from a parameter file written b
 ``residuals`` (rig sections + ``effects:``); without a file it is the rig with no
 effects, i.e. the paper's model (Eqs 28–30).
 
+The load prior (``load_min``, ``load_max`` [N·m], branches.LoadPrior): declared, the table spans
+it, so no candidate outside it is ever found (a current it cannot explain is extrapolated and
+flagged OUT_OF_CALIBRATION); not declared (both 0), the table's range below stands in.
+
 Construction (once): the model's drive current i(ω, τ_d) at α = 0 is tabulated on a
 uniform grid per rotation direction: |ω| in [0, ω_max] (``speed_points``; −|ω| on the
 negative side, −1e−9 at 0), τ_d over [τ_min, τ_max] (``torque_points``).  The ranges
@@ -45,15 +49,17 @@ Per sample (ω, i):
 3. Crossings of i along the column, each solved linearly inside its τ_d cell.
    One: that τ_d. Several (self-locking V, physics.md §8: two loads draw the same
    current): AMBIGUOUS; the estimate is the crossing with the largest σ·τ_d (the load
-   opposing the motion most, the driving flank) and the uncertainty reaches the
-   farthest other crossing.
+   opposing the motion most, the driving flank), the other candidate (``other``) the crossing
+   farthest from it, and the uncertainty reaches it. Which of the two is the load is the
+   caller's to tell (LiveEstimator's branches.BranchTracker: the motion, the prior).
    None: OUT_OF_CALIBRATION; i beyond an end of the column is extrapolated along
    the end cell's slope, i below the V's minimum (no load explains it) gives the
    τ_d of the minimum.
 4. Uncertainty (1 sigma): u² = (σ_i / |∂i/∂τ_d|)² + (Δτ_table / √12)², σ_i =
    ``current_noise`` (default the rig's current_noise_std: a conservative figure for a
    smoothed live current) through the local slope, plus the table's τ_d step as a
-   uniform quantisation; AMBIGUOUS: u = max(u, |τ_other − τ̂|).
+   uniform quantisation: the chosen candidate's own; AMBIGUOUS, the other is ``other``, and a
+   caller that reports the estimate as ambiguous widens u to reach it (LiveEstimator).
 5. NaN/inf input: τ̂ = u = NaN, INVALID_INPUT; never raises. TRANSIENT is the caller's.
 6. The load on the gear, not the load sensor's reading of it: a model fitted to logged data
    maps the current to the ``tau_load`` the rig's load-current sensors read.  When the model
@@ -73,11 +79,13 @@ from numpy.typing import ArrayLike, NDArray
 
 import yaml
 
+from worm_model.physics.envelope import Envelope
 from worm_model.physics.parameters import ParameterError, Rig, load_rig
 from worm_model.residuals.extended import ExtendedModel
 
 from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.base import EstimateFlags, TorqueEstimates
+from torque_estimator.estimation.branches import LoadPrior
 
 #: Fewest worm angles averaged per table entry when the model has periodic effects (angle_count).
 ANGLES = 7
@@ -189,6 +197,22 @@ def model_ranges(model_file: str | Path | None, database: CalibrationDatabase | 
     return no_load, -rig.max_load_torque, rig.max_load_torque, "rig"
 
 
+def checked_prior(load_min: float, load_max: float, fallback: tuple[float, float], rig: Rig) -> LoadPrior:
+    """The load prior of estimator options ``load_min``/``load_max`` [N·m] (branches.LoadPrior.of, ``fallback``
+    standing in when none is declared), checked against what ``rig`` can do (worm_model.physics.envelope).
+
+    Raises:
+        ValueError: load_min not below load_max, or a bound far outside the rig's envelope (naming it).
+    """
+    prior = LoadPrior.of(float(load_min), float(load_max), fallback)
+    if prior.declared:
+        envelope = Envelope.of(rig)
+        for name, value in (("load_min", prior.low), ("load_max", prior.high)):
+            if (problem := envelope.problem("tau_load", value)) is not None:
+                raise ValueError(f"{name}: {problem}")
+    return prior
+
+
 class ExtendedModelEstimator:
     """τ_d by inverting the extended model's tabulated current; method in the module docstring.
 
@@ -204,9 +228,11 @@ class ExtendedModelEstimator:
         angles: fewest worm angles averaged when the model has periodic effects (≥ 1; :func:`angle_count`).
         current_noise: σ_i [A] for the uncertainty; None → rig.sensors.current_noise_std.
         ranges: (ω_max, τ_min, τ_max) of the table instead of :func:`model_ranges`' (tests, in-memory models).
+        load_min, load_max: the load prior [N·m] (module docstring); both 0: none declared.
 
     Raises:
-        ValueError: bad option, empty database or zero torque range.
+        ValueError: bad option, empty database or zero torque range, a prior with load_min >= load_max or far
+            outside what the rig can do.
         worm_model.physics.parameters.ParameterError: a bad model or rig file.
     """
 
@@ -215,7 +241,8 @@ class ExtendedModelEstimator:
     def __init__(self, database: CalibrationDatabase | None = None, model_file: str | Path | None = None,
                  rig_file: str | Path | None = None, *, rig: Rig | None = None, model: ExtendedModel | None = None,
                  speed_points: int = 121, torque_points: int = 161, angles: int = ANGLES,
-                 current_noise: float | None = None, ranges: tuple[float, float, float] | None = None) -> None:
+                 current_noise: float | None = None, ranges: tuple[float, float, float] | None = None,
+                 load_min: float = 0.0, load_max: float = 0.0) -> None:
         if speed_points < 2 or torque_points < 2 or angles < 1:
             raise ValueError(f"need speed_points, torque_points >= 2 and angles >= 1, got "
                              f"{speed_points}, {torque_points}, {angles}")
@@ -232,6 +259,10 @@ class ExtendedModelEstimator:
                                                                        database, rig)
         if not (omega_max > 0 and tau_hi > tau_lo):
             raise ValueError(f"empty table range: omega_max {omega_max}, torque [{tau_lo}, {tau_hi}]")
+        #: the loads the estimate may be (branches.LoadPrior): the declared prior, else the table's range
+        self.prior = checked_prior(load_min, load_max, (tau_lo, tau_hi), rig)
+        if self.prior.declared:
+            tau_lo, tau_hi = self.prior.low, self.prior.high
         self.current_noise = float(rig.sensors.current_noise_std if current_noise is None else current_noise)
         if not (math.isfinite(self.current_noise) and self.current_noise >= 0):
             raise ValueError(f"current_noise must be finite and >= 0, got {current_noise!r}")
@@ -296,16 +327,18 @@ class ExtendedModelEstimator:
             harmonics = [np.broadcast_to(x, omega.shape).ravel() for x in (mean_cos, mean_sin)]
         torque = np.full(len(w), np.nan)
         spread = np.full(len(w), np.nan)
+        other = np.full(len(w), np.nan)
         flags = np.zeros(len(w), dtype=np.int64)
         for start in range(0, len(w), _BATCH):
             part = slice(start, start + _BATCH)
-            torque[part], spread[part], flags[part] = self._invert(w[part], i[part])
+            torque[part], spread[part], flags[part], other[part] = self._invert(w[part], i[part])
             if harmonics is not None:  # take the gear ripple at the first estimate out, invert again
                 ripple = self._gear_ripple(w[part], i[part], torque[part], harmonics[0][part], harmonics[1][part])
-                torque[part], spread[part], flags[part] = self._invert(w[part], i[part] - ripple)
+                torque[part], spread[part], flags[part], other[part] = self._invert(w[part], i[part] - ripple)
         shape = omega.shape
-        torque = self.correction.load(torque)
-        return TorqueEstimates(torque.reshape(shape), spread.reshape(shape), flags.reshape(shape))
+        torque, other = self.correction.load(torque), self.correction.load(other)
+        return TorqueEstimates(torque.reshape(shape), spread.reshape(shape), flags.reshape(shape),
+                               other.reshape(shape))
 
     def _speed_cells(self, w: NDArray[np.float64], i: NDArray[np.float64]
                      ) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.float64]]:
@@ -367,7 +400,9 @@ class ExtendedModelEstimator:
         ranked = np.where(crossing, sigma * tau_at, -np.inf)
         best = ranked.argmax(axis=1)
         torque = np.take_along_axis(tau_at, best[:, None], axis=1)[:, 0]
-        farthest = np.where(crossing, np.abs(tau_at - torque[:, None]), 0.0).max(axis=1)
+        distance = np.where(crossing, np.abs(tau_at - torque[:, None]), 0.0)
+        farthest = distance.max(axis=1)
+        other = np.take_along_axis(tau_at, distance.argmax(axis=1)[:, None], axis=1)[:, 0]
 
         # no crossing: extrapolate beyond an end, or the V's minimum
         none = count == 0
@@ -392,15 +427,15 @@ class ExtendedModelEstimator:
         with np.errstate(divide="ignore"):
             noise = np.where(slope > 0, self.current_noise / slope, np.inf if self.current_noise else 0.0)
         spread = np.hypot(noise, self.torque_step / math.sqrt(12.0))
-        ambiguous = count > 1
+        ambiguous = (count > 1) & (farthest > 0.0)
         flags[ambiguous] |= EstimateFlags.AMBIGUOUS
-        spread = np.where(ambiguous, np.maximum(spread, farthest), spread)
+        other = np.where(ambiguous & valid, other, np.nan)
         torque[~valid] = np.nan
         spread[~valid] = np.nan
         flags[~valid] = int(EstimateFlags.INVALID_INPUT)
-        return torque, spread, flags
+        return torque, spread, flags, other
 
 
-__all__ = ["ANGLES", "ExtendedModelEstimator", "SensorCorrection", "angle_count", "gear_orders",
+__all__ = ["ANGLES", "ExtendedModelEstimator", "SensorCorrection", "angle_count", "checked_prior", "gear_orders",
            "identification_ranges", "load_model",
            "model_ranges"]

@@ -37,6 +37,16 @@ A disturbance observer in front of a quasi-static map. Per sample (ω_w [rad/s],
    One that takes the gear ripple out (base.AngleEstimator with ``uses_angle``:
    extended_model with periodic effects) also gets the sample's encoder angle ``theta``
    (the ripple it removes turns once per gear turn, slow beside the filters' delay).
+4. What the map's estimate is worth here (:meth:`LiveEstimator.judge`). On a drive that self-locks at
+   rest (its mesh's friction at zero speed above cos(phi_n) tan(lambda)), a standing worm shows nothing
+   of its load (the mesh's friction holds it): standing is its filtered speed within
+   worm_model.physics.resolution.standstill_speed of 0 (twice the rig's own speed noise), and the mean
+   of the last STILL_SAMPLES within the same band of that mean's noise (one noisy sample of a slowly
+   moving worm does not stop it); the last moving estimate is then held, flagged STANDSTILL, its
+   uncertainty growing (branches.Hold). A moving one where the map found two candidate loads (a
+   self-locking drive's V) takes the one the branch tracker tells apart (branches.BranchTracker: the
+   load prior, a load that persists across a stop or a reversal); AMBIGUOUS is left only where
+   nothing does.
 
 Streaming estimators (base.StreamingEstimator: ``stream(sample_period)`` gives an
 EstimateStream, e.g. the model-based observer of estimation/observer/) replace steps 1-3:
@@ -72,9 +82,13 @@ methods that run behind these filters.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 
+from worm_model.physics.friction import friction_coefficient
+from worm_model.physics.gear_side import make_gear_side_drag_float
 from worm_model.physics.parameters import Rig
+from worm_model.physics.resolution import standstill_speed
 
 from collections.abc import Sequence
 
@@ -82,6 +96,7 @@ import numpy as np
 
 from torque_estimator.estimation.base import (AngleEstimator, EstimateFlags, EstimateStream, StreamingEstimator,
                                               TorqueEstimator)
+from torque_estimator.estimation.branches import BranchTracker, Hold, LoadPrior, arm_of, hold_drift
 from torque_estimator.estimation.quasi_static import make_inertia_free_current_float
 
 #: First-order stages of the matched input filter (speed and current alike).
@@ -92,6 +107,9 @@ NOISE_TIME_CONSTANT = 0.5
 MAX_GAP = 100
 #: Smoothing time constants after the last sample beyond ``transient_acceleration`` that are still TRANSIENT.
 TRANSIENT_MEMORY = 3.0
+#: Samples whose mean speed decides a standstill with the sample's own (step 4): one noisy sample of a slowly
+#: moving worm does not stop it, a stop is seen within these samples.
+STILL_SAMPLES = 3
 
 
 @dataclass(frozen=True)
@@ -109,6 +127,7 @@ class LiveEstimate:
     flags: int
     omega_worm: float
     current_drive: float
+    other: float = math.nan  # the map's other candidate where it found two (AMBIGUOUS), NaN elsewhere
 
 
 @dataclass(frozen=True)
@@ -129,9 +148,10 @@ class Filtered:
 
 
 def estimate_filtered(estimator: TorqueEstimator, samples: Sequence[Filtered]) -> list[LiveEstimate]:
-    """The map's estimates of several filtered samples (of one or several rigs) in one vectorised call: what
-    :meth:`LiveEstimator.update` computes for each, at the cost of one (a quasi-static map costs about the
-    same for one sample as for a few hundred). The angle is passed when every sample has one."""
+    """The map's estimates of several filtered samples (of one or several rigs) in one vectorised call (step 3),
+    at the cost of one (a quasi-static map costs about the same for one sample as for a few hundred); each
+    rig's :meth:`LiveEstimator.judge` then takes its own (step 4), as :meth:`LiveEstimator.update` does. The
+    angle is passed when every sample has one."""
     if not samples:
         return []
     omega = np.array([s.omega for s in samples])
@@ -142,8 +162,9 @@ def estimate_filtered(estimator: TorqueEstimator, samples: Sequence[Filtered]) -
     else:
         result = estimator.estimate(omega, current)
     torque, spread, flags = (np.asarray(x).tolist() for x in (result.torque, result.uncertainty, result.flags))
-    return [LiveEstimate(float(torque[k]), float(spread[k]), int(flags[k]) | s.flags, s.omega, s.current)
-            for k, s in enumerate(samples)]
+    other = [math.nan] * len(samples) if result.other is None else np.asarray(result.other).ravel().tolist()
+    return [LiveEstimate(float(torque[k]), float(spread[k]), int(flags[k]) | s.flags, s.omega, s.current,
+                         float(other[k])) for k, s in enumerate(samples)]
 
 
 class _Cascade:
@@ -248,6 +269,16 @@ class LiveEstimator:
         self._next_seq: int | None = None
         self._uses_angle = isinstance(estimator, AngleEstimator) and bool(estimator.uses_angle)
         self._inertia_free = make_inertia_free_current_float(rig)
+        self._gear_drag = make_gear_side_drag_float(rig)  # which arm of the V a lone candidate is on
+        #: [rad/s] below which the worm stands (worm_model.physics.resolution: the rig's own speed noise), and what
+        #: the last STILL_SAMPLES speeds may sum to: their mean within the band of their own mean's noise
+        self.standstill = standstill_speed(rig)
+        self._still_sum = STILL_SAMPLES * self.standstill / math.sqrt(STILL_SAMPLES)
+        #: a drive that self-locks at rest (its mesh's friction at zero speed above cos(phi_n) tan(lambda)) holds
+        #: its load standing by friction: then the estimate is held (step 4)
+        self._holds = float(friction_coefficient(rig.friction, rig.gearbox, 0.0)) > rig.gearbox.self_locking_mu
+        #: the loads a map's estimate may be (branches.LoadPrior: the estimator's, else unbounded)
+        self.prior: LoadPrior = getattr(estimator, "prior", None) or LoadPrior()
         self._start()
 
     def _start(self) -> None:
@@ -262,6 +293,11 @@ class LiveEstimator:
         self._transient_left = 0  # samples still TRANSIENT after the last acceleration beyond the threshold
         self.stream: EstimateStream | None = (self.estimator.stream(self.sample_period)
                                               if isinstance(self.estimator, StreamingEstimator) else None)
+        # a map's branches and standstill hold (a stream keeps its own: observer.kalman.Branches)
+        self.tracker = BranchTracker(self.prior)
+        self.hold = Hold(hold_drift(self.prior, self.rig.max_load_torque), self.sample_period)
+        self._moving: tuple[float, float] | None = None  # the last moving estimate (torque, uncertainty) [N m]
+        self._speeds: deque[float] = deque(maxlen=STILL_SAMPLES)  # the last |omega| [rad/s] judged
 
     def follow(self, seq: int) -> None:
         """The next sample's seq: bridge a gap or start again (module docstring). update(seq=...) calls it."""
@@ -298,8 +334,46 @@ class LiveEstimator:
             result = self.estimator.estimate(f.omega, f.current, theta_worm=f.theta)
         else:
             result = self.estimator.estimate(f.omega, f.current)
-        return LiveEstimate(float(result.torque), float(result.uncertainty), int(result.flags) | f.flags, f.omega,
-                            f.current)
+        other = math.nan if result.other is None else float(result.other)
+        return self.judge(LiveEstimate(float(result.torque), float(result.uncertainty), int(result.flags) | f.flags,
+                                       f.omega, f.current, other))
+
+    def judge(self, raw: LiveEstimate) -> LiveEstimate:
+        """Step 4 of the module docstring for one mapped sample (a map's, :meth:`update` or
+        :func:`estimate_filtered`; every mapped sample of the stream in order): a standing worm's estimate is
+        the last moving one, held (STANDSTILL, its uncertainty growing: branches.Hold); a moving one takes the
+        candidate the branch tracker tells apart (AMBIGUOUS only where nothing does: branches.BranchTracker)."""
+        if raw.flags & EstimateFlags.INVALID_INPUT or not math.isfinite(raw.omega_worm):
+            return raw
+        self._speeds.append(abs(raw.omega_worm))
+        if self._holds and abs(raw.omega_worm) <= self.standstill and sum(self._speeds) <= self._still_sum:
+            self.tracker.stand()
+            start = self._moving if self._moving is not None else (raw.torque, raw.uncertainty)
+            self.hold.start(*start)
+            torque, spread = self.hold.step()
+            flags = (raw.flags & ~int(EstimateFlags.AMBIGUOUS)) | int(EstimateFlags.STANDSTILL)
+            return LiveEstimate(torque, spread, flags, raw.omega_worm, raw.current_drive)
+        self.hold.end()
+        if raw.flags & EstimateFlags.AMBIGUOUS and not math.isfinite(raw.other):  # a map that names no candidate
+            self._moving = (raw.torque, raw.uncertainty)
+            return raw
+        if math.isfinite(raw.other):  # the map's two: its choice on the driving arm, the other on the coast
+            driving, coast = raw.torque, raw.other
+        elif arm_of(raw.torque, raw.omega_worm, self._gear_drag(raw.omega_worm)) == "driving":
+            driving, coast = raw.torque, math.nan
+        else:
+            driving, coast = math.nan, raw.torque
+        choice = self.tracker.choose(raw.omega_worm, driving, coast, raw.uncertainty)
+        flags = raw.flags & ~int(EstimateFlags.AMBIGUOUS)
+        spread = raw.uncertainty
+        if choice.ambiguous:
+            flags |= int(EstimateFlags.AMBIGUOUS)
+            spread = max(spread, abs(choice.other - choice.load))
+        if choice.outside:
+            flags |= int(EstimateFlags.OUT_OF_CALIBRATION)
+        self._moving = (choice.load, raw.uncertainty)
+        return LiveEstimate(choice.load, spread, flags, raw.omega_worm, raw.current_drive,
+                            choice.other if choice.ambiguous else math.nan)
 
     def filter(self, omega_worm: float, current_drive: float, theta: float | None = None,
                seq: int | None = None) -> Filtered:

@@ -58,6 +58,17 @@ KNN_OPTIONS: tuple[Option, ...] = (
     Option("weighting", "inverse_distance", "k-NN weighting of the neighbours (knn).", choices=tuple(WEIGHTINGS)),
 )
 
+#: The load prior of the model-based estimators (branches.LoadPrior): what tells a self-locking drive's two
+#: candidate loads apart besides the motion.
+PRIOR_OPTIONS: tuple[Option, ...] = (
+    Option("load_min", 0.0,
+           "Least load [N m] the drive carries (gear frame, + opposing + rotation: a hanging mass lifted by + "
+           "rotation is positive); with load_max, a candidate load outside [load_min, load_max] is not the load "
+           "(a self-locking drive's two candidates); both 0: none declared, the identification's or calibration's "
+           "range stands in (extended_model, observer, momentum).", low=-1e4, high=1e4),
+    Option("load_max", 0.0, "Largest load [N m] the drive carries (see load_min).", low=-1e4, high=1e4),
+)
+
 #: The momentum observer's own options (MomentumEstimator).
 MOMENTUM_OPTIONS: tuple[Option, ...] = (
     Option("bandwidth", DEFAULT_BANDWIDTH,
@@ -89,9 +100,12 @@ class Method:
 #: MAP_OPTIONS. The observer reads the voltage too; the momentum observer only current, speed and encoder angle.
 METHODS: dict[str, Method] = {
     "knn": Method(KnnEstimator, KNN_OPTIONS + MAP_OPTIONS, needs_calibration=True, reads_model_file=False),
-    "extended_model": Method(ExtendedModelEstimator, MAP_OPTIONS, needs_calibration=False, reads_model_file=True),
-    "observer": Method(ObserverEstimator, (), needs_calibration=False, reads_model_file=True, reads_voltage=True),
-    "momentum": Method(MomentumEstimator, MOMENTUM_OPTIONS, needs_calibration=False, reads_model_file=True),
+    "extended_model": Method(ExtendedModelEstimator, MAP_OPTIONS + PRIOR_OPTIONS, needs_calibration=False,
+                             reads_model_file=True),
+    "observer": Method(ObserverEstimator, PRIOR_OPTIONS, needs_calibration=False, reads_model_file=True,
+                       reads_voltage=True),
+    "momentum": Method(MomentumEstimator, MOMENTUM_OPTIONS + PRIOR_OPTIONS, needs_calibration=False,
+                       reads_model_file=True),
 }
 
 #: Estimator name -> factory (evaluate, the benchmarks and the tests iterate over it).
@@ -123,5 +137,5 @@ def make_estimator(name: str, database: CalibrationDatabase | None, **options: A
     return row.factory(database, **options)
 
 
-__all__ = ["ESTIMATORS", "KNN_OPTIONS", "MAP_OPTIONS", "METHODS", "MOMENTUM_OPTIONS", "Method", "Option",
+__all__ = ["ESTIMATORS", "KNN_OPTIONS", "MAP_OPTIONS", "METHODS", "MOMENTUM_OPTIONS", "Method", "Option", "PRIOR_OPTIONS",
            "make_estimator", "method"]

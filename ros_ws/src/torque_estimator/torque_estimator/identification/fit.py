@@ -79,7 +79,7 @@ from worm_model.rig_data.schema import MeasuredData
 
 from torque_estimator.identification import steady
 from torque_estimator.identification.identifiability import Assessment, Held, RecordFacts, assess
-from torque_estimator.identification.noise import SensorNoise, measure
+from torque_estimator.identification.noise import SensorNoise, measure, measure_held
 from torque_estimator.identification.writing import write_identified
 
 #: the residual analysis' settings for identification (module docstring: what differs and why)
@@ -246,10 +246,6 @@ def _rig_time(data: MeasuredData) -> float:
     return float(sum(np.ptp(data.t[data.run == r]) + data.sample_period for r in np.unique(data.run)))
 
 
-def _sensor_noise(data: MeasuredData, rig: Rig) -> SensorNoise:
-    """The sensors' noise, judged on the samples where the drive moves (identification.noise)."""
-    moving = np.abs(data.omega_worm) > 0.0
-    return measure(data.current_drive, data.omega_worm, data.theta_worm, data.run, moving)
 
 
 # --------------------------------------------------------------------------- steady points
@@ -305,7 +301,8 @@ def _steady_road(data: MeasuredData, points: steady.SteadyPoints, declared: Rig,
         corrections=corrections_, held=held, found=list(structure),
         rms_before=float(np.sqrt(np.mean((before - points.current) ** 2))),
         rms_after=final_cross.rms(points), speed_max=speed_max, torque_range=torque_range, loads=loads,
-        rig_time=_rig_time(data), samples=len(data), noise=_sensor_noise(data, declared), report=report)
+        rig_time=_rig_time(data), samples=len(data), report=report,
+        noise=measure_held(data.current_drive, data.omega_worm, None, data.run))
 
 
 def _steady_jacobian(fitted: steady.FittedModel, points: steady.SteadyPoints) -> tuple[np.ndarray, np.ndarray]:

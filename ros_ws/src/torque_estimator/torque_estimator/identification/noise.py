@@ -14,6 +14,10 @@ smallest spacing that most neighbouring distinct values share (:func:`quantum`, 
 values are not on a grid), its variance step^2 / 12 is part of what the second difference saw, and
 the rest is the white noise (the sensors section keeps the two apart: NoiseFigures adds them back).
 
+A record of runs each held at one speed and load is judged on each run's spread about its mean instead
+(:func:`held_noise`): a drive that averages its channels (an EPOS's) correlates neighbouring samples,
+and a second difference would see little of what a sample deviates by.
+
 The encoder: the worm angle's step is 2 pi / counts per turn (:func:`encoder_counts`, None when the
 angle is no encoder's, e.g. the velocity integrated).
 
@@ -30,8 +34,11 @@ from worm_model.physics.units import FloatArray
 
 #: fewest samples a run needs to add to the noise estimate
 MIN_RUN = 8
-#: a channel is on a grid when its distinct values are at most this share of its samples
-GRID_SHARE = 0.25
+#: a channel is on a grid when this share of its samples lies within GRID_TOLERANCE steps of it
+GRID_SHARE = 0.99
+GRID_TOLERANCE = 0.01
+#: changes smaller than this fraction of a channel's largest value are round-off (a difference of floats)
+ROUND_OFF = 1e-9
 #: second differences beyond this many rms are a step, not noise (_robust_variance)
 TRIM = 5.0
 #: speed bins of the noise's speed law (white_noise)
@@ -96,21 +103,22 @@ def white_noise(x: FloatArray, run: np.ndarray, mask: np.ndarray | None = None,
 
 
 def quantum(x: FloatArray) -> float | None:
-    """The grid step of channel ``x`` (module docstring), None when its values are not on a grid."""
+    """The grid step of channel ``x`` (module docstring), None when its values are not on a grid: the smallest
+    change between consecutive samples (round-off aside), if (nearly) every sample lies a whole number of it
+    from the first."""
     x = np.asarray(x, dtype=float)
     x = x[np.isfinite(x)]
-    values = np.unique(x)
-    if len(values) < 3 or len(values) > GRID_SHARE * len(x):
+    if len(x) < MIN_RUN:
         return None
-    gaps = np.diff(values)
-    step = float(np.min(gaps))
-    if not step > 0:
+    scale = max(float(np.max(np.abs(x))), 1e-300)
+    changes = np.abs(np.diff(x))
+    changes = changes[changes > ROUND_OFF * scale]
+    if len(changes) < MIN_RUN:
         return None
-    # a grid: (nearly) every gap is a whole number of the smallest
-    multiples = gaps / step
-    if np.mean(np.abs(multiples - np.round(multiples)) < 0.05) < 0.95:
-        return None
-    return step
+    step = float(np.min(changes))
+    steps = (x - x[0]) / step
+    on_grid = np.abs(steps - np.round(steps)) < GRID_TOLERANCE
+    return step if np.mean(on_grid) >= GRID_SHARE else None
 
 
 def encoder_counts(theta: FloatArray) -> int | None:
@@ -164,6 +172,27 @@ class SensorNoise:
         return out
 
 
+def held_noise(x: FloatArray, run: np.ndarray) -> float:
+    """sigma of a channel over runs each held at one operating point (identification.steady): the median over the
+    runs of its sample standard deviation about the run's mean. What a sample deviates from its point is what an
+    estimator fed these samples sees, whatever made it (noise, a ripple the model does not have, a drive's own
+    averaging, which correlates neighbours and hides them from a second difference)."""
+    x = np.asarray(x, dtype=float)
+    spreads = [float(np.std(x[run == r], ddof=1)) for r in np.unique(run) if np.sum(run == r) >= MIN_RUN]
+    return float(np.median(spreads)) if spreads else math.nan
+
+
+def measure_held(current: FloatArray, omega: FloatArray, theta: FloatArray | None, run: np.ndarray) -> SensorNoise:
+    """The sensors' noise of a record of held runs (:func:`held_noise`, less each grid's quantisation)."""
+    def channel(x: FloatArray) -> ChannelNoise:
+        total, step = held_noise(x, run), quantum(x)
+        quantisation = 0.0 if step is None else step * step / 12.0
+        return ChannelNoise(math.sqrt(max(total * total - quantisation, 0.0)) if math.isfinite(total) else math.nan,
+                            step)
+
+    return SensorNoise(channel(current), channel(omega), encoder_counts(theta) if theta is not None else None)
+
+
 def measure(current: FloatArray, omega: FloatArray, theta: FloatArray | None, run: np.ndarray,
             moving: np.ndarray | None = None) -> SensorNoise:
     """The sensors' noise of a record (module docstring); ``moving``: the samples to judge them on (a drive held
@@ -172,4 +201,5 @@ def measure(current: FloatArray, omega: FloatArray, theta: FloatArray | None, ru
                        encoder_counts(theta) if theta is not None else None)
 
 
-__all__ = ["ChannelNoise", "SensorNoise", "encoder_counts", "measure", "quantum", "white_noise"]
+__all__ = ["ChannelNoise", "SensorNoise", "encoder_counts", "held_noise", "measure", "measure_held", "quantum",
+           "white_noise"]

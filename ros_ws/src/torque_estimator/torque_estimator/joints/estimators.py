@@ -111,6 +111,7 @@ class JointEstimators:
             for members in groups.values():
                 estimates = estimate_filtered(self.built[members[0]].estimator, [filtered[k][1] for k in members])
                 for k, est in zip(members, estimates):
+                    est = self.live[k].judge(est)
                     out[k] = (filtered[k][0], self._count(k, est))
                     judged[k] = (est.flags, est.torque)
         return out

@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from worm_model.cli.errors import InputError, run_tool
-from worm_model.cli.options import Parser, input_problem, output_path
+from worm_model.cli.options import Parser, input_problem, number, output_path
 from worm_model.files.writing import Output, atomic_file, check_output
 from worm_model.physics.parameters import ParameterError
 from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
@@ -191,6 +191,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--params-file", type=Path, default=None,
                    help="a graph parameter file whose estimator_node section sets the filters (default: the node's "
                         "defaults)")
+    p.add_argument("--load-min", type=number("N m", -1e4, 1e4), default=None,
+                   help="least load the drive carries [N m] (estimator_node's load_min: gear frame, + opposing + "
+                        "rotation); with --load-max, what tells a self-locking drive's two candidate loads apart "
+                        "(extended_model, observer, momentum)")
+    p.add_argument("--load-max", type=number("N m", -1e4, 1e4), default=None,
+                   help="largest load the drive carries [N m] (estimator_node's load_max)")
     p.add_argument("--out", type=output_path, default=None,
                    help="CSV to write (default: <log without suffix>_<method>.csv beside the log); an existing "
                         "one is replaced only with --force, and only if estimate wrote it")
@@ -225,8 +231,15 @@ def _main(argv: list[str] | None) -> int:
         params = node_parameters(args.params_file)["estimator_node"]
     except ReplayError as err:
         return fail("--params-file", str(err))
+    prior = {name: value for name, value in (("load_min", args.load_min), ("load_max", args.load_max))
+             if value is not None}
+    if prior and "load_min" not in {o.name for o in METHODS[args.method].options}:
+        return fail("--load-min / --load-max", f"the {args.method} method reads no load prior (extended_model, "
+                                               "observer and momentum do)")
+    if len(prior) == 1:
+        return fail("--load-min / --load-max", "give both, the least and the largest load")
     settings = EstimatorSettings.from_parameters(
-        {**params, "method": args.method, "rig_file": args.rig or params.get("rig_file"),
+        {**params, **prior, "method": args.method, "rig_file": args.rig or params.get("rig_file"),
          "model_file": args.model_file or params.get("model_file"), "calibration_file": args.calibration}, args.method)
     try:
         built = build_estimator(settings)
@@ -235,7 +248,9 @@ def _main(argv: list[str] | None) -> int:
     except ParameterError as err:
         return fail("--model-file" if settings.model_file else "--rig", str(err))
     except ValueError as err:
-        return fail("--params-file" if args.params_file else "--method", str(err))
+        where = ("--load-min / --load-max" if prior and str(err).startswith("load_") else
+                 "--params-file" if args.params_file else "--method")
+        return fail(where, str(err))
     try:  # its units checked against the rig
         data = read_rig_data(args.log, rig=built.rig, epos=epos_settings(args, built.rig))
     except InputError as err:

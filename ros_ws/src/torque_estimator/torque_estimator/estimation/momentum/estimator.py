@@ -28,21 +28,24 @@ class MomentumEstimator(ObserverEstimator):
         bandwidth [Hz]: the load estimate's bandwidth between detected steps (MomentumObserver).
         false_alarm: the step detector's false-alarm probability per sample; 0: no step detection (the
             residual alone, at ``bandwidth``).
+        load_min, load_max: the load prior [N m] (estimation.branches.LoadPrior; both 0: none declared).
     """
 
     name = "momentum"
 
     def __init__(self, database: CalibrationDatabase | None = None, rig_file: str | None = None,
                  model_file: str | None = None, *, bandwidth: float = DEFAULT_BANDWIDTH,
-                 false_alarm: float = DEFAULT_FALSE_ALARM, **options) -> None:
+                 false_alarm: float = DEFAULT_FALSE_ALARM, load_min: float = 0.0, load_max: float = 0.0,
+                 **options) -> None:
         if not bandwidth > 0 or not 0 <= false_alarm < 1:
             raise ValueError(f"need bandwidth > 0 Hz and 0 <= false_alarm < 1, got {bandwidth}, {false_alarm}")
-        super().__init__(database, rig_file, model_file, load=LoadProcess(false_alarm=float(false_alarm)), **options)
+        super().__init__(database, rig_file, model_file, load=LoadProcess(false_alarm=float(false_alarm)),
+                         load_min=load_min, load_max=load_max, **options)
         self.bandwidth = float(bandwidth)
 
     def _filter(self, sample_period: float | None) -> EstimateStream:
         return MomentumObserver(self.rig, sample_period, bandwidth=self.bandwidth, load=self.load,
-                                torque_limit=self.torque_limit, speed_limit=self.speed_limit)
+                                torque_limit=self.torque_limit, speed_limit=self.speed_limit, prior=self.prior)
 
 
 __all__ = ["DEFAULT_FALSE_ALARM", "MomentumEstimator"]

@@ -42,7 +42,7 @@ Where the model does not hold, the step detector is off for HOLD_OFF (10 ms; the
   noise is one the detector does not trust.
 
 On the simulated rig's ±150 rad/s reversal at 0.1 N m (evaluation.transient) the mean error over the
-next 0.6 s is 0.53, 0.33, 0.32 % of the range for a hold-off of 5, 10, 25 ms, and 5.06 % with none:
+next 0.6 s is 0.53, 0.33, 0.32 % of the range for a hold-off of 5, 10, 25 ms, and 4.43 % with none:
 the detector reads the reversal as load steps.
 
 A standing worm (its filtered speed within STILL_SIGMAS of its own uncertainty of 0 and the measured
@@ -81,7 +81,8 @@ from torque_estimator.estimation.momentum.bounds import steady_variance
 from torque_estimator.estimation.momentum.discrete import (N_STATES, OMEGA, RIPPLE_COS, RIPPLE_SIN, TAU, THETA,
                                                            Period, load_variance)
 from torque_estimator.estimation.observer.glr import StepDetector
-from torque_estimator.estimation.observer.kalman import MAX_SKIP, RESTART_NIS, ObserverEstimate, judged
+from torque_estimator.estimation.branches import LoadPrior
+from torque_estimator.estimation.observer.kalman import MAX_SKIP, RESTART_NIS, Branches, ObserverEstimate
 from torque_estimator.estimation.observer.noise import LoadProcess, NoiseFigures
 from torque_estimator.estimation.observer.static_map import StaticLoadMap
 
@@ -129,7 +130,8 @@ class MomentumObserver:
     def __init__(self, rig: Rig, sample_period: float | None = None, *, bandwidth: float = DEFAULT_BANDWIDTH,
                  load: LoadProcess | None = None, noise: NoiseFigures | None = None,
                  torque_limit: float | None = None, speed_limit: float | None = None,
-                 ripple_order: int | None = None, tacho_delay: float | None = None) -> None:
+                 ripple_order: int | None = None, tacho_delay: float | None = None,
+                 prior: LoadPrior | None = None) -> None:
         self.rig = rig
         self.period = float(sample_period) if sample_period else 1.0 / rig.sensors.sample_rate_hz
         if not self.period > 0 or not bandwidth > 0:
@@ -161,9 +163,12 @@ class MomentumObserver:
         self._at_x: tuple | None = None  # StaticLoadMap.mesh at the filtered state, while it is x
         self._phi_prev: np.ndarray | None = None  # the last period's transition (None: no step onset in it)
         self.p_reference = math.inf  # τ_d variance before the last step (TRANSIENT)
+        self._was_still = False  # the worm stood through the period before the last estimate
         self.jumps = 0  # steps detected
         self.samples = 0
         self.restarts = 0  # samples the filter started again from (RESTART_NIS, restart())
+        #: the load prior, the branch tracker and the standstill hold (observer.kalman.Branches)
+        self.branches = Branches(self.map, prior or LoadPrior(), self.torque_limit, self.period)
 
     # --- the model ----------------------------------------------------------------------------
     def _period(self, mesh: tuple) -> Period:
@@ -300,15 +305,33 @@ class MomentumObserver:
     def _estimate(self, jump: bool, extra_flags: int = 0, with_encoder: bool = True) -> ObserverEstimate:
         """The estimate at the filtered state, with its flags (module docstring)."""
         omega, tau = float(self.x[OMEGA]), float(self.x[TAU])
-        self._at_x = mesh = self._at_x or self.map.mesh(omega, tau)
+        self._at_x = self._at_x or self.map.mesh(omega, tau)
+        if self._was_still and not self.still:
+            # moving again after a standstill: the steady variance of where it moves now, not of where it stood
+            self.p_reference = math.inf
+        self._was_still = self.still
         if self.p_reference == math.inf:
             self.p_reference = steady_variance(self.rig, omega, tau, self.bandwidth, period=self.period,
                                                noise=self.noise, with_encoder=with_encoder)
         variance = float(self.P[TAU, TAU])
         if variance > 2.0 * self.p_reference:
             extra_flags |= EstimateFlags.TRANSIENT
-        flags, u = judged(self.map, omega, tau, variance, mesh, (self.torque_limit, self.speed_limit), extra_flags)
-        return ObserverEstimate(tau, u, flags, omega, self.current, mesh[0], jump)
+        tau, u, flags = self.branches.report(omega, tau, variance, self._at_x, (self.torque_limit, self.speed_limit),
+                                             extra_flags, self.still, self._flip)
+        return ObserverEstimate(tau, u, flags, omega, self.current, self._at_x[0], jump)
+
+    def _flip(self, load: float) -> tuple[float, tuple]:
+        """Move the state's load onto the V's other arm, ``load`` [N m] (observer.kalman.Branches): its variance
+        and covariances scaled by the two arms' slopes; returns (variance, mesh there)."""
+        omega = float(self.x[OMEGA])
+        before = self._at_x[1]
+        self._at_x = mesh = self.map.mesh(omega, load)
+        ratio = before / mesh[1] if mesh[1] else 1.0
+        self.x[TAU] = load
+        self.P[TAU, :] *= ratio
+        self.P[:, TAU] *= ratio
+        self.p_reference *= ratio * ratio  # the other arm's steady variance, by the same slopes
+        return float(self.P[TAU, TAU]), mesh
 
     def _invalid(self) -> ObserverEstimate:
         bad = int(EstimateFlags.INVALID_INPUT)
@@ -339,6 +362,7 @@ class MomentumObserver:
         self.p_reference = math.inf
         if self.detector is not None:
             self.detector.clear()
+        self.branches.reset()
 
 
 def _finite(value) -> bool:

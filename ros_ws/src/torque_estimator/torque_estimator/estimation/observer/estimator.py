@@ -22,7 +22,7 @@ from worm_model.residuals.extended import ExtendedModel
 from torque_estimator.estimation.base import EstimateFlags, EstimateStream, TorqueEstimates
 from torque_estimator.estimation.calibration_bias import CalibrationBias
 from torque_estimator.estimation.database import CalibrationDatabase
-from torque_estimator.estimation.extended_model import SensorCorrection, identification_ranges
+from torque_estimator.estimation.extended_model import SensorCorrection, checked_prior, identification_ranges
 from torque_estimator.estimation.observer.kalman import LoadObserver
 from torque_estimator.estimation.observer.noise import LoadProcess, NoiseFigures
 from torque_estimator.estimation.observer.static_map import StaticLoadMap
@@ -66,7 +66,7 @@ class ObserverEstimator:
 
     def __init__(self, database: CalibrationDatabase | None = None, rig_file: str | None = None,
                  model_file: str | None = None, *, rig: Rig | None = None, load: LoadProcess | None = None,
-                 calibration_bias: bool = True) -> None:
+                 calibration_bias: bool = True, load_min: float = 0.0, load_max: float = 0.0) -> None:
         self.rig = rig if rig is not None else load_rig(model_file or rig_file or None)
         self.correction = SensorCorrection.of(ExtendedModel.load(model_file)) if model_file and rig is None \
             else SensorCorrection()
@@ -75,14 +75,20 @@ class ObserverEstimator:
         self.noise = NoiseFigures.from_rig(self.rig)
         limit, speed = self.rig.max_load_torque, None
         ranges = identification_ranges(model_file) if model_file and rig is None else None
+        fallback = None  # the loads admitted when no prior is declared: the identification's or calibration's
         if ranges is not None:
             limit = max(limit, abs(ranges["torque_min"]), abs(ranges["torque_max"]))
             speed = 1.1 * ranges["speed_max"]
+            fallback = (ranges["torque_min"], ranges["torque_max"])
         elif database is not None and len(database):
             limit = max(limit, float(np.max(np.abs(database.tau_load))))
             speed = 1.1 * float(np.max(np.abs(database.omega_worm)))
+            fallback = (float(np.min(database.tau_load)), float(np.max(database.tau_load)))
         self.torque_limit = limit
         self.speed_limit = speed
+        #: the loads the estimate may be (branches.LoadPrior): declared, else the identification's or
+        #: calibration's range, else any
+        self.prior = checked_prior(load_min, load_max, fallback, self.rig)
         self.bias = CalibrationBias(self._model_estimate, database) \
             if calibration_bias and database is not None and len(database) else None
 
@@ -98,7 +104,7 @@ class ObserverEstimator:
         """The bare streaming filter :meth:`stream` wraps (a subclass with another filter overrides this:
         the momentum observer, estimation/momentum/)."""
         return LoadObserver(self.rig, sample_period, load=self.load, torque_limit=self.torque_limit,
-                            speed_limit=self.speed_limit)
+                            speed_limit=self.speed_limit, prior=self.prior)
 
     def estimate(self, omega_worm: ArrayLike, current_drive: ArrayLike) -> TorqueEstimates:
         """Quasi-static τ_d [N m] from ω [rad/s] and the inertia-free current i [A]; never raises."""
@@ -106,7 +112,8 @@ class ObserverEstimator:
         if self.bias is None:
             return out
         w = np.broadcast_to(np.asarray(omega_worm, dtype=float), out.torque.shape)
-        return TorqueEstimates(out.torque + self.bias.array(w, out.torque), out.uncertainty, out.flags)
+        other = out.other + self.bias.array(w, np.where(np.isfinite(out.other), out.other, out.torque))
+        return TorqueEstimates(out.torque + self.bias.array(w, out.torque), out.uncertainty, out.flags, other)
 
     def _model_estimate(self, omega_worm: ArrayLike, current_drive: ArrayLike) -> TorqueEstimates:
         """The model's own quasi-static inverse (no calibration bias)."""
@@ -116,18 +123,25 @@ class ObserverEstimator:
         motor = self.rig.drive_motor
         t_dist = motor.torque_constant * is_ - motor.viscous_drag * ws
         driving, coast, flags, chosen = self.map.invert(ws, t_dist)
+        # the prior: a candidate outside it is none (both outside: the map's choice, OUT_OF_CALIBRATION)
+        prior = self.prior
+        drive_in = np.isfinite(driving) & (driving >= prior.low) & (driving <= prior.high)
+        coast_in = np.isfinite(coast) & (coast >= prior.low) & (coast <= prior.high)
+        chosen = np.where(drive_in, driving, np.where(coast_in, coast, chosen))
+        both = drive_in & coast_in
+        flags = np.where(both, int(EstimateFlags.AMBIGUOUS), 0) | np.where(
+            ~drive_in & ~coast_in, int(EstimateFlags.OUT_OF_CALIBRATION), 0)
         k_plus, k_minus = self.map.factors(ws)
         slope = self.map.k * np.where(np.isfinite(driving) & (chosen == driving), k_plus, np.abs(k_minus))
         with np.errstate(divide="ignore", invalid="ignore"):
             u = motor.torque_constant * math.sqrt(self.noise.current_var) / slope
-        other = np.where(chosen == driving, coast, driving)
-        u = np.where(flags & int(EstimateFlags.AMBIGUOUS), np.maximum(u, np.abs(other - chosen)), u)
+        other = np.where(both, np.where(chosen == driving, coast, driving), np.nan)
         out = (np.abs(chosen) > self.torque_limit) | (np.abs(ws) > (self.speed_limit or np.inf))
         flags = flags | np.where(out, int(EstimateFlags.OUT_OF_CALIBRATION), 0)
         torque = np.where(valid, self.correction.load(chosen), np.nan)
         u = np.where(valid, u, np.nan)
         flags = np.where(valid, flags, int(EstimateFlags.INVALID_INPUT)).astype(np.int64)
-        return TorqueEstimates(torque, u, flags)
+        return TorqueEstimates(torque, u, flags, np.where(valid, self.correction.load(other), np.nan))
 
 
 __all__ = ["ObserverEstimator"]

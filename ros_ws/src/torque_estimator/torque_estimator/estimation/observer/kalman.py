@@ -50,8 +50,10 @@ import scipy.linalg.lapack
 
 from worm_model.physics.dynamics import inertia_at_flank_factor
 from worm_model.physics.parameters import Rig
+from worm_model.physics.resolution import standstill_speed
 
 from torque_estimator.estimation.base import EstimateFlags
+from torque_estimator.estimation.branches import BranchTracker, Choice, Hold, LoadPrior, hold_drift
 from torque_estimator.estimation.observer.convergence import Convergence
 from torque_estimator.estimation.observer.discrete import (BACK_EMF_ERROR, CURRENT, N_STATES, OMEGA, RIPPLE_COS,
                                                            RIPPLE_SIN, TAU, THETA, Step, discretise)
@@ -156,20 +158,59 @@ def interval_measurement(mean: float, var: float, low: float, high: float, unifo
     return mean + sd * shift * (var + r) / var, r
 
 
-def judged(smap: StaticLoadMap, omega: float, tau: float, variance: float, mesh: tuple, limits: tuple[float, float],
-           flags: int = 0) -> tuple[int, float]:
+def judged(omega: float, tau: float, variance: float, limits: tuple[float, float], flags: int = 0,
+           choice: Choice | None = None) -> tuple[int, float]:
     """(flags, 1σ [N m]) of an estimate τ_d [N m] of ``variance`` [(N m)²] at ω [rad/s] (the module docstring's
-    flags; mesh: StaticLoadMap.mesh there): AMBIGUOUS in the self-locking V, the uncertainty then reaching the
-    other arm; OUT_OF_CALIBRATION beyond the (torque [N m], speed [rad/s]) ``limits``. ``flags``: bits already
-    set (TRANSIENT is each observer's own test). The momentum observer's too."""
+    flags): AMBIGUOUS where the branch tracker's ``choice`` could not tell the V's two arms apart, the uncertainty
+    then reaching the other; OUT_OF_CALIBRATION where no candidate lay in the prior, or beyond the (torque [N m],
+    speed [rad/s]) ``limits``. ``flags``: bits already set (TRANSIENT is each observer's own test). The momentum
+    observer's too."""
     u = math.sqrt(max(variance, 0.0))
-    spread = smap.ambiguity(omega, tau, mesh[0], mesh[4], STANDSTILL)
-    if spread is not None:
+    if choice is not None and choice.ambiguous:
         flags |= EstimateFlags.AMBIGUOUS
-        u = max(u, spread)
+        u = max(u, abs(choice.other - tau))
+    if choice is not None and choice.outside:
+        flags |= EstimateFlags.OUT_OF_CALIBRATION
     if abs(tau) - 2.0 * u > limits[0] or abs(omega) > limits[1]:
         flags |= EstimateFlags.OUT_OF_CALIBRATION
     return int(flags), u
+
+
+class Branches:
+    """What an observer reports of its state's load (branches module docstring): on a moving worm the candidate the
+    :class:`~torque_estimator.estimation.branches.BranchTracker` takes (the state moved onto it, ``flip``), on a
+    standing one (``standing``) of a drive that self-locks at rest the last moving estimate held, flagged
+    STANDSTILL, its uncertainty growing (its friction holds the load, the current says nothing of it)."""
+
+    def __init__(self, smap: StaticLoadMap, prior: LoadPrior, scale: float, period: float) -> None:
+        self.map = smap
+        self.tracker = BranchTracker(prior)
+        self.hold = Hold(hold_drift(prior, scale), period)
+        self.holds = smap.self_locks_at_rest  # a drive that does not self-lock at rest shows its load standing
+
+    def reset(self) -> None:
+        self.tracker.reset()
+        self.hold.end()
+
+    def report(self, omega: float, tau: float, variance: float, mesh: tuple, limits: tuple[float, float],
+               flags: int, standing: bool, flip) -> tuple[float, float, int]:
+        """(τ_d [N m], 1σ [N m], flags) of the state at ω [rad/s] with load τ, its ``variance``, mesh
+        (StaticLoadMap.mesh there); ``flip(load) -> (variance, mesh)`` moves the state onto another arm."""
+        if standing and self.holds:
+            self.tracker.stand()
+            self.hold.start(tau, math.sqrt(max(variance, 0.0)))
+            load, u = self.hold.step()
+            flags, _u = judged(0.0, load, u * u, limits, flags | EstimateFlags.STANDSTILL)
+            return load, u, flags
+        self.hold.end()
+        other = self.map.other_branch(omega, tau, mesh[0], mesh[4], STANDSTILL)
+        driving, coast = (tau, other) if mesh[2] > 0 else (other, tau)  # the state's flank: mesh's s
+        choice = self.tracker.choose(omega, driving, coast, math.sqrt(max(variance, 0.0)))
+        if choice.load != tau and math.isfinite(choice.load):
+            variance, mesh = flip(choice.load)
+            tau = choice.load
+        flags, u = judged(omega, tau, variance, limits, flags, choice)
+        return tau, u, flags
 
 
 class LoadObserver:
@@ -215,7 +256,8 @@ class LoadObserver:
     def __init__(self, rig: Rig, sample_period: float | None = None, *, noise: NoiseFigures | None = None,
                  load: LoadProcess | None = None, torque_limit: float | None = None,
                  speed_limit: float | None = None, ripple_order: int | None = None,
-                 encoder: str = "white", sample_delays: dict[str, float] | None = None) -> None:
+                 encoder: str = "white", sample_delays: dict[str, float] | None = None,
+                 prior: LoadPrior | None = None) -> None:
         if encoder not in ("white", "interval"):
             raise ValueError(f"encoder must be 'white' or 'interval', got {encoder!r}")
         self.encoder = encoder
@@ -251,6 +293,10 @@ class LoadObserver:
         self.jumps = 0  # detections so far
         self.samples = 0
         self.restarts = 0  # samples the filter was restarted from (RESTART_NIS, restart())
+        #: the load prior, the branch tracker and the standstill hold (Branches)
+        self.branches = Branches(self.map, prior or LoadPrior(), self.torque_limit, self.period)
+        self.standstill = standstill_speed(rig)  # [rad/s] below which the worm stands
+        self._flipped = False
 
     # --- internals --------------------------------------------------------------------------
     def _step(self, factor: float, period: float) -> Step:
@@ -376,7 +422,7 @@ class LoadObserver:
         mesh = self.map.mesh(float(xf[OMEGA]), float(xf[TAU]))  # for both the estimate and the prediction
         estimate = self._estimate(jump is not None, 0, mesh)
         self.voltage = voltage
-        self._predict(voltage, mesh)
+        self._predict(voltage, None if self._flipped else mesh)
         return estimate
 
     def _estimate(self, jump: bool, extra_flags: int, mesh: tuple | None = None) -> ObserverEstimate:
@@ -387,8 +433,23 @@ class LoadObserver:
         variance = float(self.P[TAU, TAU])
         if self.convergence.transient(variance):
             extra_flags |= EstimateFlags.TRANSIENT
-        flags, u = judged(self.map, omega, tau, variance, mesh, (self.torque_limit, self.speed_limit), extra_flags)
+        self._flipped = False
+        tau, u, flags = self.branches.report(omega, tau, variance, mesh, (self.torque_limit, self.speed_limit),
+                                             extra_flags, abs(omega) <= self.standstill, self._flip)
         return ObserverEstimate(tau, u, flags, omega, float(x[CURRENT]), mesh[0], jump)
+
+    def _flip(self, load: float) -> tuple[float, tuple]:
+        """Move the state's load onto the V's other arm, ``load`` [N m] (Branches): its variance and covariances
+        scaled by the two arms' slopes (the same T_dist uncertainty); returns (variance, mesh there)."""
+        omega = float(self.x[OMEGA])
+        before = self.map.mesh(omega, float(self.x[TAU]))[1]
+        mesh = self.map.mesh(omega, load)
+        ratio = before / mesh[1] if mesh[1] else 1.0
+        self.x[TAU] = load
+        self.P[TAU, :] *= ratio
+        self.P[:, TAU] *= ratio
+        self._flipped = True
+        return float(self.P[TAU, TAU]), mesh
 
     def skip(self, samples: int) -> None:
         """``samples`` rig samples were lost: predict over them with the last voltage, no
@@ -410,6 +471,7 @@ class LoadObserver:
         self.detector.clear()
         self._phi_prev = None
         self.convergence.start()
+        self.branches.reset()
 
     def _invalid(self, voltage) -> ObserverEstimate:
         bad = int(EstimateFlags.INVALID_INPUT)
@@ -423,5 +485,5 @@ class LoadObserver:
         return est
 
 
-__all__ = ["MAX_SKIP", "RESTART_NIS", "STANDSTILL", "LoadObserver", "ObserverEstimate", "interval_measurement",
-           "judged"]
+__all__ = ["MAX_SKIP", "RESTART_NIS", "STANDSTILL", "Branches", "LoadObserver", "ObserverEstimate",
+           "interval_measurement", "judged"]

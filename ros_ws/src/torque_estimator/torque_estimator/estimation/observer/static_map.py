@@ -55,6 +55,12 @@ class StaticLoadMap:
         self._drag_float = make_gear_side_drag_float(rig)  # τ_drag,g(ω), one float
         self._input_torque_float = make_reflected_input_torque_float(gb)  # Eq. 28 at α = 0, one float
 
+    @property
+    def self_locks_at_rest(self) -> bool:
+        """Whether the mesh's friction at zero sliding speed exceeds the self-locking limit: then a standing worm
+        holds the load by friction alone and its current says nothing of it (the observers' STANDSTILL hold)."""
+        return float(self.mu(0.0)) > self.self_locking_mu
+
     def mu(self, omega: ArrayLike) -> np.ndarray:
         return np.asarray(friction_coefficient(self.rig.friction, self.rig.gearbox, omega), dtype=float)
 
@@ -82,15 +88,17 @@ class StaticLoadMap:
         """(T_dist [N m], ∂T_dist/∂τ_d [1], flank s) at one (ω, τ_d)."""
         return self.mesh(omega, tau_d)[:3]
 
-    def ambiguity(self, omega: float, tau_d: float, t_dist: float, mu: float, standstill: float) -> float | None:
+    def other_branch(self, omega: float, tau_d: float, t_dist: float, mu: float, standstill: float) -> float:
         """In the self-locking V (a worm moving faster than ``standstill`` [rad/s] with μ above the self-locking
-        limit, and both flanks explaining T_dist [N m] at ω): how far [N m] the other flank's load is from τ_d; None
-        where the load is not ambiguous (the observers' AMBIGUOUS flag, their uncertainty reaching the other arm)."""
+        limit, and both flanks explaining T_dist [N m] at ω): the load [N m] on the other flank than τ_d's; NaN
+        where the load is not ambiguous (the observers' candidates, branches.BranchTracker)."""
         if abs(omega) <= standstill or mu <= self.self_locking_mu:
-            return None
+            return math.nan
         driving, coast, _flags, _chosen = self.invert(omega, t_dist)
         branches = [float(b) for b in (driving, coast) if math.isfinite(float(b))]
-        return max(abs(b - tau_d) for b in branches) if len(branches) == 2 else None
+        if len(branches) != 2:
+            return math.nan
+        return max(branches, key=lambda b: abs(b - tau_d))
 
     def invert(self, omega: ArrayLike, t_dist: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """τ_d explaining a worm-side disturbance T_dist [N m] at ω [rad/s], per flank.
