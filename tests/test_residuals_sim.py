@@ -160,7 +160,7 @@ def simulate_case(name: str) -> MeasuredData:
 def analyse(data: MeasuredData, free=tuple(FREE)) -> an.Analysis:
     settings = an.Settings()
     signals = prepare_signals(RIG, data, settings.alpha_time_constant)
-    return an.analyse(an.Problem(RIG, list(free), signals, data.current_drive, an.make_split(signals, settings),
+    return an.analyse(an.Problem(RIG, list(free), signals, data.current_drive, an.make_split(signals, settings, rig=RIG),
                                  settings))
 
 
@@ -310,7 +310,7 @@ def test_cli_writes_report_parameter_file_and_plots(cogging_csv: Path, tmp_path:
     model = ExtendedModel.load(extended)
     data = read_rig_csv(cogging_csv)
     signals = prepare_signals(model.rig, data)
-    split = an.make_split(signals, an.Settings())
+    split = an.make_split(signals, an.Settings(), rig=model.rig)
     rms = float(np.sqrt(np.mean((data.current_drive - model.current(signals))[split.held_out] ** 2)))
     assert rms == pytest.approx(report["rms_after"], rel=0.02)
 
@@ -470,7 +470,7 @@ def test_constant_friction_with_mu_declared_high_names_nothing_at_the_floor(pert
     declared = load_rig(rc.write_rig_file(tmp_path / "rig.yaml", "nmrv030_constant", off))
     settings = an.Settings()
     signals = prepare_signals(declared, data, settings.alpha_time_constant)
-    result = an.analyse(an.Problem(declared, [], signals, data.current_drive, an.make_split(signals, settings),
+    result = an.analyse(an.Problem(declared, [], signals, data.current_drive, an.make_split(signals, settings, rig=declared),
                                    settings))
     print(_show(perturbation, result), "floor", result.noise.rms, result.final.free_values)
     assert result.found == [] and result.unexplained is None

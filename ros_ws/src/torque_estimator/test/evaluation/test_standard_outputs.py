@@ -16,7 +16,7 @@ from worm_model.physics.parameters import load_rig
 from worm_rig_driver.drive.rig_loop import RigLoop, SpeedCommand
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 from worm_rig_driver.robot.standard_outputs import (FLAG_AMBIGUOUS, FLAG_INVALID_INPUT, FLAG_OUT_OF_CALIBRATION,
-                                                    FLAG_TRANSIENT, UNTRUSTED, StandardEffort)
+                                                    FLAG_STANDSTILL, FLAG_TRANSIENT, UNTRUSTED, StandardEffort)
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
@@ -39,8 +39,9 @@ def database():
 
 def test_the_estimators_flags_are_the_standard_outputs() -> None:
     assert (EstimateFlags.OUT_OF_CALIBRATION, EstimateFlags.AMBIGUOUS, EstimateFlags.INVALID_INPUT,
-            EstimateFlags.TRANSIENT) == (FLAG_OUT_OF_CALIBRATION, FLAG_AMBIGUOUS, FLAG_INVALID_INPUT, FLAG_TRANSIENT)
-    assert UNTRUSTED == EstimateFlags.OUT_OF_CALIBRATION | EstimateFlags.INVALID_INPUT | EstimateFlags.TRANSIENT
+            EstimateFlags.TRANSIENT, EstimateFlags.STANDSTILL) == (
+        FLAG_OUT_OF_CALIBRATION, FLAG_AMBIGUOUS, FLAG_INVALID_INPUT, FLAG_TRANSIENT, FLAG_STANDSTILL)
+    assert UNTRUSTED == sum(int(flag) for flag in EstimateFlags)  # every flag: what the standard outputs withhold
 
 
 def carried(torque: np.ndarray, flags: np.ndarray) -> np.ndarray:

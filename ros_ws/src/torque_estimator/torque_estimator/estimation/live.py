@@ -88,7 +88,7 @@ from dataclasses import dataclass
 from worm_model.physics.friction import friction_coefficient
 from worm_model.physics.gear_side import make_gear_side_drag_float
 from worm_model.physics.parameters import Rig
-from worm_model.physics.resolution import standstill_speed
+from worm_model.physics.resolution import current_sigma, standstill_speed
 
 from collections.abc import Sequence
 
@@ -195,19 +195,23 @@ class ChangeGatedLowPass:
     ``noise_time_constant``). After that, |x − y| > ``threshold``·σ is a
     change: y = x for the next ``hold`` [s], and σ is not updated meanwhile.
     ``threshold`` <= 0: no change detection (a plain low-pass);
-    ``time_constant`` 0: y = x.
+    ``time_constant`` 0: y = x. σ is never taken below ``noise_floor`` (the sensor's own noise: a
+    stream that starts at standstill, where a drive's export reads exactly 0, would learn σ = 0 and
+    take every later sample for a change).
     """
 
     def __init__(self, time_constant: float, period: float, threshold: float, hold: float,
-                 noise_time_constant: float = NOISE_TIME_CONSTANT) -> None:
+                 noise_time_constant: float = NOISE_TIME_CONSTANT, noise_floor: float = 0.0) -> None:
         if time_constant < 0 or period <= 0 or hold < 0 or noise_time_constant <= 0:
             raise ValueError(f"need time_constant >= 0, period > 0, hold >= 0, noise_time_constant > 0; got "
                              f"{time_constant}, {period}, {hold}, {noise_time_constant}")
         self.blend = 1.0 if time_constant == 0 else 1.0 - math.exp(-period / time_constant)
         self.noise_blend = 1.0 - math.exp(-period / noise_time_constant)
         self.threshold = threshold
-        self.hold_samples = int(round(hold / period))
-        self.learn_samples = int(round(noise_time_constant / period))
+        # at least one sample each: at a slow sample rate (an export every 40 ms) a 20 ms hold is still one
+        self.noise_floor = float(noise_floor)
+        self.hold_samples = max(1, int(round(hold / period))) if hold > 0 else 0
+        self.learn_samples = max(1, int(round(noise_time_constant / period)))
         self.value: float | None = None
         self.variance = 0.0  # sigma^2, in the input's unit squared
         self.samples = 0
@@ -221,7 +225,7 @@ class ChangeGatedLowPass:
         self.value += self.blend * (x - self.value)
         departure = x - self.value
         learning = self.samples < self.learn_samples
-        limit = self.threshold * math.sqrt(self.variance)
+        limit = self.threshold * max(math.sqrt(self.variance), self.noise_floor)
         if not self.following:
             clipped = departure if learning else max(-limit, min(limit, departure))
             self.variance += self.noise_blend * (clipped * clipped - self.variance)
@@ -286,7 +290,8 @@ class LiveEstimator:
         input_filter, estimate_filter, change_threshold, change_hold = self._filters
         self.speed = _Cascade(input_filter, self.sample_period, INPUT_FILTER_STAGES)
         self.current = _Cascade(input_filter, self.sample_period, INPUT_FILTER_STAGES)
-        self.smooth = ChangeGatedLowPass(estimate_filter, self.sample_period, change_threshold, change_hold)
+        self.smooth = ChangeGatedLowPass(estimate_filter, self.sample_period, change_threshold, change_hold,
+                                         noise_floor=current_sigma(self.rig))
         self._previous_speed: float | None = None
         self._omega = math.nan  # [rad/s] filtered speed of the last valid sample
         self.alpha = 0.0  # [rad/s^2] acceleration of the filtered speed, last sample

@@ -338,6 +338,7 @@ def _time_series_road(data: MeasuredData, declared: Rig, names: list[str], choic
     facts = record_facts(data, steady_record=False)
     held = a_priori(names, facts)
     free = [n for n in names if n not in {h.parameter for h in held}]
+    settings = settings.for_rig(declared)
     split = an.make_split(signals, replace(settings, refit=tuple(free)), finite & quasi_static)
     for name, mask in (("training", split.train), ("held-out", split.held_out)):
         if mask.sum() < MIN_SAMPLES:

@@ -14,18 +14,24 @@ bundled rig; a calibration checked against that rig).  The estimate is written
 as a CSV column (--out): the log's columns, then tau_estimate [N m],
 tau_estimate_uncertainty [N m] and estimate_flags (EstimateFlags bits).
 
-Scoring, when the log has tau_load (the load reading the rig logged): the log is cut into
+Scoring, when the log has tau_load (the load reading the rig logged), over the estimates the estimator
+trusts (no flag: what the standard outputs carry as a load); trusted_pct is their share of the samples
+where the worm moves. A log whose every run is held at one speed and load (a folder of EPOS exports, a
+joint held at a few speeds: identification.steady) is scored run by run, each one steady point: its mean
+speed and current through the estimator's map (one line a point). Any other log is cut into
 consecutive windows of the calibration's averaging window (0.5 s); a window is a *steady
 point* when calibration's steady-state criterion holds within it (operating_points.
 SteadyStateCriterion: the mean speeds of its two halves within 2 % + 0.5 rad/s of each
-other, its mean currents within 0.01 A) and |omega_worm| >= 5 rad/s (the estimators
+other, its mean currents within 0.01 A, each tolerance widened to 3 standard errors of a
+half's mean where the rig's own noise is larger) and its mean speed is clear of standstill
+(worm_model.physics.resolution.standstill_speed: twice the rig's speed noise; the estimators
 are kinetic).  Per steady point the error is |mean estimate - mean tau_load|; the rest
 of the samples (transients; standstill left out) give an RMS of the sample-by-sample error.
 Errors are in % of the log's load range (the 0.5 .. 99.5 percentiles of tau_load); a log held at one
 load (a hanging mass: no range) is scored in % of that load's magnitude.
 Nothing else is used: the figures come from the log and the files given, never from
 knowledge of a simulator.  The last line printed is
-    estimate: method=<m> mae_pct=<x> max_pct=<x> steady_points=<n> transient_rms_pct=<x>
+    estimate: method=<m> mae_pct=<x> max_pct=<x> steady_points=<n> transient_rms_pct=<x> trusted_pct=<x>
 Methods: knn needs --calibration; extended_model and observer need no calibration (their
 ranges come from the rig file, or from the identification: section of --model-file).
 Exit codes: 0 done, 2 bad input.
@@ -37,7 +43,7 @@ import math
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -45,24 +51,29 @@ import numpy as np
 from worm_model.cli.errors import InputError, run_tool
 from worm_model.cli.options import Parser, input_problem, number, output_path
 from worm_model.files.writing import Output, atomic_file, check_output
-from worm_model.physics.parameters import ParameterError
+from worm_model.physics.parameters import ParameterError, Rig
+from worm_model.physics.resolution import current_sigma, speed_sigma, standstill_speed
 from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
 from worm_model.rig_data.reader import read_rig_data
 from worm_model.rig_data.schema import MeasuredData, RigDataError, csv_header
+from worm_rig_driver.robot.standard_outputs import UNTRUSTED
 
 from torque_estimator.calibration.operating_points import SteadyStateCriterion
 from torque_estimator.estimation.database import CalibrationError
+from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.estimation.registry import ESTIMATORS, METHODS
 from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
+from torque_estimator.identification.steady import SteadyPoints, steady_points
 from torque_estimator.offline.replay import ReplayError, node_parameters
 from worm_model.cli.progress import ProgressBar
 
 PROG = "estimate"
 #: what estimate writes; --force replaces only a CSV with its estimate column (worm_model.files.writing)
 OUTPUT = Output(PROG, recognise=lambda path: "tau_estimate" in csv_header(path))
-#: windows slower than this [rad/s] are not steady points, and standstill samples are left out of the RMS
-MIN_SPEED = 5.0
+#: a steady window's halves may differ by this many standard errors of a half's mean (its own noise), where that is
+#: more than the calibration's criterion allows
+HALF_WINDOW_SIGMAS = 3.0
 
 
 @dataclass
@@ -84,10 +95,47 @@ class Figures:
     transient_rms_pct: float
     load_range: float  # [N m]: what 100 % is
     one_load: bool = False  # the log has one load: load_range is its magnitude
+    trusted_pct: float = math.nan  # of the samples where the worm moves, those trusted (no flag)
+    held_runs: bool = False  # the log is runs held at one point each, scored as such (PointEstimates)
 
     def line(self, method: str) -> str:
         return (f"{PROG}: method={method} mae_pct={self.mae_pct:.2f} max_pct={self.max_pct:.2f} "
-                f"steady_points={self.steady_points} transient_rms_pct={self.transient_rms_pct:.2f}")
+                f"steady_points={self.steady_points} transient_rms_pct={self.transient_rms_pct:.2f} "
+                f"trusted_pct={self.trusted_pct:.1f}")
+
+
+@dataclass
+class PointEstimates:
+    """A log of held runs (identification.steady.steady_points) scored as steady points: per run its mean speed
+    [rad/s], mean current [A] and load [N m], and the estimator's quasi-static estimate of the mean (the
+    estimator's own map, its load prior included) with its flags and other candidate."""
+
+    points: SteadyPoints
+    torque: np.ndarray  # [N m]
+    flags: np.ndarray
+    other: np.ndarray  # [N m], NaN where not ambiguous
+
+    @classmethod
+    def of(cls, data: MeasuredData, estimator) -> "PointEstimates | None":
+        points = steady_points(data)
+        if points is None:
+            return None
+        est = estimator.estimate(points.omega, points.current)
+        other = np.full(len(points), np.nan) if est.other is None else np.asarray(est.other, dtype=float)
+        return cls(points, np.asarray(est.torque, dtype=float), np.asarray(est.flags, dtype=np.int64), other)
+
+    def lines(self, data: MeasuredData, span: float) -> list[str]:
+        """One line a point: its run's file (or run number), speed, load, estimate, error in % of ``span``."""
+        out = []
+        for k in range(len(self.points)):
+            run = int(self.points.run[k])
+            name = Path(data.run_sources[run]).name if data.run_sources else f"run {run}"
+            error = 100.0 * (self.torque[k] - self.points.tau_load[k]) / span
+            flags = EstimateFlags(int(self.flags[k]))
+            out.append(f"{PROG}: point {name}: omega {self.points.omega[k]:+.4g} rad/s, load "
+                       f"{self.points.tau_load[k]:+.5g} N m, estimate {self.torque[k]:+.5g} N m ({error:+.2f} %)"
+                       + (f", {flags.name}" if flags else ""))
+        return out
 
 
 def run_estimator(data: MeasuredData, make_live: Callable[[], LiveEstimator], progress=None) -> LogEstimate:
@@ -109,8 +157,21 @@ def run_estimator(data: MeasuredData, make_live: Callable[[], LiveEstimator], pr
     return LogEstimate(torque, spread, flags)
 
 
-def steady_windows(data: MeasuredData, criterion: SteadyStateCriterion = SteadyStateCriterion()) -> list[slice]:
-    """The steady points of a log (module docstring): consecutive windows of ``criterion.window`` per run."""
+def window_criterion(data: MeasuredData, rig: Rig, criterion: SteadyStateCriterion = SteadyStateCriterion()
+                     ) -> SteadyStateCriterion:
+    """The steady-state criterion for this log's windows: the calibration's, its speed and current tolerances widened
+    to HALF_WINDOW_SIGMAS standard errors of a half window's mean where the rig's noise (its sensors: section, what
+    identify measured) is larger than they allow (a drive sampled at 25 Hz averages 6 samples a half window)."""
+    half = max(1, int(round(criterion.window / data.sample_period)) // 2)
+    se = HALF_WINDOW_SIGMAS * math.sqrt(2.0 / half)
+    return replace(criterion, speed_floor=max(criterion.speed_floor, se * speed_sigma(rig)),
+                   current_drift=max(criterion.current_drift, se * current_sigma(rig)))
+
+
+def steady_windows(data: MeasuredData, criterion: SteadyStateCriterion = SteadyStateCriterion(),
+                   min_speed: float = 0.0) -> list[slice]:
+    """The steady points of a log (module docstring): consecutive windows of ``criterion.window`` per run, their mean
+    speed above ``min_speed`` [rad/s] (a standing worm is no point of the kinetic model)."""
     size = max(2, int(round(criterion.window / data.sample_period)))
     half = size // 2
     out = []
@@ -121,7 +182,7 @@ def steady_windows(data: MeasuredData, criterion: SteadyStateCriterion = SteadyS
             if not (np.all(np.isfinite(w)) and np.all(np.isfinite(i))):
                 continue
             mean = float(np.mean(w))
-            if abs(mean) < MIN_SPEED:
+            if abs(mean) <= min_speed:
                 continue
             if (abs(np.mean(w[:half]) - np.mean(w[half:]))
                     <= criterion.speed_tolerance * abs(mean) + criterion.speed_floor
@@ -130,9 +191,12 @@ def steady_windows(data: MeasuredData, criterion: SteadyStateCriterion = SteadyS
     return out
 
 
-def figures(data: MeasuredData, estimate: LogEstimate,
-            criterion: SteadyStateCriterion = SteadyStateCriterion()) -> Figures | None:
-    """Scores against the log's tau_load; None when the log has no finite tau_load."""
+def figures(data: MeasuredData, estimate: LogEstimate, rig: Rig,
+            criterion: SteadyStateCriterion = SteadyStateCriterion(),
+            points: PointEstimates | None = None) -> Figures | None:
+    """Scores against the log's tau_load (module docstring); ``rig``: the estimator's (its sensors' noise sets what
+    stands, worm_model.physics.resolution, and how steady a window must be, :func:`window_criterion`); ``points``:
+    a log of held runs, scored as its points; None when the log has no finite tau_load."""
     reference = data.tau_load
     finite = np.isfinite(reference)
     if not finite.any():
@@ -142,21 +206,31 @@ def figures(data: MeasuredData, estimate: LogEstimate,
     one_load = not span > 0.0
     if one_load:  # one load (e.g. a hanging mass): % of that load
         span = float(np.max(np.abs(reference[finite]))) or float("nan")
-    windows = steady_windows(data, criterion)
+    still = standstill_speed(rig)
+    moving = np.abs(data.omega_worm) > still
+    trusted = np.isfinite(estimate.torque) & ((np.asarray(estimate.flags) & int(UNTRUSTED)) == 0)
+    trusted_pct = 100.0 * float(np.mean(trusted[moving])) if moving.any() else math.nan
+    if points is not None:  # held runs: each one steady point
+        ok = np.isfinite(points.torque)
+        errors_pct = 100.0 * np.abs(points.torque[ok] - points.points.tau_load[ok]) / span
+        return Figures(float(np.mean(errors_pct)) if len(errors_pct) else math.nan,
+                       float(np.max(errors_pct)) if len(errors_pct) else math.nan, int(ok.sum()), math.nan, span,
+                       one_load, trusted_pct, held_runs=True)
+    windows = steady_windows(data, window_criterion(data, rig, criterion), still)
     errors = []
     steady = np.zeros(len(data), dtype=bool)
-    for window in windows:
+    for window in windows:  # scored over the estimates the estimator trusts, as the standard outputs carry them
         est, ref = estimate.torque[window], reference[window]
-        ok = np.isfinite(est) & np.isfinite(ref)
+        ok = trusted[window] & np.isfinite(ref)
         steady[window] = True
         if ok.sum() >= 2:
             errors.append(abs(float(np.mean(est[ok]) - np.mean(ref[ok]))))
     errors_pct = 100.0 * np.array(errors) / span
-    rest = ~steady & np.isfinite(estimate.torque) & finite & (np.abs(data.omega_worm) >= MIN_SPEED)
+    rest = ~steady & trusted & finite & moving
     rms = float(np.sqrt(np.mean((estimate.torque[rest] - reference[rest]) ** 2))) if rest.any() else math.nan
     return Figures(float(np.mean(errors_pct)) if len(errors_pct) else math.nan,
                    float(np.max(errors_pct)) if len(errors_pct) else math.nan,
-                   len(errors_pct), 100.0 * rms / span, span, one_load)
+                   len(errors_pct), 100.0 * rms / span, span, one_load, trusted_pct)
 
 
 def write_estimate_csv(path: Path, data: MeasuredData, estimate: LogEstimate) -> None:
@@ -277,7 +351,8 @@ def _main(argv: list[str] | None) -> int:
           f"{args.method} from {args.calibration or model_file or rig_file or 'the bundled rig'}"
           + (f" (table ranges from the {ranges})" if ranges else "")
           + f"; {time.monotonic() - start:.1f} s -> {out}")
-    score = figures(data, estimate)
+    points = PointEstimates.of(data, estimator)
+    score = figures(data, estimate, built.rig, points=points)
     if score is None:
         print(f"{PROG}: method={args.method} samples={len(data)} (no tau_load in the log: no figures)")
         return 0
@@ -285,6 +360,11 @@ def _main(argv: list[str] | None) -> int:
         print(f"{PROG}: the log has one load, {score.load_range:.4f} N m: errors in % of it")
     else:
         print(f"{PROG}: load range of the log {score.load_range:.4f} N m (0.5..99.5 percentiles of tau_load)")
+    if points is not None:
+        print(f"{PROG}: the log is {len(points.points)} runs each held at one speed and load: each scored as one "
+              "steady point, its mean speed and current through the estimator's map")
+        for line in points.lines(data, score.load_range):
+            print(line)
     print(score.line(args.method))
     return 0
 

@@ -65,7 +65,7 @@ def synthetic(effects=(), seconds: float = 40.0, noise: float = 0.02, seed: int 
 def problem_of(data: MeasuredData, free=("friction.scale",), **settings) -> an.Problem:
     s = an.Settings(**settings)
     sig = prepare_signals(RIG, data, s.alpha_time_constant, s.reference_temperature)
-    return an.Problem(RIG, list(free), sig, data.current_drive, an.make_split(sig, s), s)
+    return an.Problem(RIG, list(free), sig, data.current_drive, an.make_split(sig, s, rig=RIG), s)
 
 
 # --------------------------------------------------------------------------- input (schema: test_rig_data.py)
@@ -359,7 +359,7 @@ def problem_at(data, rig, bounded: bool = True, **settings) -> an.Problem:
     """The analysis of ``data`` with ``rig`` as the rig file (``bounded`` False: no physical bound on any fit)."""
     settings = an.Settings(**settings)
     signals = prepare_signals(rig, data, settings.alpha_time_constant)
-    problem = an.Problem(rig, [], signals, data.current_drive, an.make_split(signals, settings), settings)
+    problem = an.Problem(rig, [], signals, data.current_drive, an.make_split(signals, settings, rig=rig), settings)
     if not bounded:
         problem.lower_bounds = lambda size: np.full(size, -np.inf)
     return problem

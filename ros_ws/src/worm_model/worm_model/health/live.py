@@ -239,7 +239,7 @@ class LiveHealth:
         self.status.oil_temperature, self.status.temperature_source = temperature, source
         self.status.time = self._time
         points = self.settings.points
-        steady = one_way and abs(alpha) < points.alpha_max and abs(omega) >= points.min_speed \
+        steady = one_way and abs(alpha) < points.alpha_max and abs(omega) >= points.slowest(rig) \
             and math.isfinite(current) and math.isfinite(load)
         if steady and self._last is not None:  # a new operating point is a transient too
             w0, d0 = self._last

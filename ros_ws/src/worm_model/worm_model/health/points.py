@@ -23,6 +23,7 @@ import numpy as np
 
 from worm_model.health.blocks import Blocks
 from worm_model.physics.parameters import Rig
+from worm_model.physics.resolution import kinetic_speed
 from worm_model.physics.units import FloatArray
 
 
@@ -35,10 +36,14 @@ class PointRules:
     load_tolerance: float = 0.03  # relative to the point's load
     load_floor: float = 0.004  # [N m]
     alpha_max: float = 40.0  # [rad/s^2]
-    min_speed: float = 5.0  # [rad/s]
+    min_speed: float | None = None  # [rad/s]; None: the rig's own (worm_model.physics.resolution.kinetic_speed)
     settle: int = 2  # blocks left out at the start of each run
     min_blocks: int = 4
     loop_noise: float = 1.25  # [1] (module docstring)
+
+    def slowest(self, rig: Rig) -> float:
+        """The slowest speed of a point [rad/s]: ``min_speed``, or the rig's own where it is None."""
+        return kinetic_speed(rig) if self.min_speed is None else self.min_speed
 
 
 @dataclass
@@ -65,9 +70,9 @@ class Points:
         return float(self.duration.sum())
 
 
-def _groups(blocks: Blocks, rules: PointRules) -> list[np.ndarray]:
-    """Index arrays of the runs of steady blocks (before settle/min_blocks)."""
-    eligible = blocks.one_way & (np.abs(blocks.alpha) < rules.alpha_max) & (np.abs(blocks.omega) >= rules.min_speed) \
+def _groups(blocks: Blocks, rules: PointRules, min_speed: float) -> list[np.ndarray]:
+    """Index arrays of the runs of steady blocks (before settle/min_blocks); ``min_speed`` [rad/s]."""
+    eligible = blocks.one_way & (np.abs(blocks.alpha) < rules.alpha_max) & (np.abs(blocks.omega) >= min_speed) \
         & np.isfinite(blocks.current) & np.isfinite(blocks.tau_load)
     groups, current = [], []
     sum_w = sum_d = 0.0
@@ -96,7 +101,7 @@ def steady_points(blocks: Blocks, rig: Rig, rules: PointRules = PointRules()) ->
     rows = []
     k_t = rig.drive_motor.torque_constant
     inertia = rig.total_worm_inertia
-    for group in _groups(blocks, rules):
+    for group in _groups(blocks, rules, rules.slowest(rig)):
         use = group[rules.settle:]
         if len(use) < rules.min_blocks:
             continue

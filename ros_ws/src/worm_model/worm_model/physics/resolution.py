@@ -8,6 +8,9 @@ nothing: the rig file's ``sensors:`` section (measured on a recording by ``ident
 * :func:`standstill_speed` [rad/s]: below STILL_SIGMAS of it a worm counts as standing: its speed is
   no different from 0 by more than the sensor's own noise (a drive at 10 rpm with a 0.13 rad/s
   speed noise moves; the NMRV030 rig's tacho, 0.57 rad/s, stands below 1.1 rad/s);
+* :func:`kinetic_speed` [rad/s]: above KINETIC_SIGMAS of it a worm slides for the kinetic model (Eq. 28:
+  friction in motion) to hold sample by sample: its speed is clear of 0 and known to about a fifth
+  (the NMRV030 rig: 2.9 rad/s; a drive with a 0.13 rad/s speed noise: 0.65 rad/s);
 * :func:`current_sigma` [A]: one current sample's spread, sqrt(current_noise_std^2 + current_lsb^2 / 12).
 
 Units SI. No ROS.
@@ -20,6 +23,8 @@ from worm_model.physics.parameters import Rig
 
 #: a worm stands when its speed is within this many speed sigmas of 0 (the momentum observer's STILL_SIGMAS)
 STILL_SIGMAS = 2.0
+#: a worm's samples are kinetic (the model of friction in motion holds for each) beyond this many speed sigmas
+KINETIC_SIGMAS = 5.0
 
 
 def speed_sigma(rig: Rig) -> float:
@@ -33,10 +38,15 @@ def standstill_speed(rig: Rig) -> float:
     return STILL_SIGMAS * speed_sigma(rig)
 
 
+def kinetic_speed(rig: Rig) -> float:
+    """[rad/s] above which a worm's samples are kinetic (module docstring)."""
+    return KINETIC_SIGMAS * speed_sigma(rig)
+
+
 def current_sigma(rig: Rig) -> float:
     """One drive-current sample's standard deviation [A] (module docstring)."""
     s = rig.sensors
     return math.sqrt(s.current_noise_std ** 2 + s.current_lsb ** 2 / 12.0)
 
 
-__all__ = ["STILL_SIGMAS", "current_sigma", "speed_sigma", "standstill_speed"]
+__all__ = ["KINETIC_SIGMAS", "STILL_SIGMAS", "current_sigma", "kinetic_speed", "speed_sigma", "standstill_speed"]

@@ -96,7 +96,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--guard", type=number("s", 0, 3600), default=d.guard_seconds,
                    help="samples this close to a block edge [s] are in neither set (no filter crosses sets)")
     p.add_argument("--min-speed", type=number("rad/s", 0, 1e4), default=d.min_speed,
-                   help="samples with |omega_worm| below this [rad/s] are not used (the model is kinetic)")
+                   help="samples with |omega_worm| below this [rad/s] are not used (the model is kinetic); default: "
+                        "the rig file's own, 5 x its speed noise (sensors: tacho_noise_std, tacho_drive_lsb)")
     p.add_argument("--min-improvement", type=number("", 0, 1, open_high=True), default=d.min_improvement,
                    help="relative held-out RMS improvement an effect must bring (besides a lower BIC) to be added")
     p.add_argument("--max-effects", type=integer(0, len(EFFECTS)), default=d.max_effects,
@@ -146,6 +147,7 @@ def _main(argv: list[str] | None) -> int:
         check_output(args.out, args.force, folder=True, inputs=[args.data, args.params], output=OUTPUT)
     finally:
         progress.close()
+    settings = settings.for_rig(rig)
     signals = prepare_signals(rig, data, settings.alpha_time_constant, settings.reference_temperature)
     split = make_split(signals, settings, np.isfinite(data.current_drive))
     for name, mask in (("training", split.train), ("held-out", split.held_out)):

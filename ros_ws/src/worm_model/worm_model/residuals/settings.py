@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+
+from worm_model.physics.parameters import Rig
+from worm_model.physics.resolution import kinetic_speed
 
 from worm_model.residuals.effects import EFFECTS
 from worm_model.residuals.free import STANDARD_REFIT
@@ -16,7 +19,9 @@ class Settings:
     holdout_fraction: float = 1.0 / 3.0  # share of the blocks held out
     block_seconds: float = 2.0  # length of a split block [s]
     guard_seconds: float = 0.05  # excluded at both ends of every block [s]
-    min_speed: float = 5.0  # samples slower than this [rad/s] are not used (no kinetic model at rest)
+    # samples slower than this [rad/s] are not used (no kinetic model at rest); None: the rig's own
+    # (worm_model.physics.resolution.kinetic_speed: 5 x its speed noise), :meth:`for_rig`
+    min_speed: float | None = None
     min_improvement: float = 0.02  # relative held-out RMS improvement an effect must bring
     # relative held-out RMS rise of the *other* signal (current vs transmission error) an effect may cause;
     # None: min_improvement (a tiny min_improvement would otherwise refuse an effect for a 1e-4 wobble there)
@@ -37,6 +42,10 @@ class Settings:
     # analysis step 5: above unexplained_factor x the floor, a named current effect must also earn its keep beside a
     # generic description of the residual (off: every accepted effect stays, e.g. for a model an estimator inverts)
     check_outside_vocabulary: bool = True
+
+    def for_rig(self, rig: Rig) -> "Settings":
+        """These settings with what they leave to the rig (``min_speed``) taken from ``rig``."""
+        return self if self.min_speed is not None else replace(self, min_speed=kinetic_speed(rig))
 
     @property
     def other_tolerance(self) -> float:

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from worm_model.physics.parameters import Rig
 from worm_model.residuals.model import Signals
 from worm_model.residuals.settings import Settings
 
@@ -22,14 +23,23 @@ class Split:
         assert not np.any(self.train & self.held_out)
 
 
-def make_split(signals: Signals, settings: Settings, finite: np.ndarray | None = None) -> Split:
+def make_split(signals: Signals, settings: Settings, finite: np.ndarray | None = None, rig: Rig | None = None
+               ) -> Split:
     """Interleaved block split: of consecutive blocks, a share ``holdout_fraction`` is held out.
 
     Block j (counted over all runs) is held out when floor((j + 1) f) > floor(j f): the
     held-out blocks are spread evenly over the record, so both sets see every part of
     the experiment (and slow drift).  Samples within ``guard_seconds`` of a block edge,
-    slower than ``min_speed``, or not finite (``finite`` mask) are in neither set.
+    slower than ``min_speed`` (None: the ``rig``'s own, Settings.for_rig), or not finite (``finite`` mask)
+    are in neither set.
+
+    Raises:
+        ValueError: ``min_speed`` left to a rig and no rig given.
     """
+    if settings.min_speed is None:
+        if rig is None:
+            raise ValueError("make_split: min_speed is the rig's (Settings.for_rig): give the rig")
+        settings = settings.for_rig(rig)
     n = len(signals)
     block = np.zeros(n, dtype=int)
     edge_distance = np.zeros(n)

@@ -8,15 +8,15 @@ import math
 from worm_msgs.msg import TorqueEstimate
 
 from worm_rig_driver.robot.standard_outputs import (FLAG_AMBIGUOUS, FLAG_INVALID_INPUT, FLAG_OUT_OF_CALIBRATION,
-                                                    FLAG_TRANSIENT, UNTRUSTED, StandardEffort)
+                                                    FLAG_STANDSTILL, FLAG_TRANSIENT, UNTRUSTED, StandardEffort)
 
 
 def test_the_flags_are_torque_estimates() -> None:
     """(The estimators' EstimateFlags against these: torque_estimator's test_standard_outputs.)"""
-    assert (FLAG_OUT_OF_CALIBRATION, FLAG_AMBIGUOUS, FLAG_INVALID_INPUT, FLAG_TRANSIENT) == (
+    assert (FLAG_OUT_OF_CALIBRATION, FLAG_AMBIGUOUS, FLAG_INVALID_INPUT, FLAG_TRANSIENT, FLAG_STANDSTILL) == (
         TorqueEstimate.FLAG_OUT_OF_CALIBRATION, TorqueEstimate.FLAG_AMBIGUOUS, TorqueEstimate.FLAG_INVALID_INPUT,
-        TorqueEstimate.FLAG_TRANSIENT)
-    assert UNTRUSTED == FLAG_OUT_OF_CALIBRATION | FLAG_INVALID_INPUT | FLAG_TRANSIENT
+        TorqueEstimate.FLAG_TRANSIENT, TorqueEstimate.FLAG_STANDSTILL)
+    assert UNTRUSTED == FLAG_OUT_OF_CALIBRATION | FLAG_AMBIGUOUS | FLAG_INVALID_INPUT | FLAG_TRANSIENT | FLAG_STANDSTILL
 
 
 def feed(effort: StandardEffort, stream: list[tuple[float, int]]) -> list[float]:
@@ -33,15 +33,14 @@ def test_untrusted_estimates_and_their_edges_go_out_as_nan() -> None:
     out = feed(effort, [(0.1, 0)] * 8)
     assert [math.isnan(x) for x in out] == [True] * 5 + [False] * 3  # the start: 5 samples, then trusted
     assert out[-1] == -0.1
-    assert feed(effort, [(0.1, FLAG_AMBIGUOUS)]) == [-0.1]  # the estimator's best value, its branch
-    for flags in (FLAG_TRANSIENT, FLAG_INVALID_INPUT, FLAG_OUT_OF_CALIBRATION):
+    for flags in (FLAG_TRANSIENT, FLAG_INVALID_INPUT, FLAG_OUT_OF_CALIBRATION, FLAG_AMBIGUOUS, FLAG_STANDSTILL):
         out = feed(effort, [(0.1, flags)] + [(0.1, 0)] * 4)
         assert [math.isnan(x) for x in out] == [True] * 4 + [False], flags  # NaN, then 3 samples settling
     out = feed(effort, [(0.5, 0)] + [(0.1, 0)] * 4)  # implausible: beyond max_load
     assert [math.isnan(x) for x in out] == [True] * 4 + [False]
     effort.restart()  # a new rig session
     assert all(math.isnan(x) for x in feed(effort, [(0.1, 0)] * 5))
-    assert effort.carried + effort.withheld == 8 + 1 + 15 + 5 + 5
+    assert effort.carried + effort.withheld == 8 + 25 + 5 + 5
 
 
 def test_a_sample_not_published_is_judged_too() -> None:

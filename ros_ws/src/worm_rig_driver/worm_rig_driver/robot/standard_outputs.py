@@ -8,18 +8,19 @@ load. So an estimate flagged
 
 * INVALID_INPUT (a NaN/inf input: nothing was measured),
 * TRANSIENT (the estimator's own model does not hold: a speed reversal, an acceleration beyond
-  the quasi-static map, the observer still converging after a detected step or a restart), or
+  the quasi-static map, the observer still converging after a detected step or a restart),
 * OUT_OF_CALIBRATION (beyond what the drive's load can be, or at speeds it never saw),
+* AMBIGUOUS (a self-locking drive's two candidate loads, and nothing tells them apart: neither the
+  load prior nor a load that persisted across a stop or a reversal), or
+* STANDSTILL (a self-locked drive standing: its friction holds the load, the current shows nothing of
+  it; the estimator holds its last moving value),
 
 or a finite one larger than ``max_load`` (the controller's plausibility bound, 1.5 x the rig file's
 max_load_torque), goes out as NaN, from the first such sample until SETTLE (10 ms) of trusted ones
 in a row: the estimate is judged on every sample, published or not, and the samples at the edges
 of a flagged stretch (a reversal's first and last few, where the estimator has lost its model or is
 finding it again) are not trusted either. Nor is the first START (50 ms) after the estimator's start
-or restart (a drive breaking away from standstill, where an observer has yet to find the load). An
-AMBIGUOUS estimate (the self-locking V, the filter on
-the branch it is on, its uncertainty reaching the other) is the estimator's best value and goes out
-as it is.
+or restart (a drive breaking away from standstill, where an observer has yet to find the load).
 
 Why NaN from the first untrusted sample, not the last trusted value held for a while: it is what ROS 2's own components
 write and read for "no value". ros2_control's joint_state_broadcaster publishes NaN for an interface
@@ -41,9 +42,9 @@ from __future__ import annotations
 import math
 
 #: worm_msgs/TorqueEstimate's FLAG_* bits
-FLAG_OUT_OF_CALIBRATION, FLAG_AMBIGUOUS, FLAG_INVALID_INPUT, FLAG_TRANSIENT = 1, 2, 4, 8
+FLAG_OUT_OF_CALIBRATION, FLAG_AMBIGUOUS, FLAG_INVALID_INPUT, FLAG_TRANSIENT, FLAG_STANDSTILL = 1, 2, 4, 8, 16
 #: the flags of an estimate the standard outputs do not carry as a load
-UNTRUSTED = FLAG_OUT_OF_CALIBRATION | FLAG_INVALID_INPUT | FLAG_TRANSIENT
+UNTRUSTED = FLAG_OUT_OF_CALIBRATION | FLAG_AMBIGUOUS | FLAG_INVALID_INPUT | FLAG_TRANSIENT | FLAG_STANDSTILL
 
 
 #: [s] of trusted estimates needed after an untrusted one before the standard outputs carry a load again
@@ -109,5 +110,5 @@ class StandardEffort:
         return -torque
 
 
-__all__ = ["FLAG_AMBIGUOUS", "FLAG_INVALID_INPUT", "FLAG_OUT_OF_CALIBRATION", "FLAG_TRANSIENT", "SETTLE", "START",
-           "UNTRUSTED", "StandardEffort"]
+__all__ = ["FLAG_AMBIGUOUS", "FLAG_INVALID_INPUT", "FLAG_OUT_OF_CALIBRATION", "FLAG_STANDSTILL", "FLAG_TRANSIENT",
+           "SETTLE", "START", "UNTRUSTED", "StandardEffort"]
