@@ -160,8 +160,8 @@ def simulate_case(name: str) -> MeasuredData:
 def analyse(data: MeasuredData, free=tuple(FREE)) -> an.Analysis:
     settings = an.Settings()
     signals = prepare_signals(RIG, data, settings.alpha_time_constant)
-    return an.analyse(an.Problem(RIG, list(free), signals, data.current_drive, an.make_split(signals, settings, rig=RIG),
-                                 settings))
+    split = an.make_split(signals, settings, rig=RIG)
+    return an.analyse(an.Problem(RIG, list(free), signals, data.current_drive, split, settings))
 
 
 def _show(name: str, result: an.Analysis) -> str:
@@ -470,8 +470,8 @@ def test_constant_friction_with_mu_declared_high_names_nothing_at_the_floor(pert
     declared = load_rig(rc.write_rig_file(tmp_path / "rig.yaml", "nmrv030_constant", off))
     settings = an.Settings()
     signals = prepare_signals(declared, data, settings.alpha_time_constant)
-    result = an.analyse(an.Problem(declared, [], signals, data.current_drive, an.make_split(signals, settings, rig=declared),
-                                   settings))
+    split = an.make_split(signals, settings, rig=declared)
+    result = an.analyse(an.Problem(declared, [], signals, data.current_drive, split, settings))
     print(_show(perturbation, result), "floor", result.noise.rms, result.final.free_values)
     assert result.found == [] and result.unexplained is None
     assert result.final.rms_held_out <= 1.3 * result.noise.rms

@@ -102,8 +102,9 @@ class BranchTracker:
         self.reference: tuple[float, float] | None = None  # (load, sigma) [N m]: the last load told apart
         self.direction = 0  # sign of the current move's speed, 0 standing
         self.arm: str | None = None  # the arm this move's load is on, once told ("driving", "coast")
-        self._pair: tuple[float, float, float] | None = None  # this move's unresolved candidates (driving, coast, sigma)
-        self._previous: tuple[float, float, float] | None = None  # the previous move's
+        # this move's unresolved candidates (driving, coast, sigma), and the previous move's
+        self._pair: tuple[float, float, float] | None = None
+        self._previous: tuple[float, float, float] | None = None
         self._count = 0
         self.resolved = 0  # samples told apart by the motion (the arm kept, a reference, the previous move)
 

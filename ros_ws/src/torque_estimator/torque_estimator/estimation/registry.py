@@ -137,5 +137,6 @@ def make_estimator(name: str, database: CalibrationDatabase | None, **options: A
     return row.factory(database, **options)
 
 
-__all__ = ["ESTIMATORS", "KNN_OPTIONS", "MAP_OPTIONS", "METHODS", "MOMENTUM_OPTIONS", "Method", "Option", "PRIOR_OPTIONS",
+__all__ = ["ESTIMATORS", "KNN_OPTIONS", "MAP_OPTIONS", "METHODS", "MOMENTUM_OPTIONS", "Method", "Option",
+           "PRIOR_OPTIONS",
            "make_estimator", "method"]

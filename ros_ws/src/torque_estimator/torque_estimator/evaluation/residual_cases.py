@@ -436,7 +436,8 @@ def run_case(case: Case, rig: Rig | None = None) -> CaseResult:
     settings = an.Settings(reference_temperature=an.Settings().reference_temperature
                            + pert.get("reference_temperature", 0.0))
     signals = prepare_signals(declared, data, settings.alpha_time_constant, settings.reference_temperature)
-    problem = an.Problem(declared, free, signals, data.current_drive, an.make_split(signals, settings, rig=declared), settings)
+    split = an.make_split(signals, settings, rig=declared)
+    problem = an.Problem(declared, free, signals, data.current_drive, split, settings)
     result = an.analyse(problem)
     values = dict(result.final.free_values)
     return CaseResult(case, tuple(sorted(result.found)), result.rms_before, result.final.rms_held_out,

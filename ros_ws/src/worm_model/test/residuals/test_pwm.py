@@ -101,8 +101,8 @@ def test_analysis_finds_the_pwm_bias_and_its_phase_in_model_data() -> None:
     data = synthetic_pwm(amplitude=0.36, phase=0.62)
     settings = an.Settings()
     sig = prepare_signals(RIG, data, settings.alpha_time_constant)
-    result = an.analyse(an.Problem(RIG, ["friction.scale"], sig, data.current_drive, an.make_split(sig, settings, rig=RIG),
-                                   settings))
+    split = an.make_split(sig, settings, rig=RIG)
+    result = an.analyse(an.Problem(RIG, ["friction.scale"], sig, data.current_drive, split, settings))
     assert result.found == ["pwm"]
     fitted = result.final.effects[0]
     print(f"pwm: phase {fitted.grid['phase']:.2f} (true 0.62), amplitude {fitted.values['amplitude']:.4f} "

@@ -6,7 +6,8 @@ From Eq. 28 in the frame of motion (σ = sign ω, +1 at 0):
     T_dist(ω, τ_d) = c·sign ω + σ·(r_w/r_g)·K_s(μ(ω))·D,   D = σ·(τ_d + τ_drag,g(ω)),
     s = +1 (driving flank) for D >= 0, −1 (coast) for D < 0,
 
-with c the drive motor's Coulomb drag (with its low-speed rise, worm_model.physics.motor.coulomb_friction), τ_drag,g the load motors' drag the gear shaft also
+with c the drive motor's Coulomb drag (with its low-speed rise, worm_model.physics.motor.coulomb_friction),
+τ_drag,g the load motors' drag the gear shaft also
 carries (worm_model.physics.gear_side: it sets the switching torque, so the pseudo-resistive
 mode is D >= 0 with τ_d < 0), μ(ω) the rig's friction model (worm_model.physics.friction, AGMA,
 speed dependent) and K_s the flank factor (worm_model.physics.efficiency: K_+ = tan(λ+ρ'),
