@@ -1,4 +1,5 @@
-"""Sanity of the foreign worm drive (tests/foreign_drive): the plant the project's estimators are validated on.
+"""Sanity of the foreign worm drives (torque_estimator.evaluation.foreign): the plant the project's estimators are
+validated on.
 
 The expected values here are written out again from the textbook relations (tooth-normal force at the pitch point,
 Coulomb friction along the thread, a PMDC motor), not taken from the plant's own helpers, so that a sign or a
@@ -15,13 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))  # the package as `foreign_drive` (conftest does too)
-from foreign_drive import plant  # noqa: E402
-from foreign_drive.drives import BIG50, DRIVES, FOREIGN30, LIFT40, datasheet_args  # noqa: E402
-from foreign_drive.recordings import (HEADER, excitation, released, speed_range, start_stop, steady,  # noqa: E402
-                                      validation, write_csv)
+from torque_estimator.evaluation.foreign import plant
+from torque_estimator.evaluation.foreign.drives import BIG50, DRIVES, FOREIGN30, LIFT40, datasheet_args
+from torque_estimator.evaluation.foreign.recordings import (HEADER, excitation, released, speed_range, start_stop,
+                                                            steady, validation, write_csv)
 
-FOLDER = Path(__file__).resolve().parent / "foreign_drive"
+FOLDER = Path(plant.__file__).resolve().parent
 PROJECT = ("worm_model", "worm_rig_driver", "torque_estimator", "worm_msgs")
 CATALOGUE_KEYS = {"ratio", "starts", "hand", "lead_angle_deg", "pressure_angle_deg", "torque_constant",
                   "resistance", "rotor_inertia_gcm2", "inductance_mh", "rated_current", "max_voltage"}

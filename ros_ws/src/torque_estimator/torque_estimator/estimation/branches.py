@@ -33,6 +33,9 @@ from dataclasses import dataclass
 MATCH_SIGMAS = 3.0
 #: a held load's uncertainty grows by this fraction of the admitted span per square root of a second (Hold)
 HOLD_DRIFT = 0.01
+#: a standstill is a stop (Hold.stopped) once it lasted this long [s] and this many samples: a reversal passes
+#: through zero in a few milliseconds
+STOP_TIME, STOP_SAMPLES = 0.1, 3
 
 
 @dataclass(frozen=True)
@@ -125,17 +128,20 @@ class BranchTracker:
     def _matches(self, load: float, sigma: float, reference: tuple[float, float]) -> bool:
         return abs(load - reference[0]) <= self.match * math.hypot(sigma, reference[1])
 
-    def _told(self, arm: str, driving: float, coast: float, sigma: float) -> Choice:
-        self.arm = arm
+    def _told(self, arm: str, driving: float, coast: float, sigma: float, settled: bool) -> Choice:
         load, other = (driving, coast) if arm == "driving" else (coast, driving)
-        self.reference = (load, sigma)
+        if settled:
+            self.arm = arm
+            self.reference = (load, sigma)
         self.resolved += 1
         return Choice(load, other, False)
 
-    def choose(self, omega: float, driving: float, coast: float, sigma: float) -> Choice:
+    def choose(self, omega: float, driving: float, coast: float, sigma: float, settled: bool = True) -> Choice:
         """One sample's decision (module docstring): the candidates on the ``driving`` and the ``coast`` arm [N m]
         (NaN: none there; :func:`arm_of` says which arm a lone candidate is on), ``sigma`` [N m] their standard
-        deviation, ``omega`` [rad/s] the worm's speed."""
+        deviation, ``omega`` [rad/s] the worm's speed. ``settled``: the estimator trusts the sample otherwise (not
+        TRANSIENT: a filter still finding the load, a start from rest): only such a sample tells the tracker a
+        reference or an arm; any sample is told by what the tracker knows."""
         direction = (omega > 0) - (omega < 0)
         if direction != self.direction:
             self._end_move()
@@ -150,21 +156,24 @@ class BranchTracker:
             return Choice(nearest, math.nan, False, outside=True)
         if in_driving != in_coast:  # one candidate admitted: the load, and the arm it is on
             load = driving if in_driving else coast
-            self.reference = (load, sigma)
-            self.arm = "driving" if in_driving else "coast"
+            if settled:
+                self.reference = (load, sigma)
+                self.arm = "driving" if in_driving else "coast"
             return Choice(load, math.nan, False)
         if self.arm is not None:  # the arm this move's load was told on
-            return self._told(self.arm, driving, coast, sigma)
+            return self._told(self.arm, driving, coast, sigma, settled)
         if self.reference is not None:
             hit_d, hit_c = self._matches(driving, sigma, self.reference), self._matches(coast, sigma, self.reference)
             if hit_d != hit_c:
-                return self._told("driving" if hit_d else "coast", driving, coast, sigma)
+                return self._told("driving" if hit_d else "coast", driving, coast, sigma, settled)
         if self._previous is not None:
             pd, pc, ps = self._previous
             hits = [arm for arm, c in (("driving", driving), ("coast", coast))
                     if any(self._matches(c, sigma, (p, ps)) for p in (pd, pc))]
             if len(hits) == 1:
-                return self._told(hits[0], driving, coast, sigma)
+                return self._told(hits[0], driving, coast, sigma, settled)
+        if not settled:
+            return Choice(driving, coast, True)
         # nothing tells them apart: this move's candidates, averaged, for the next move to compare with
         self._count += 1
         if self._pair is None:
@@ -191,15 +200,24 @@ class Hold:
     def __init__(self, drift: float, period: float) -> None:
         self.variance_rate = drift * drift * period  # [(N m)^2] per sample
         self.held: tuple[float, float] | None = None  # (load, variance)
+        self.samples = 0  # of the standstill so far
+        self.stop_samples = max(STOP_SAMPLES, int(math.ceil(STOP_TIME / period)))
+
+    @property
+    def stopped(self) -> bool:
+        """The standstill has lasted STOP_TIME and STOP_SAMPLES: a stop, not a reversal's pass through zero."""
+        return self.samples >= self.stop_samples
 
     def start(self, load: float, sigma: float) -> None:
         if self.held is None:
             self.held = (load, sigma * sigma)
+            self.samples = 0
 
     def step(self) -> tuple[float, float]:
         """(held load [N m], its sigma [N m]) one sample further into the standstill."""
         load, variance = self.held
         self.held = (load, variance + self.variance_rate)
+        self.samples += 1
         return load, math.sqrt(self.held[1])
 
     def end(self) -> None:
@@ -213,4 +231,5 @@ def hold_drift(prior: LoadPrior, scale: float) -> float:
     return HOLD_DRIFT * span
 
 
-__all__ = ["BranchTracker", "Choice", "HOLD_DRIFT", "Hold", "LoadPrior", "MATCH_SIGMAS", "arm_of", "hold_drift"]
+__all__ = ["BranchTracker", "Choice", "HOLD_DRIFT", "Hold", "LoadPrior", "MATCH_SIGMAS", "STOP_SAMPLES", "STOP_TIME",
+           "arm_of", "hold_drift"]

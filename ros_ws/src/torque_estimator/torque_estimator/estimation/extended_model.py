@@ -13,7 +13,7 @@ it, so no candidate outside it is ever found (a current it cannot explain is ext
 flagged OUT_OF_CALIBRATION); not declared (both 0), the table's range below stands in.
 
 Construction (once): the model's drive current i(ω, τ_d) at α = 0 is tabulated on a
-uniform grid per rotation direction: |ω| in [0, ω_max] (``speed_points``; −|ω| on the
+uniform grid per rotation direction: |ω| in [0, ω_max] (``speed_points`` at least; −|ω| on the
 negative side, −1e−9 at 0), τ_d over [τ_min, τ_max] (``torque_points``).  The ranges
 (:func:`model_ranges`) come from the model file's ``identification:`` section when it
 has one (what ``identify`` recorded), else from the calibration database (largest |ω|,
@@ -45,7 +45,10 @@ Per sample (ω, i):
 
 1. Direction σ = sign(ω), or sign(i) at ω = 0 (as the k-NN).
 2. Column: the table's current along τ_d at |ω|, linear between the two bracketing
-   speed rows (bilinear overall). |ω| > ω_max: the edge row, OUT_OF_CALIBRATION.
+   speed rows (bilinear overall). The rows are spaced no wider than a quarter of the model's
+   own smallest speed scale (:func:`speed_scale`: a low-speed rise) and go on past ω_max at the same
+   spacing to SPEED_EXTRAPOLATION × ω_max: |ω| > ω_max is the model extrapolated, OUT_OF_CALIBRATION
+   (beyond the table's end, its edge row).
 3. Crossings of i along the column, each solved linearly inside its τ_d cell.
    One: that τ_d. Several (self-locking V, physics.md §8: two loads draw the same
    current): AMBIGUOUS; the estimate is the crossing with the largest σ·τ_d (the load
@@ -89,10 +92,32 @@ from torque_estimator.estimation.branches import LoadPrior
 
 #: Fewest worm angles averaged per table entry when the model has periodic effects (angle_count).
 ANGLES = 7
+#: Table rows per the model's smallest speed scale (speed_scale), at least.
+ROWS_PER_SPEED_SCALE = 4
+#: Rows of the table at most up to the identified speed.
+MAX_SPEED_ROWS = 4000
+#: The table reaches this multiple of the identified speed (extrapolated there, flagged OUT_OF_CALIBRATION).
+SPEED_EXTRAPOLATION = 1.5
 #: Samples per batch of the vectorised inversion (bounds memory: batch × torque_points floats).
 _BATCH = 4096
 #: |ω| [rad/s] used for the ω = 0 row of the negative-direction table (the model reads ω < 0).
 _NEGATIVE_ZERO = 1e-9
+
+
+def speed_scale(model: ExtendedModel) -> float:
+    """[rad/s of the worm] the smallest speed over which the model's friction changes: a support's low-speed rise
+    (worm_model.physics.motor.coulomb_friction; the gear shaft's at the worm's speed) or the Stribeck tooth law's
+    (its sliding speed at the worm); inf where it has none."""
+    rig = model.rig
+    gb = rig.gearbox
+    scales = [math.inf]
+    if rig.drive_motor.stribeck_rise > 0:
+        scales.append(rig.drive_motor.stribeck_speed)
+    if rig.load_motor.stribeck_rise > 0:
+        scales.append(rig.load_motor.stribeck_speed / gb.ratio)
+    if rig.friction.model == "stribeck" and rig.friction.stribeck_rise > 0:
+        scales.append(rig.friction.stribeck_speed * math.cos(gb.lead_angle) / gb.worm_pitch_radius)
+    return min(scales)
 
 
 def gear_orders(model: ExtendedModel) -> list[float]:
@@ -266,9 +291,15 @@ class ExtendedModelEstimator:
         self.current_noise = float(rig.sensors.current_noise_std if current_noise is None else current_noise)
         if not (math.isfinite(self.current_noise) and self.current_noise >= 0):
             raise ValueError(f"current_noise must be finite and >= 0, got {current_noise!r}")
-        #: ω_max [rad/s] of the table
+        #: ω_max [rad/s] the model was identified or calibrated to (OUT_OF_CALIBRATION beyond it)
         self.omega_max = float(omega_max)
-        self.speeds = np.linspace(0.0, self.omega_max, speed_points)
+        # rows fine enough for the model's own speed scales (a support's or the tooth law's low-speed rise), and the
+        # table on to SPEED_EXTRAPOLATION x omega_max at the same spacing: beyond the identified speeds the model
+        # is extrapolated (flagged), not held at its edge row
+        step = min(self.omega_max / (speed_points - 1), speed_scale(self.model) / ROWS_PER_SPEED_SCALE)
+        rows = min(int(math.ceil(self.omega_max / step)), MAX_SPEED_ROWS)
+        step = self.omega_max / rows
+        self.speeds = np.arange(int(math.ceil(rows * SPEED_EXTRAPOLATION)) + 1) * step
         self.torques = np.linspace(tau_lo, tau_hi, torque_points)
         self.speed_step = float(self.speeds[1])
         self.torque_step = float(self.torques[1] - self.torques[0])
@@ -344,7 +375,7 @@ class ExtendedModelEstimator:
                      ) -> tuple[NDArray[np.bool_], NDArray[np.int64], NDArray[np.float64]]:
         """(direction: True = the − table, speed row, fraction towards the next row) of finite samples (step 1-2)."""
         negative = np.where(w != 0, w, i) < 0
-        position = np.minimum(np.abs(w), self.omega_max) / self.speed_step
+        position = np.minimum(np.abs(w), self.speeds[-1]) / self.speed_step
         row = np.minimum(position.astype(np.int64), len(self.speeds) - 2)
         return negative, row, position - row
 
@@ -436,6 +467,6 @@ class ExtendedModelEstimator:
         return torque, spread, flags, other
 
 
-__all__ = ["ANGLES", "ExtendedModelEstimator", "SensorCorrection", "angle_count", "checked_prior", "gear_orders",
+__all__ = ["ANGLES", "ExtendedModelEstimator", "SensorCorrection", "angle_count", "checked_prior", "gear_orders", "speed_scale",
            "identification_ranges", "load_model",
            "model_ranges"]

@@ -368,7 +368,9 @@ class LiveEstimator:
             driving, coast = raw.torque, math.nan
         else:
             driving, coast = math.nan, raw.torque
-        choice = self.tracker.choose(raw.omega_worm, driving, coast, raw.uncertainty)
+        settled = (not raw.flags & int(EstimateFlags.TRANSIENT | EstimateFlags.OUT_OF_CALIBRATION)
+                   and abs(raw.omega_worm) > 2.0 * self.standstill)  # clearly moving, not a standing worm's jitter
+        choice = self.tracker.choose(raw.omega_worm, driving, coast, raw.uncertainty, settled)
         flags = raw.flags & ~int(EstimateFlags.AMBIGUOUS)
         spread = raw.uncertainty
         if choice.ambiguous:

@@ -38,13 +38,13 @@ k-NN grid calibrated on that rig, the extended model and the observer with the i
 parameters, on the same held-out points, ending with
     identify: rig_time_s=<x> identified_mae_pct=<x> identified_max_pct=<x> observer_mae_pct=<x> ...
 
-Then, unless --no-real, the model against a real worm drive's measurements (evaluation.real_drive:
-the T-RO 2021 drive's 46 steady points, their published fit beside ours, the load estimated
-cross-fitted; real_drive_torque.png), ending with
-    real: drive=tro2021_worm points=<n> fit_rms_mNm=<x> tro_fit_rms_mNm=<x> load_mae_pct=<x> ...
-and the momentum observer on that drive's two start-stop runs (evaluation.start_stop: the hanging load
-estimated from current and speed during each move), one line per move
-    start_stop: file=<f> pass=<n> move=<lifting|lowering> rpm=<x> mean_mNm=<x> error_pct=<x> ...
+Then, unless --no-real, a real worm drive's measurements through the tools a user runs
+(evaluation.real_drive: the T-RO 2021 drive's 46 steady exports, identify --from one half and estimate
+on the other, their published fit beside identify's; its two start-stop runs through estimate with
+the file identify wrote, with and without a load prior; real_drive_torque.png), one line per move
+    real_start_stop: file=<f> method=<m> prior=<yes|no> move=<lifting|lowering> error_pct=<x> ...
+ending with
+    real: drive=tro2021_worm road=identify+estimate points=<n> fit_rms_mNm=<x> tro_fit_rms_mNm=<x> ...
 
 Errors are |estimated - true| in % of the calibrated torque range (max - min
 of the database's τ_d). The last line printed is
@@ -75,7 +75,7 @@ from torque_estimator.estimation.momentum import linear_noise_bound
 from torque_estimator.estimation.momentum import predicted_noise as momentum_noise
 from torque_estimator.evaluation.transient import STEP_SPEED, ensemble_noise, transient_figures
 from torque_estimator.evaluation.identified import evaluate_lines as identified_lines
-from torque_estimator.evaluation import real_drive, start_stop
+from torque_estimator.evaluation import real_drive
 from torque_estimator.evaluation.plots import held_out_deviation, sweeps
 from worm_model.cli.progress import Progress, ProgressBar
 
@@ -152,8 +152,8 @@ def build_parser() -> argparse.ArgumentParser:
                        help="sensor noise factors (x the rig's current and speed noise), comma-separated "
                             "(default 0,0.5,1,2,4)")
     p.add_argument("--no-real", action="store_true",
-                   help="skip the real worm drive (the T-RO 2021 measurements, ~1 min): its table, "
-                        "real_drive_torque.png, its `real:` line and the momentum observer's `start_stop:` lines")
+                   help="skip the real worm drive (the T-RO 2021 measurements through identify and estimate, ~1 min): "
+                        "its table, real_drive_torque.png, its `real_start_stop:` and `real:` lines")
     p.add_argument("--no-residuals", action="store_true", help="skip the residuals tool's case matrix")
     p.add_argument("--no-health", action="store_true",
                    help="skip the gearbox health study (~1800 simulated checks, the live scenarios: ~10 min)")
@@ -225,14 +225,16 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
         side_by_side(args, rig, grid, db)
         # identify from one short run vs the k-NN grid, on the simulated rig with every effect on
         print("\n".join(identified_lines(rig, args.points, args.seed + 1, args.k, args.weighting)))
-    if not args.no_real:  # a real drive's measurements through the model and the estimator
-        with ProgressBar(2 * len(real_drive.TERMS), "real drive", enabled=not args.quiet) as bar:
-            study = real_drive.run_study(progress=bar.update_to)
-        print("\nA real worm drive (the T-RO 2021 measurements, evaluation.real_drive)")
+    if not args.no_real:  # a real drive's measurements through identify and estimate
+        with Progress(enabled=not args.quiet) as progress:
+            def on_real(label: str, done: int, total: int) -> None:
+                if progress.name != label:
+                    progress.stage(f"real drive: {label}", total)
+                progress.update_to(done)
+
+            study = real_drive.study_in_temporary_folder(on_real)
+        print("\nA real worm drive (the T-RO 2021 measurements through identify and estimate, evaluation.real_drive)")
         print("\n".join(real_drive.lines(study)))
-        print("\nThe momentum observer on the same drive's start-stop runs (current and speed only, "
-              "evaluation.start_stop)")
-        print("\n".join(m.line() for m in start_stop.run()))
         pngs.append(real_drive.plot(study, out / "real_drive_torque.png"))
     if not args.no_health:  # the gearbox's health: checks, trend, live monitor (health.study)
         from torque_estimator.health.study import evaluate_lines as health_lines  # noqa: PLC0415

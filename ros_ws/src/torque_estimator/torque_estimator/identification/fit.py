@@ -78,7 +78,7 @@ from worm_model.residuals.report import correction_line, corrections, mu_line
 from worm_model.rig_data.schema import MeasuredData
 
 from torque_estimator.identification import steady
-from torque_estimator.identification.identifiability import Assessment, Held, RecordFacts, assess
+from torque_estimator.identification.identifiability import Assessment, Held, RecordFacts
 from torque_estimator.identification.noise import SensorNoise, measure, measure_held
 from torque_estimator.identification.writing import write_identified
 
@@ -277,7 +277,7 @@ def _steady_road(data: MeasuredData, points: steady.SteadyPoints, declared: Rig,
         if empty:
             structure = [n for n in structure if n not in empty]
         else:
-            assessment = _steady_assessment(fitted, points, declared, starts)
+            assessment = fitted.assessment(points, declared, starts)
             worst = assessment.worst(base_paths)
             if worst is None:
                 break
@@ -287,7 +287,7 @@ def _steady_road(data: MeasuredData, points: steady.SteadyPoints, declared: Rig,
         fitted = steady.fit(declared, points, structure, current_measured=current_measured, held=fixed)
     final_cross = steady.cross_fit(declared, points, structure, current_measured=current_measured, held=fixed)
     before = steady.model_current(ExtendedModel(declared), points.omega, points.tau_load)
-    assessment = _steady_assessment(fitted, points, declared, starts)
+    assessment = fitted.assessment(points, declared, starts)
     identified = [k.path for k in fitted.knobs if k.path.split(".")[0] in steady.RIG_SECTIONS]
     corrections_ = {p: (starts.get(p, get_value(declared, p)), fitted.values[p], assessment.half_width[p])
                     for p in identified}
@@ -303,29 +303,6 @@ def _steady_road(data: MeasuredData, points: steady.SteadyPoints, declared: Rig,
         rms_after=final_cross.rms(points), speed_max=speed_max, torque_range=torque_range, loads=loads,
         rig_time=_rig_time(data), samples=len(data), report=report,
         noise=measure_held(data.current_drive, data.omega_worm, None, data.run))
-
-
-def _steady_jacobian(fitted: steady.FittedModel, points: steady.SteadyPoints) -> tuple[np.ndarray, np.ndarray]:
-    """(d current / d knob [A per SI] for every knob of the fit, residual [A]) by central differences."""
-    def current(values: dict) -> np.ndarray:
-        return steady.model_current(fitted.with_values(values), points.omega, points.tau_load)
-
-    residual = current({}) - points.current
-    cols = []
-    for k in fitted.knobs:
-        x = fitted.values[k.path]
-        h = 1e-4 * abs(x) if x else 1e-9
-        cols.append((current({k.path: x + h}) - current({k.path: x - h})) / (2.0 * h))
-    return np.column_stack(cols) if cols else np.zeros((len(points), 0)), residual
-
-
-def _steady_assessment(fitted: steady.FittedModel, points: steady.SteadyPoints, declared: Rig,
-                       starts: dict[str, float]) -> Assessment:
-    """Every knob's band at a steady fit (identification.identifiability); the base knobs' declared values are
-    their ``starts`` (mu: the declared law's at the points' median speed)."""
-    jacobian, residual = _steady_jacobian(fitted, points)
-    return assess([k.path for k in fitted.knobs], jacobian, residual, declared, at_bound=fitted.at_bound(),
-                  values=starts)
 
 
 # --------------------------------------------------------------------------- time series

@@ -27,6 +27,7 @@ No ROS; numpy + scipy.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -37,6 +38,8 @@ from scipy.stats import norm
 from worm_model.physics.parameters import Rig
 from worm_model.residuals.free import TOLERANCES, get_value
 
+#: the rig's sections (a parameter of another name is an effect's)
+_RIG_SECTIONS = frozenset(f.name for f in dataclasses.fields(Rig))
 #: the confidence of the bands compared
 CONFIDENCE = 0.95
 #: a parameter held for its band is named with the parameter it correlates with most when |r| is above this
@@ -119,8 +122,9 @@ class Assessment:
         ``declared``'s values (``values``: declared values to use instead, e.g. mu under another law)."""
         names = list(names)
         values = values or {}
-        band = {n: tolerance_half_width(n, values[n] if n in values else get_value(declared, n), declared)
-                for n in names}
+        band = {n: tolerance_half_width(n, values[n], declared) if n in values
+                else tolerance_half_width(n, get_value(declared, n), declared) if n.split(".")[0] in _RIG_SECTIONS
+                else math.inf for n in names}  # an effect's parameter has no declared value: no band
         return cls(names, dict(half_width), band, np.asarray(correlation, dtype=float),
                    [n for n in at_bound if n in names])
 

@@ -38,8 +38,12 @@ term qualifies. On one load, mu and the supports' friction are tied only through
 speed: a support's rise moves lifting and lowering in opposite senses (reflected through the engaged
 flanks), a tooth mu's rise both alike, so a speed law is what separates them (docs/real-data.md).
 
-What the base knobs' values are worth is decided afterwards, at the selected structure
-(identification.identifiability); a knob held there is refitted out.
+A term that fits only by trading the base away is no candidate: fitted to all the points, a base
+parameter's 95 % band would be :data:`TRADED_RATIO` times its tolerance or more (on one load, the tooth
+law's Stribeck rise fits the T-RO drive's points with the gear supports' friction equal to the load and
+a mu of 0.02 that does not self-lock; a band 400 times its tolerance). What the base knobs' values are
+worth is decided afterwards, at the selected structure (identification.identifiability); a knob held
+there is refitted out.
 
 No ROS; numpy + scipy.
 """
@@ -61,6 +65,8 @@ from worm_model.residuals.extended import ExtendedModel
 from worm_model.residuals.free import get_value, set_values
 from worm_model.rig_data.schema import MeasuredData
 
+from torque_estimator.identification.identifiability import Assessment, assess
+
 #: a term is accepted when it lowers the cross-fitted held-out RMS by at least this fraction
 MIN_IMPROVEMENT = 0.10
 #: no term is added once the held-out RMS is within this multiple of the noise floor
@@ -78,6 +84,9 @@ MIN_RUN_SAMPLES = 2 * BLOCKS
 HELD_SPREAD = 0.05
 #: fewest points a fit needs beyond its knobs (each half of the cross-fit too)
 SPARE_POINTS = 2
+#: a term is not a candidate when, fitted to all the points, a base parameter's 95 % band is this many times its
+#: tolerance band or more (identification.identifiability): it fits by trading the base away
+TRADED_RATIO = 5.0
 #: the rig's sections: a knob path starting with one is a rig leaf, any other an effect's parameter
 RIG_SECTIONS = frozenset(f.name for f in dataclasses.fields(Rig))
 
@@ -340,6 +349,26 @@ class FittedModel:
     def current(self, omega: FloatArray, tau_load: FloatArray) -> FloatArray:
         return model_current(self.model, omega, tau_load)
 
+    def jacobian(self, points: SteadyPoints) -> tuple[np.ndarray, np.ndarray]:
+        """(d current / d knob [A per SI] for every knob, residual [A]) at the fit, by central differences."""
+        def current(values: Mapping[str, float]) -> np.ndarray:
+            return model_current(self.with_values(values), points.omega, points.tau_load)
+
+        residual = current({}) - points.current
+        cols = []
+        for k in self.knobs:
+            x = self.values[k.path]
+            h = 1e-4 * abs(x) if x else 1e-9
+            cols.append((current({k.path: x + h}) - current({k.path: x - h})) / (2.0 * h))
+        return np.column_stack(cols) if cols else np.zeros((len(points), 0)), residual
+
+    def assessment(self, points: SteadyPoints, declared: Rig, starts: Mapping[str, float]) -> Assessment:
+        """Every knob's band at the fit (identification.identifiability); the base knobs' declared values are their
+        ``starts`` (mu: the declared law's at the points' median speed)."""
+        jacobian, residual = self.jacobian(points)
+        return assess([k.path for k in self.knobs], jacobian, residual, declared, at_bound=self.at_bound(),
+                      values=starts)
+
     def at_bound(self) -> list[str]:
         """Knobs sitting on a physical bound (within 1e-6 of its span)."""
         out = []
@@ -433,6 +462,7 @@ class Selection:
     held_out: list[float]  # held-out RMS of the accepted structure after each round (the base first)
     floor: float  # [A]
     final: CrossFit = field(repr=False, default=None)  # type: ignore[assignment]
+    traded: dict[str, float] = field(default_factory=dict)  # term -> its base's worst band ratio (TRADED_RATIO)
 
     @property
     def unexplained(self) -> bool:
@@ -450,6 +480,8 @@ class Selection:
             out.append(f"  round {k + 1}: {ranked} -> {taken}")
         out.append(f"  left: {unit * self.held_out[-1]:.4g} {label} = {self.held_out[-1] / self.floor:.2f} x the "
                    f"floor" + (f" (unexplained: above {AT_FLOOR:g} x)" if self.unexplained else " (at the floor)"))
+        out += [f"  not tried: {name}, it fits only by trading the base away (a base parameter's 95 % band "
+                f"{ratio:.3g} x its tolerance)" for name, ratio in self.traded.items()]
         return out
 
 
@@ -461,20 +493,34 @@ def select(rig: Rig, points: SteadyPoints, terms: Sequence[str] = tuple(TERMS), 
     history, rounds = [current.rms(points)], []
     floor = points.noise_floor
     done, most = 0, len(terms) * (len(terms) + 1) // 2
+    scales = Scales.of(rig, points)
+    starts = {k.path: k.start for k in base_knobs(rig, scales, current_measured)}
+    traded: dict[str, float] = {}
     while history[-1] > AT_FLOOR * floor:
         tried, fits = {}, {}
         for name in terms:
-            if name in accepted or (name in LAW_TERMS and LAW_TERMS & set(accepted)):
+            if name in accepted or (name in LAW_TERMS and LAW_TERMS & set(accepted)) or name in traded:
                 continue
-            knobs = len(structure_knobs(rig, Scales.of(rig, points), [*accepted, name], current_measured, held))
+            structure = [*accepted, name]
+            knobs = len(structure_knobs(rig, scales, structure, current_measured, held))
             if len(points) // 2 < knobs + SPARE_POINTS:
                 continue  # a half could not pin it
-            fits[name] = cross_fit(rig, points, [*accepted, name], current_measured=current_measured, held=held,
-                                   starts=current.fits)
-            tried[name] = fits[name].rms(points)
+            # a term that only fits by trading the base away (mu against the supports, a drag against the load) is
+            # none: the data would pin nothing of the base beside it
+            whole = fit(rig, points, structure, current_measured=current_measured, held=held)
+            assessment = whole.assessment(points, rig, starts)
+            base = [p for p in assessment.names if p in starts]
+            ratio = max((assessment.half_width[p] / assessment.band[p] for p in base if assessment.band[p] > 0),
+                        default=0.0)
             done += 1
             if progress is not None:
                 progress(done, most)
+            if not ratio <= TRADED_RATIO:
+                traded[name] = ratio
+                continue
+            fits[name] = cross_fit(rig, points, structure, current_measured=current_measured, held=held,
+                                   starts=current.fits)
+            tried[name] = fits[name].rms(points)
         rounds.append(tried)
         if not tried:
             break
@@ -484,7 +530,7 @@ def select(rig: Rig, points: SteadyPoints, terms: Sequence[str] = tuple(TERMS), 
         accepted.append(best)
         current = fits[best]
         history.append(tried[best])
-    return Selection(accepted, rounds, history, floor, current)
+    return Selection(accepted, rounds, history, floor, current, traded)
 
 
 __all__ = ["AT_FLOOR", "CrossFit", "FittedModel", "Knob", "LAW_TERMS", "MIN_IMPROVEMENT", "Scales", "Selection",

@@ -163,7 +163,6 @@ class MomentumObserver:
         self._at_x: tuple | None = None  # StaticLoadMap.mesh at the filtered state, while it is x
         self._phi_prev: np.ndarray | None = None  # the last period's transition (None: no step onset in it)
         self.p_reference = math.inf  # τ_d variance before the last step (TRANSIENT)
-        self._was_still = False  # the worm stood through the period before the last estimate
         self.jumps = 0  # steps detected
         self.samples = 0
         self.restarts = 0  # samples the filter started again from (RESTART_NIS, restart())
@@ -306,10 +305,6 @@ class MomentumObserver:
         """The estimate at the filtered state, with its flags (module docstring)."""
         omega, tau = float(self.x[OMEGA]), float(self.x[TAU])
         self._at_x = self._at_x or self.map.mesh(omega, tau)
-        if self._was_still and not self.still:
-            # moving again after a standstill: the steady variance of where it moves now, not of where it stood
-            self.p_reference = math.inf
-        self._was_still = self.still
         if self.p_reference == math.inf:
             self.p_reference = steady_variance(self.rig, omega, tau, self.bandwidth, period=self.period,
                                                noise=self.noise, with_encoder=with_encoder)
@@ -317,8 +312,16 @@ class MomentumObserver:
         if variance > 2.0 * self.p_reference:
             extra_flags |= EstimateFlags.TRANSIENT
         tau, u, flags = self.branches.report(omega, tau, variance, self._at_x, (self.torque_limit, self.speed_limit),
-                                             extra_flags, self.still, self._flip)
+                                             extra_flags, self.still, self)
         return ObserverEstimate(tau, u, flags, omega, self.current, self._at_x[0], jump)
+
+    def _resumed(self) -> None:
+        """Moving again after a stop (observer.kalman.Branches): the load as unknown as at the start, TRANSIENT
+        against the steady variance of where it moves now."""
+        self.P[TAU, :] = 0.0
+        self.P[:, TAU] = 0.0
+        self.P[TAU, TAU] = self.torque_limit ** 2
+        self.p_reference = math.inf
 
     def _flip(self, load: float) -> tuple[float, tuple]:
         """Move the state's load onto the V's other arm, ``load`` [N m] (observer.kalman.Branches): its variance

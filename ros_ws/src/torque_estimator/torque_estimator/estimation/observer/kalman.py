@@ -187,26 +187,37 @@ class Branches:
         self.tracker = BranchTracker(prior)
         self.hold = Hold(hold_drift(prior, scale), period)
         self.holds = smap.self_locks_at_rest  # a drive that does not self-lock at rest shows its load standing
+        #: [rad/s] a sample tells the tracker something only this far from standing (twice the standstill band)
+        self.clear = 2.0 * standstill_speed(smap.rig)
 
     def reset(self) -> None:
         self.tracker.reset()
         self.hold.end()
 
     def report(self, omega: float, tau: float, variance: float, mesh: tuple, limits: tuple[float, float],
-               flags: int, standing: bool, flip) -> tuple[float, float, int]:
+               flags: int, standing: bool, observer) -> tuple[float, float, int]:
         """(τ_d [N m], 1σ [N m], flags) of the state at ω [rad/s] with load τ, its ``variance``, mesh
-        (StaticLoadMap.mesh there); ``flip(load) -> (variance, mesh)`` moves the state onto another arm."""
+        (StaticLoadMap.mesh there). ``observer``: its ``_flip(load) -> (variance, mesh)`` moves the state onto
+        another arm, ``_resumed()`` says it moves again after a stop (branches.Hold.stopped: the load may have
+        changed unseen, it has to find it anew, TRANSIENT)."""
         if standing and self.holds:
             self.tracker.stand()
             self.hold.start(tau, math.sqrt(max(variance, 0.0)))
             load, u = self.hold.step()
             flags, _u = judged(0.0, load, u * u, limits, flags | EstimateFlags.STANDSTILL)
             return load, u, flags
-        self.hold.end()
+        if self.hold.held is not None:
+            if self.hold.stopped:  # the load may have changed while it stood: found anew
+                observer._resumed()
+            self.hold.end()
+        flip = observer._flip
         other = self.map.other_branch(omega, tau, mesh[0], mesh[4], STANDSTILL)
         driving, coast = (tau, other) if mesh[2] > 0 else (other, tau)  # the state's flank: mesh's s
-        choice = self.tracker.choose(omega, driving, coast, math.sqrt(max(variance, 0.0)))
-        if choice.load != tau and math.isfinite(choice.load):
+        settled = not flags & (EstimateFlags.TRANSIENT | EstimateFlags.INVALID_INPUT) and abs(omega) > self.clear
+        choice = self.tracker.choose(omega, driving, coast, math.sqrt(max(variance, 0.0)), settled)
+        if choice.ambiguous:  # nothing told them apart: the state stays on the arm it is on
+            choice = Choice(tau, driving if tau == coast else coast, True, choice.outside)
+        elif choice.load != tau and math.isfinite(choice.load):
             variance, mesh = flip(choice.load)
             tau = choice.load
         flags, u = judged(omega, tau, variance, limits, flags, choice)
@@ -296,6 +307,7 @@ class LoadObserver:
         #: the load prior, the branch tracker and the standstill hold (Branches)
         self.branches = Branches(self.map, prior or LoadPrior(), self.torque_limit, self.period)
         self.standstill = standstill_speed(rig)  # [rad/s] below which the worm stands
+        self._measured_speed = math.inf  # [rad/s] the last valid sample's tacho (standing: Branches)
         self._flipped = False
 
     # --- internals --------------------------------------------------------------------------
@@ -394,6 +406,7 @@ class LoadObserver:
                 return self._invalid(voltage)
         voltage, current, omega = float(voltage), float(current), float(omega)
         theta = None if theta is None else float(theta)
+        self._measured_speed = omega
         if not self.initialised:
             self._initialise(current, omega, theta)
         for restarted in (False, True):
@@ -434,9 +447,20 @@ class LoadObserver:
         if self.convergence.transient(variance):
             extra_flags |= EstimateFlags.TRANSIENT
         self._flipped = False
+        # standing: the measured speed within the standstill band and the filtered one near it (the model has no
+        # static friction: a current that holds a standing worm drifts the filtered speed off 0)
+        standing = abs(self._measured_speed) <= self.standstill and abs(omega) <= 2.0 * self.standstill
         tau, u, flags = self.branches.report(omega, tau, variance, mesh, (self.torque_limit, self.speed_limit),
-                                             extra_flags, abs(omega) <= self.standstill, self._flip)
+                                             extra_flags, standing, self)
         return ObserverEstimate(tau, u, flags, omega, float(x[CURRENT]), mesh[0], jump)
+
+    def _resumed(self) -> None:
+        """Moving again after a stop (Branches): the load as unknown as at the start (its variance the torque
+        limit's square), converging anew (TRANSIENT)."""
+        self.P[TAU, :] = 0.0
+        self.P[:, TAU] = 0.0
+        self.P[TAU, TAU] = self.torque_limit ** 2
+        self.convergence.start()
 
     def _flip(self, load: float) -> tuple[float, tuple]:
         """Move the state's load onto the V's other arm, ``load`` [N m] (Branches): its variance and covariances

@@ -18,7 +18,7 @@ sample.
 
 CLI::
 
-    python -m tests.foreign_drive.recordings --drive foreign30 --kind excitation --seconds 240 --seed 1 --out f.csv
+    python -m torque_estimator.evaluation.foreign.recordings --drive foreign30 --kind excitation --seconds 240 --seed 1 --out f.csv
 """
 from __future__ import annotations
 
@@ -150,7 +150,7 @@ def write_csv(path: str | Path, samples: Recording | Mapping[str, Any]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m tests.foreign_drive.recordings",
+    p = argparse.ArgumentParser(prog="python -m torque_estimator.evaluation.foreign.recordings",
                                 description="Write a recording of a foreign worm drive as a worm_rig_data CSV.")
     p.add_argument("--drive", choices=sorted(DRIVES), required=True)
     p.add_argument("--kind", choices=("excitation", "validation", "start_stop", "steady", "released"),

@@ -11,5 +11,6 @@ plant says something about the estimators rather than about one set of equations
 - ``recordings``: profiles (excitation, validation, start-stop, held points, released motor), the CSV writer
   of the ``worm_rig_data`` schema, and a small CLI::
 
-      python -m tests.foreign_drive.recordings --drive foreign30 --kind excitation --seconds 240 --seed 1 --out f.csv
+      python -m torque_estimator.evaluation.foreign.recordings --drive foreign30 --kind excitation \
+          --seconds 240 --seed 1 --out f.csv
 """
