@@ -16,8 +16,9 @@ tells them apart, with what a user knows and what the motion shows:
   sample where only one candidate was admitted, or one it resolved) and, where two are admitted,
   takes the one within MATCH_SIGMAS of it; on a new move without a reference it compares the
   candidates with the previous move's. Once it has told them apart in a move it keeps that arm of
-  the V while the move lasts (a ripple of the current that brings both candidates near the V's
-  vertex does not move a load off its flank). Where nothing tells them apart (the load changed, or
+  the V while the move lasts and the load stays (a ripple of the current that brings both candidates
+  near the V's vertex does not move a load off its flank); a load that jumps by more than
+  MATCH_SIGMAS is a new load, its arm unknown. Where nothing tells them apart (the load changed, or
   before the first reversal without a prior) the estimate stays AMBIGUOUS: two loads explain it.
 
 A move is the motion between two stops or reversals: :meth:`BranchTracker.choose` sees the sign of
@@ -160,8 +161,11 @@ class BranchTracker:
                 self.reference = (load, sigma)
                 self.arm = "driving" if in_driving else "coast"
             return Choice(load, math.nan, False)
-        if self.arm is not None:  # the arm this move's load was told on
-            return self._told(self.arm, driving, coast, sigma, settled)
+        if self.arm is not None:  # the arm this move's load was told on, while the load stays
+            kept = driving if self.arm == "driving" else coast
+            if self.reference is None or self._matches(kept, sigma, self.reference):
+                return self._told(self.arm, driving, coast, sigma, settled)
+            self.arm, self.reference = None, None  # the load changed: nothing tells its arm now
         if self.reference is not None:
             hit_d, hit_c = self._matches(driving, sigma, self.reference), self._matches(coast, sigma, self.reference)
             if hit_d != hit_c:

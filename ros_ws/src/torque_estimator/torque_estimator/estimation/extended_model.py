@@ -467,6 +467,5 @@ class ExtendedModelEstimator:
         return torque, spread, flags, other
 
 
-__all__ = ["ANGLES", "ExtendedModelEstimator", "SensorCorrection", "angle_count", "checked_prior", "gear_orders", "speed_scale",
-           "identification_ranges", "load_model",
-           "model_ranges"]
+__all__ = ["ANGLES", "ExtendedModelEstimator", "SensorCorrection", "angle_count", "checked_prior", "gear_orders",
+           "identification_ranges", "load_model", "model_ranges", "speed_scale"]

@@ -45,6 +45,12 @@ the file identify wrote, with and without a load prior; real_drive_torque.png), 
     real_start_stop: file=<f> method=<m> prior=<yes|no> move=<lifting|lowering> error_pct=<x> ...
 ending with
     real: drive=tro2021_worm road=identify+estimate points=<n> fit_rms_mNm=<x> tro_fit_rms_mNm=<x> ...
+and, unless --no-foreign, the datasheet road on three drives the project did not make
+(evaluation.datasheet_road: a simulator of their own, rig_from_datasheet with their catalogue numbers,
+identify --from one recording, estimate on another), one line per drive and method
+    foreign: drive=<d> method=<m> mae_pct=<x> max_pct=<x> steady_points=<n> trusted_pct=<x>
+and the self-locking lift's start-stop run with and without a load prior
+    foreign_lift: drive=lift40 method=<m> prior=<yes|no> mae_pct=<x> max_pct=<x> trusted_pct=<x>
 
 Errors are |estimated - true| in % of the calibrated torque range (max - min
 of the database's τ_d). The last line printed is
@@ -75,7 +81,7 @@ from torque_estimator.estimation.momentum import linear_noise_bound
 from torque_estimator.estimation.momentum import predicted_noise as momentum_noise
 from torque_estimator.evaluation.transient import STEP_SPEED, ensemble_noise, transient_figures
 from torque_estimator.evaluation.identified import evaluate_lines as identified_lines
-from torque_estimator.evaluation import real_drive
+from torque_estimator.evaluation import datasheet_road, real_drive
 from torque_estimator.evaluation.plots import held_out_deviation, sweeps
 from worm_model.cli.progress import Progress, ProgressBar
 
@@ -154,6 +160,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-real", action="store_true",
                    help="skip the real worm drive (the T-RO 2021 measurements through identify and estimate, ~1 min): "
                         "its table, real_drive_torque.png, its `real_start_stop:` and `real:` lines")
+    p.add_argument("--no-foreign", action="store_true",
+                   help="skip the datasheet road on drives the project did not make (~4 min): its `foreign:` lines")
     p.add_argument("--no-residuals", action="store_true", help="skip the residuals tool's case matrix")
     p.add_argument("--no-health", action="store_true",
                    help="skip the gearbox health study (~1800 simulated checks, the live scenarios: ~10 min)")
@@ -236,6 +244,12 @@ def _evaluate(args, rig, grid, db, estimator, options, source, out: Path):
         print("\nA real worm drive (the T-RO 2021 measurements through identify and estimate, evaluation.real_drive)")
         print("\n".join(real_drive.lines(study)))
         pngs.append(real_drive.plot(study, out / "real_drive_torque.png"))
+    if not args.no_foreign:  # the datasheet road on drives the project did not make
+        with ProgressBar(3, "foreign drives", enabled=not args.quiet) as bar:
+            lines = datasheet_road.run(progress=bar.update_to)
+        print("\nThe datasheet road on worm drives the project did not make (their own simulator; "
+              "rig_from_datasheet, identify --from one recording, estimate on another: evaluation.datasheet_road)")
+        print("\n".join(lines))
     if not args.no_health:  # the gearbox's health: checks, trend, live monitor (health.study)
         from torque_estimator.health.study import evaluate_lines as health_lines  # noqa: PLC0415
 

@@ -108,8 +108,8 @@ def rig_file() -> Path:
 
 def read(path: Path, rig: Rig, skip_bad_rows: bool = True) -> MeasuredData:
     """An export or a folder of them, as ``identify`` / ``estimate`` read it with the hanging load's options."""
-    return read_rig_data(path, rig=rig, epos=EposSettings(load_torque=LOAD, nominal_current=rig.drive_motor.rated_current,
-                                                         skip_bad_rows=skip_bad_rows))
+    epos = EposSettings(load_torque=LOAD, nominal_current=rig.drive_motor.rated_current, skip_bad_rows=skip_bad_rows)
+    return read_rig_data(path, rig=rig, epos=epos)
 
 
 def nominal_rpm(source: str, omega: float) -> int:
@@ -325,7 +325,8 @@ def lines(study: Study) -> list[str]:
         rpm = nominal_rpm(study.files[k], study.points.omega[k])
         out.append(f"  {study.files[k]:>9} {rpm:>5d} {1e3 * study.measured[k]:9.3f} {1e3 * study.sem[k]:6.3f} "
                    f"{1e3 * study.tro[k]:7.3f} {1e3 * study.declared[k]:8.3f} {1e3 * study.fitted[k]:8.3f}  "
-                   f"{study.road.error_pct[k]:+8.2f} {study.road.bound_pct[k]:6.2f}" + (f" {flags.name}" if flags else ""))
+                   f"{study.road.error_pct[k]:+8.2f} {study.road.bound_pct[k]:6.2f}"
+                   + (f" {flags.name}" if flags else ""))
     out.append(f"  torque RMS [mN m]: T-RO fit {1e3 * study.tro_rms:.4f}, ours with their parameters "
                f"{1e3 * Study._rms(study.declared - study.measured):.4f}, identified {1e3 * study.fit_rms:.4f}; "
                f"the points' noise floor {1e3 * Study._rms(study.sem):.4f}")

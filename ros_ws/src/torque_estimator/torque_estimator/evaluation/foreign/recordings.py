@@ -18,7 +18,8 @@ sample.
 
 CLI::
 
-    python -m torque_estimator.evaluation.foreign.recordings --drive foreign30 --kind excitation --seconds 240 --seed 1 --out f.csv
+    python -m torque_estimator.evaluation.foreign.recordings --drive foreign30 --kind excitation --seconds 240 \
+        --seed 1 --out f.csv
 """
 from __future__ import annotations
 
