@@ -275,7 +275,8 @@ def test_numbers_pinned() -> None:
     arithmetic that is more than round-off fails here. First recorded with the all-numpy implementation of
     2026-11 (~200 us per update), which the float one (~50 us) matched within 5e-14 N m (white), 4.5e-9 N m
     (interval); re-recorded when each J_eff bin came to be discretised at its own value instead of the first
-    J_eff met in it (so that a replay starting later than the live node reproduces it; up to 2.6e-4 N m).
+    J_eff met in it (so that a replay starting later than the live node reproduces it; up to 2.6e-4 N m), and
+    when a stop's hold came to end only once the motion has lasted (branches.Hold.keeps).
 
     Values above 1 N m are compared relatively: in the self-locking V near the pole of the coast
     flank (K_- -> 0) the AMBIGUOUS uncertainty reaches the other branch, hundreds of N m away, and 1/K_-

@@ -85,7 +85,7 @@ def test_cli_prints_table_3_and_its_summary_last(tmp_path: Path) -> None:
     save_database(db, calibration)
     exe = find_executable("evaluate")  # the installed console script, as `ros2 run` finds it
     done = subprocess.run([str(exe), "--calibration", str(calibration), "--points", "6", "--no-sweeps",
-                           "--no-transient", "--no-residuals", "--no-real", "--no-health", "--out",
+                           "--no-transient", "--no-residuals", "--no-real", "--no-health", "--no-foreign", "--out",
                            str(tmp_path / "out"), "--quiet"],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
@@ -108,7 +108,7 @@ def test_cli_prints_table_3_and_its_summary_last(tmp_path: Path) -> None:
 def test_cli_sweeps_write_their_plot(tmp_path: Path) -> None:
     done = subprocess.run([str(find_executable("evaluate")), "--speeds", "3", "--torques", "4", "--points", "4",
                            "--sweep-points", "8", "--ks", "1,2", "--grid-sizes", "2x2,3x4", "--noise", "0,1",
-                           "--no-transient", "--no-residuals", "--no-real", "--no-health", "--out",
+                           "--no-transient", "--no-residuals", "--no-real", "--no-health", "--no-foreign", "--out",
                            str(tmp_path / "out"), "--quiet"],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr

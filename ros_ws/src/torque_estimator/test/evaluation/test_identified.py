@@ -68,9 +68,10 @@ def test_the_true_model_bounds_what_identification_can_reach(roads, tmp_path) ->
 
 
 def test_estimate_on_a_log_of_the_effects_rig(roads, tmp_path, capsys) -> None:
-    """`estimate` with the identified file over the demo's six segments recorded on the effects rig: 0.87 / 2.34 %
-    (README), the file as declared ~32 / ~119 %; the streaming observer with the identified file 16.42 / 28.23 %
-    (open: its filter with backlash, PWM and ripples on)."""
+    """`estimate` with the identified file over the demo's six segments recorded on the effects rig: 0.88 / 2.34 %
+    on the 92.4 % of the moving samples it trusts (docs/residuals.md), the file as declared 9.87 / 27.45 % on 68.6 %;
+    the streaming observer with the identified file 2.26 / 7.10 % on 39.5 % (open: its filter with backlash, PWM
+    and ripples on flags most of the run)."""
     result, _grid, _db = roads
     timeline = [Ramp(s.duration, s.speed, s.speed, s.load, s.load, s.label) for s in DEMO_SCENARIO]
     log = tmp_path / "demo.csv"
@@ -83,10 +84,13 @@ def test_estimate_on_a_log_of_the_effects_rig(roads, tmp_path, capsys) -> None:
         lines[label] = capsys.readouterr().out.strip().splitlines()[-1]
     figures = {k: dict(f.split("=") for f in v.split()[1:]) for k, v in lines.items()}
     assert float(figures["identified"]["mae_pct"]) < 1.2 and float(figures["identified"]["max_pct"]) < 3.0, lines
-    assert float(figures["declared"]["mae_pct"]) > 20.0, lines
+    # as declared, the model is off on the samples it still trusts and trusts far fewer (measured 9.87 % on 68.6 %)
+    assert float(figures["declared"]["mae_pct"]) > 8.0 * float(figures["identified"]["mae_pct"]), lines
+    assert float(figures["declared"]["trusted_pct"]) < float(figures["identified"]["trusted_pct"]) - 15.0, lines
     assert estimate_main([str(log), "--method", "observer", "--model-file", str(result.model_file),
                           "--out", str(tmp_path / "observer.csv"), "--quiet"]) == 0
     observer = dict(f.split("=") for f in capsys.readouterr().out.strip().splitlines()[-1].split()[1:])
     with capsys.disabled():  # the README's figures, with -s
         print("\n", lines, "\n observer", observer)
-    assert 12.0 < float(observer["mae_pct"]) < 20.0 and float(observer["max_pct"]) < 35.0, observer
+    assert float(observer["mae_pct"]) < 3.0 and float(observer["max_pct"]) < 9.0, observer
+    assert 30.0 < float(observer["trusted_pct"]) < 50.0, observer

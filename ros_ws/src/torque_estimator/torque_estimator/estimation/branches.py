@@ -37,6 +37,9 @@ HOLD_DRIFT = 0.01
 #: a standstill is a stop (Hold.stopped) once it lasted this long [s] and this many samples: a reversal passes
 #: through zero in a few milliseconds
 STOP_TIME, STOP_SAMPLES = 0.1, 3
+#: after a stop, the worm moves again once its motion lasted this long [s] and STOP_SAMPLES samples in a row
+#: (Hold.keeps): a sample or two off zero is the speed sensor's noise (beyond the 2-sigma band one sample in 22)
+RESUME_TIME = 0.02
 
 
 @dataclass(frozen=True)
@@ -206,6 +209,8 @@ class Hold:
         self.held: tuple[float, float] | None = None  # (load, variance)
         self.samples = 0  # of the standstill so far
         self.stop_samples = max(STOP_SAMPLES, int(math.ceil(STOP_TIME / period)))
+        self.resume_samples = max(STOP_SAMPLES, int(math.ceil(RESUME_TIME / period)))
+        self.moving = 0  # moving samples in a row since the last standing one
 
     @property
     def stopped(self) -> bool:
@@ -213,6 +218,8 @@ class Hold:
         return self.samples >= self.stop_samples
 
     def start(self, load: float, sigma: float) -> None:
+        """A standing sample: hold (``load`` [N m], ``sigma`` [N m]) unless a load is held already."""
+        self.moving = 0
         if self.held is None:
             self.held = (load, sigma * sigma)
             self.samples = 0
@@ -224,8 +231,18 @@ class Hold:
         self.samples += 1
         return load, math.sqrt(self.held[1])
 
+    def keeps(self) -> bool:
+        """On a moving sample: whether the hold stays. A stop's hold ends once the motion has lasted RESUME_TIME and
+        STOP_SAMPLES samples in a row (a sample off zero is noise; a start is motion that lasts); any other
+        standstill's (a reversal's pass through zero) at once."""
+        if self.held is None or not self.stopped:
+            return False
+        self.moving += 1
+        return self.moving < self.resume_samples
+
     def end(self) -> None:
         self.held = None
+        self.moving = 0
 
 
 def hold_drift(prior: LoadPrior, scale: float) -> float:
@@ -235,5 +252,5 @@ def hold_drift(prior: LoadPrior, scale: float) -> float:
     return HOLD_DRIFT * span
 
 
-__all__ = ["BranchTracker", "Choice", "HOLD_DRIFT", "Hold", "LoadPrior", "MATCH_SIGMAS", "STOP_SAMPLES", "STOP_TIME",
-           "arm_of", "hold_drift"]
+__all__ = ["BranchTracker", "Choice", "HOLD_DRIFT", "Hold", "LoadPrior", "MATCH_SIGMAS", "RESUME_TIME", "STOP_SAMPLES",
+           "STOP_TIME", "arm_of", "hold_drift"]

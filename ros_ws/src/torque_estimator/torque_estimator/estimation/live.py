@@ -43,10 +43,11 @@ A disturbance observer in front of a quasi-static map. Per sample (ω_w [rad/s],
    worm_model.physics.resolution.standstill_speed of 0 (twice the rig's own speed noise), and the mean
    of the last STILL_SAMPLES within the same band of that mean's noise (one noisy sample of a slowly
    moving worm does not stop it); the last moving estimate is then held, flagged STANDSTILL, its
-   uncertainty growing (branches.Hold). A moving one where the map found two candidate loads (a
-   self-locking drive's V) takes the one the branch tracker tells apart (branches.BranchTracker: the
-   load prior, a load that persists across a stop or a reversal); AMBIGUOUS is left only where
-   nothing does.
+   uncertainty growing (branches.Hold), and after a stop until the worm's motion has lasted
+   (branches.Hold.keeps: a noisy sample off zero does not end it). A moving one where the map found
+   two candidate loads (a self-locking drive's V) takes the one the branch tracker tells apart
+   (branches.BranchTracker: the load prior, a load that persists across a stop or a reversal);
+   AMBIGUOUS is left only where nothing does.
 
 Streaming estimators (base.StreamingEstimator: ``stream(sample_period)`` gives an
 EstimateStream, e.g. the model-based observer of estimation/observer/) replace steps 1-3:
@@ -175,6 +176,22 @@ class _Cascade:
         self.state: list[float] | None = None
         self.stages = stages
 
+    def noise_gain(self) -> float:
+        """[1] the standard deviation of the output over that of a white input: sqrt of the impulse response's
+        sum of squares (each stage's response is geometric; summed until the tail is below 1e-12)."""
+        if self.blend >= 1.0:
+            return 1.0
+        state, total, x = [0.0] * self.stages, 0.0, 1.0
+        for _ in range(100000):
+            for n in range(self.stages):
+                state[n] += self.blend * (x - state[n])
+                x = state[n]
+            total += x * x
+            if x * x < 1e-24 and total > 0.0:
+                break
+            x = 0.0
+        return math.sqrt(total)
+
     def update(self, sample: float) -> float:
         if self.state is None:
             self.state = [sample] * self.stages
@@ -195,9 +212,9 @@ class ChangeGatedLowPass:
     ``noise_time_constant``). After that, |x − y| > ``threshold``·σ is a
     change: y = x for the next ``hold`` [s], and σ is not updated meanwhile.
     ``threshold`` <= 0: no change detection (a plain low-pass);
-    ``time_constant`` 0: y = x. σ is never taken below ``noise_floor`` (the sensor's own noise: a
-    stream that starts at standstill, where a drive's export reads exactly 0, would learn σ = 0 and
-    take every later sample for a change).
+    ``time_constant`` 0: y = x. σ is never taken below ``noise_floor`` (the sensor's own noise through
+    the filters before the gate, LiveEstimator's input filter: a stream that starts at standstill, where
+    a drive's export reads exactly 0, would learn σ = 0 and take every later sample for a change).
     """
 
     def __init__(self, time_constant: float, period: float, threshold: float, hold: float,
@@ -291,7 +308,7 @@ class LiveEstimator:
         self.speed = _Cascade(input_filter, self.sample_period, INPUT_FILTER_STAGES)
         self.current = _Cascade(input_filter, self.sample_period, INPUT_FILTER_STAGES)
         self.smooth = ChangeGatedLowPass(estimate_filter, self.sample_period, change_threshold, change_hold,
-                                         noise_floor=current_sigma(self.rig))
+                                         noise_floor=current_sigma(self.rig) * self.current.noise_gain())
         self._previous_speed: float | None = None
         self._omega = math.nan  # [rad/s] filtered speed of the last valid sample
         self.alpha = 0.0  # [rad/s^2] acceleration of the filtered speed, last sample
@@ -355,6 +372,10 @@ class LiveEstimator:
             self.tracker.stand()
             start = self._moving if self._moving is not None else (raw.torque, raw.uncertainty)
             self.hold.start(*start)
+            torque, spread = self.hold.step()
+            flags = (raw.flags & ~int(EstimateFlags.AMBIGUOUS)) | int(EstimateFlags.STANDSTILL)
+            return LiveEstimate(torque, spread, flags, raw.omega_worm, raw.current_drive)
+        if self.hold.keeps():  # after a stop, motion that has not lasted yet (branches.Hold.keeps)
             torque, spread = self.hold.step()
             flags = (raw.flags & ~int(EstimateFlags.AMBIGUOUS)) | int(EstimateFlags.STANDSTILL)
             return LiveEstimate(torque, spread, flags, raw.omega_worm, raw.current_drive)

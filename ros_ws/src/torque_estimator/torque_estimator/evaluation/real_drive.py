@@ -21,20 +21,24 @@ the study's own:
 * **The model against their fit.** ``identify`` on all 46 exports, its motor torque beside the T-RO
   fit (evaluation.tro2021_model: their model with their parameters, written from their scripts) and
   the rig file as declared (this project's model with their parameters, the same to 1e-10 N m).
-* **The start-stop runs** (:func:`start_stop`): ``estimate`` with the file identify wrote from the
+* **The start-stop runs** (:func:`moves`): ``estimate`` with the file identify wrote from the
   steady exports, on start_stop/{10,200}.csv (lowering, stop, lifting, stop), extended_model and
-  momentum, without a prior and with ``--load-min 0 --load-max 0.04``. Per move (the samples above
-  half its top speed, past its first 0.5 s): the mean trusted estimate's error, the share trusted, and
+  momentum, without a prior and with ``--load-min 0 --load-max 0.04``. Per direction, its moves as
+  ``estimate`` scores them (offline.moves: each move's cruise, its samples above half its top speed past
+  its first 0.5 s) taken together: the mean trusted estimate's error, the share trusted, and
   what the data itself allows: the move's mean torque against the steady export's at the same nominal
   speed, through the identified model's slope (two recordings of one operating point differ by that
-  much, so no model of one can be closer to the other).
+  much, so no model of one can be closer to the other); and what the model allows: the load the
+  identified model gives for the move's own mean speed and torque (on the coast arm while lowering),
+  the estimate an estimator averaging perfectly over the move would make with this model. The two
+  differ by the model's residual at the steady export (a fit within the points' noise leaves one).
 
 The lines (each on one line):
     real: drive=tro2021_worm road=identify+estimate points=<n> fit_rms_mNm=<x> tro_fit_rms_mNm=<x>
           lift_mae_pct=<x> lift_max_pct=<x> lower_mae_pct=<x> lower_bound_pct=<x> mu=<x> tro_mu=0.12
           not_identifiable=<names>
     real_start_stop: file=<f> method=<m> prior=<yes|no> move=<lifting|lowering> error_pct=<x>
-          data_bound_pct=<x> trusted_pct=<x> worst_pct=<x>
+          data_bound_pct=<x> model_bound_pct=<x> trusted_pct=<x> worst_pct=<x>
 (worst_pct: the largest error of one trusted estimate in the move.)
 """
 from __future__ import annotations
@@ -53,10 +57,12 @@ from worm_model.cli.options import Parser
 from worm_model.cli.progress import Progress
 from worm_model.files.writing import Output, atomic_dir, check_output
 from worm_model.physics.parameters import ParameterError, Rig, load_rig
+from worm_model.physics.resolution import standstill_speed
 from worm_model.residuals.extended import ExtendedModel
 from worm_model.rig_data.epos import EposSettings, hanging_load
 from worm_model.rig_data.reader import read_rig_data
 from worm_model.rig_data.schema import MeasuredData, RigDataError
+from worm_rig_driver.robot.standard_outputs import UNTRUSTED
 
 from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
@@ -66,6 +72,7 @@ from torque_estimator.identification.fit import Identification, identify
 from torque_estimator.identification.steady import SteadyPoints, halves, model_current, steady_points
 from torque_estimator.identification.writing import write_identified
 from torque_estimator.offline.estimate import PointEstimates, run_estimator
+from torque_estimator.offline.moves import score_moves
 
 #: the hanging load [N m] (their 9.812 m/s^2 x 0.096 kg x 0.02 m), as --load-mass/--pulley-radius/--gravity give it
 LOAD = hanging_load(TRO_MASS, TRO_PULLEY_RADIUS, TRO_GRAVITY)
@@ -75,10 +82,6 @@ START_STOP_FILES = ("10.csv", "200.csv")
 PRIOR = (0.0, 0.04)
 #: the methods run on the start-stop exports (current and speed only: the exports carry no voltage)
 START_STOP_METHODS = ("extended_model", "momentum")
-#: a sample belongs to a move when its speed has the move's sign and is above this share of its top speed
-MOVING = 0.5
-#: [s] of a move left out at its start (the estimate finds the load)
-SETTLE = 0.5
 #: what the study writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
 OUTPUT = Output("real_drive", names=("*.png", "*.yaml"))
 
@@ -149,6 +152,18 @@ def slope(model: ExtendedModel, omega: np.ndarray, load: float = LOAD) -> np.nda
     return kt * (model_current(model, omega, load + step) - model_current(model, omega, load - step)) / (2 * step)
 
 
+def model_load(model: ExtendedModel, omega: float, current: float) -> float:
+    """[N m] the load in [0, 2 LOAD] at which the model draws ``current`` [A] at ``omega`` [rad/s]: the largest
+    such (lowering a self-locked load, the coast arm's; lifting there is one), NaN where none does."""
+    loads = np.linspace(0.0, 2.0 * LOAD, 801)
+    excess = np.array([model_current(model, np.array([omega]), load)[0] for load in loads]) - current
+    found = np.flatnonzero(np.sign(excess[:-1]) != np.sign(excess[1:]))
+    if len(found) == 0:
+        return math.nan
+    k = int(found[-1])
+    return float(loads[k] + (loads[k + 1] - loads[k]) * excess[k] / (excess[k] - excess[k + 1]))
+
+
 def cross_fitted(data: MeasuredData, rig_path: Path, folder: Path,
                  progress=None) -> Road:
     """The steady road, cross-fitted (module docstring); the two identified files are written into ``folder``."""
@@ -189,6 +204,11 @@ class Move:
     bound: float  # [% of the load] what the data allows (module docstring)
     torque: float  # [N m] the move's mean motor torque
     steady_torque: float  # [N m] the steady export's at the same nominal speed
+    model_load: float  # [N m] the identified model's load for the move's mean speed and torque (module docstring)
+
+    @property
+    def model_bound_pct(self) -> float:
+        return 100.0 * (self.model_load - LOAD) / LOAD
 
     @property
     def error_pct(self) -> float:
@@ -197,33 +217,40 @@ class Move:
     def line(self) -> str:
         return (f"real_start_stop: file={self.file} method={self.method} prior={'yes' if self.prior else 'no'} "
                 f"move={self.move} error_pct={self.error_pct:.1f} data_bound_pct={self.bound:.1f} "
+                f"model_bound_pct={self.model_bound_pct:.1f} "
                 f"trusted_pct={100.0 * self.trusted:.0f} worst_pct={self.worst:.0f}")
 
 
 def moves(path: Path, model_file: Path, method: str, prior: bool, rig: Rig,
           steady: dict[int, float]) -> tuple[list[Move], MeasuredData, np.ndarray, np.ndarray]:
-    """``estimate`` on one start-stop export (module docstring): its moves, the data, the estimate and its flags.
-    ``steady``: the steady exports' mean motor torque [N m] by nominal rpm (signed)."""
+    """``estimate`` on one start-stop export (module docstring): its moves as ``estimate`` scores them
+    (offline.moves), the lowering ones and the lifting ones each taken together, the data, the estimate and its
+    flags. ``steady``: the steady exports' mean motor torque [N m] by nominal rpm (signed)."""
     options = {"load_min": PRIOR[0], "load_max": PRIOR[1]} if prior else {}
     built = build_estimator(EstimatorSettings(method, model_file=str(model_file), options=options))
     data = read(path, built.rig, skip_bad_rows=False)
     estimate = run_estimator(data, lambda: built.live(data.sample_period))
     model = ExtendedModel.load(model_file)
     kt = built.rig.drive_motor.torque_constant
-    trusted = np.isfinite(estimate.torque) & ((estimate.flags & sum(int(f) for f in EstimateFlags)) == 0)
+    trusted = np.isfinite(estimate.torque) & ((estimate.flags & int(UNTRUSTED)) == 0)
+    scored = score_moves(data, estimate.torque, trusted, standstill_speed(built.rig))
     out = []
-    for sign, name in ((-1.0, "lowering"), (1.0, "lifting")):
-        fast = np.flatnonzero(sign * data.omega_worm > MOVING * float(np.max(sign * data.omega_worm)))
-        idx = fast[data.t[fast] >= data.t[fast[0]] + SETTLE]
+    for name in ("lowering", "lifting"):
+        these = [m for m in scored if m.kind == name]
+        if not these:
+            continue
+        idx = np.concatenate([m.cruise for m in these])
         ok = trusted[idx]
         mean = float(np.mean(estimate.torque[idx][ok])) if ok.any() else math.nan
         worst = float(np.max(np.abs(estimate.torque[idx][ok] - LOAD))) / LOAD * 100.0 if ok.any() else math.nan
         speed = float(np.mean(data.omega_worm[idx]))
         torque = float(np.mean(kt * data.current_drive[idx]))
-        rpm = int(sign * min((abs(r) for r in steady), key=lambda r: abs(r - abs(speed) * 30.0 / math.pi)))
+        sign = 1 if speed > 0 else -1
+        rpm = sign * min((abs(r) for r in steady), key=lambda r: abs(r - abs(speed) * 30.0 / math.pi))
         reference = steady.get(rpm, math.nan)
         bound = 100.0 * abs(torque - reference) / abs(float(slope(model, np.array([speed]))[0])) / LOAD
-        out.append(Move(path.name, method, prior, name, mean, float(np.mean(ok)), worst, bound, torque, reference))
+        out.append(Move(path.name, method, prior, name, mean, float(np.mean(ok)), worst, bound, torque, reference,
+                        model_load(model, speed, float(np.mean(data.current_drive[idx])))))
     return out, data, estimate.torque, estimate.flags
 
 
@@ -337,12 +364,13 @@ def lines(study: Study) -> list[str]:
                    f"{1e3 * Study._rms(study.fitted[m] - study.measured[m]):.4f} mN m; load error mean {mae:.2f} % "
                    f"largest {worst:.2f} %; the data's bound mean {bound:.2f} %")
     out.append("  start-stop runs (estimate with the file identify wrote from all the steady exports; per move its "
-               "samples above half its top speed, past its first 0.5 s):")
+               "cruises as estimate scores them, lowering and lifting each taken together):")
     for move in study.moves:
         out.append(f"    {move.file} {move.method:14s} prior {'yes' if move.prior else 'no ':3s} {move.move:8s} "
                    f"mean {1e3 * move.mean:6.2f} mN m ({move.error_pct:+6.1f} %), trusted {100 * move.trusted:3.0f} %, "
                    f"worst {move.worst:3.0f} %; torque {1e3 * move.torque:+.3f} against the steady export's "
-                   f"{1e3 * move.steady_torque:+.3f} mN m: the data's bound {move.bound:.1f} %")
+                   f"{1e3 * move.steady_torque:+.3f} mN m: the data's bound {move.bound:.1f} %; the model's load for "
+                   f"the move's mean torque {move.model_bound_pct:+.1f} %")
     out += [m.line() for m in study.moves]
     out.append(study.line())
     return out
@@ -394,7 +422,7 @@ def plot(study: Study, path: Path) -> Path:
             if (name, method) not in study.traces:
                 continue
             t, torque, flags, _omega = study.traces[(name, method)]
-            trusted = (flags & sum(int(f) for f in EstimateFlags)) == 0
+            trusted = (flags & int(UNTRUSTED)) == 0
             ax.plot(t, np.where(trusted, 1e3 * torque, np.nan), ".", ms=3, color=colour, label=f"{method}, trusted")
         t, _torque, _flags, omega = study.traces[(name, START_STOP_METHODS[0])]
         ax.axhline(1e3 * LOAD, color="k", lw=1, label="the hanging load")

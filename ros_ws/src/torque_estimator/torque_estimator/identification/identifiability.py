@@ -161,6 +161,11 @@ class Assessment:
         return Held(name, "band", detail)
 
 
+#: the normal matrix (columns scaled to unit norm) is singular along an eigenvector whose eigenvalue is below this
+#: share of the largest; a parameter takes part in that direction where its component exceeds NULL_COMPONENT
+NULL_RCOND, NULL_COMPONENT = 1e-12, 1e-6
+
+
 def assess(names: Sequence[str], jacobian: np.ndarray, residual: np.ndarray, declared: Rig,
            at_bound: Sequence[str] = (), inflation: float = 1.0, values: Mapping[str, float] | None = None
            ) -> Assessment:
@@ -181,14 +186,27 @@ def assess(names: Sequence[str], jacobian: np.ndarray, residual: np.ndarray, dec
     scale = np.linalg.norm(J, axis=0)
     scale = np.where(scale > 0, scale, 1.0)
     Js = J / scale
-    cov = np.linalg.pinv(Js.T @ Js) * variance / np.outer(scale, scale)
+    normal = Js.T @ Js
+    cov = np.linalg.pinv(normal) * variance / np.outer(scale, scale)
     sd = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     with np.errstate(divide="ignore", invalid="ignore"):
         corr = cov / np.outer(sd, sd)
+    # a direction the data do not see at all (the normal matrix singular along it): the pseudo-inverse gives it no
+    # variance, the truth is an unbounded one; its parameters trade one for another along it, fully correlated
+    if len(names):
+        eigen, vectors = np.linalg.eigh(normal)
+        for k in np.flatnonzero(eigen <= NULL_RCOND * max(float(eigen.max()), 1e-300)):
+            v = vectors[:, k]
+            involved = np.flatnonzero(np.abs(v) > NULL_COMPONENT)
+            sd[involved] = np.inf
+            for i in involved:
+                for j in involved:
+                    corr[i, j] = 1.0 if i == j else float(np.sign(v[i] * v[j]))
     # a parameter the data do not move at all (a zero column): unbounded
     sd = np.where(np.linalg.norm(J, axis=0) > 0, sd, np.inf)
     z = float(norm.ppf(0.5 + CONFIDENCE / 2.0))
     return Assessment.of(names, {n: float(z * s) for n, s in zip(names, sd)}, corr, declared, at_bound, values)
 
 
-__all__ = ["CONFIDENCE", "Assessment", "Held", "OWN_BANDS", "RecordFacts", "assess", "tolerance_half_width"]
+__all__ = ["CONFIDENCE", "Assessment", "Held", "NULL_COMPONENT", "NULL_RCOND", "OWN_BANDS", "RecordFacts", "assess",
+           "tolerance_half_width"]

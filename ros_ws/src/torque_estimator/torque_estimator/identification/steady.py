@@ -118,8 +118,14 @@ class SteadyPoints:
     @property
     def loads(self) -> FloatArray:
         """The distinct loads [N m] (to 1e-9 of the largest)."""
-        scale = max(float(np.max(np.abs(self.tau_load))), 1e-12)
-        return np.unique(np.round(self.tau_load / scale, 9)) * scale
+        return np.unique(self.load_keys()) * self._load_scale()
+
+    def _load_scale(self) -> float:
+        return max(float(np.max(np.abs(self.tau_load))), 1e-12)
+
+    def load_keys(self) -> FloatArray:
+        """Every point's load, rounded to 1e-9 of the largest [1]: equal keys, one load (:attr:`loads`)."""
+        return np.round(self.tau_load / self._load_scale(), 9)
 
 
 def _held(w: FloatArray) -> bool:
@@ -160,8 +166,9 @@ def steady_points(data: MeasuredData) -> SteadyPoints | None:
 def halves(points: SteadyPoints) -> np.ndarray:
     """Half (0 or 1) of every point: alternate speeds in each direction and load, counted from the slowest (half 0)."""
     out = np.zeros(len(points), dtype=int)
-    for load in points.loads:
-        same_load = np.isclose(points.tau_load, load, rtol=1e-9, atol=1e-12)
+    keys = points.load_keys()
+    for key in np.unique(keys):
+        same_load = keys == key
         for side in (points.omega > 0, points.omega < 0):
             idx = np.flatnonzero(side & same_load)
             out[idx[np.argsort(np.abs(points.omega[idx]))]] = np.arange(len(idx)) % 2
@@ -358,8 +365,11 @@ class FittedModel:
         cols = []
         for k in self.knobs:
             x = self.values[k.path]
-            h = 1e-4 * abs(x) if x else 1e-9
-            cols.append((current({k.path: x + h}) - current({k.path: x - h})) / (2.0 * h))
+            # a step of the knob's own size (its start's where the fit left it at ~0: a step of 1e-4 x 1e-28 is
+            # below rounding), one-sided where a central one would cross the knob's lower bound
+            h = 1e-4 * max(abs(x), abs(k.start)) or 1e-9
+            low = x - h if x - h >= k.low else x
+            cols.append((current({k.path: x + h}) - current({k.path: low})) / (x + h - low))
         return np.column_stack(cols) if cols else np.zeros((len(points), 0)), residual
 
     def assessment(self, points: SteadyPoints, declared: Rig, starts: Mapping[str, float]) -> Assessment:

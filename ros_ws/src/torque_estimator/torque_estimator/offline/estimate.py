@@ -28,7 +28,9 @@ half's mean where the rig's own noise is larger) and its mean speed is clear of 
 are kinetic).  Per steady point the error is |mean estimate - mean tau_load|; the rest
 of the samples (transients; standstill left out) give an RMS of the sample-by-sample error.
 Errors are in % of the log's load range (the 0.5 .. 99.5 percentiles of tau_load); a log held at one
-load (a hanging mass: no range) is scored in % of that load's magnitude.
+load (a hanging mass: no range) is scored in % of that load's magnitude. A log of a few moves (a
+start-stop run: at most MOVE_LINES) is also reported move by move (offline.moves: each move's mean
+trusted estimate over its cruise against its mean tau_load, lifting or lowering, the trusted share).
 Nothing else is used: the figures come from the log and the files given, never from
 knowledge of a simulator.  The last line printed is
     estimate: method=<m> mae_pct=<x> max_pct=<x> steady_points=<n> transient_rms_pct=<x> trusted_pct=<x>
@@ -65,10 +67,13 @@ from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.estimation.registry import ESTIMATORS, METHODS
 from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.identification.steady import SteadyPoints, steady_points
+from torque_estimator.offline.moves import score_moves
 from torque_estimator.offline.replay import ReplayError, node_parameters
 from worm_model.cli.progress import ProgressBar
 
 PROG = "estimate"
+#: a log of at most this many moves is reported move by move (offline.moves: a start-stop run)
+MOVE_LINES = 12
 #: what estimate writes; --force replaces only a CSV with its estimate column (worm_model.files.writing)
 OUTPUT = Output(PROG, recognise=lambda path: "tau_estimate" in csv_header(path))
 #: a steady window's halves may differ by this many standard errors of a half's mean (its own noise), where that is
@@ -365,6 +370,12 @@ def _main(argv: list[str] | None) -> int:
               "steady point, its mean speed and current through the estimator's map")
         for line in points.lines(data, score.load_range):
             print(line)
+    if points is None:
+        trusted = (np.asarray(estimate.flags) & int(UNTRUSTED)) == 0
+        found = score_moves(data, estimate.torque, trusted, standstill_speed(built.rig))
+        if 0 < len(found) <= MOVE_LINES:
+            for number, move in enumerate(found, 1):
+                print(move.line(PROG, number, data.t, score.load_range))
     print(score.line(args.method))
     return 0
 

@@ -49,9 +49,9 @@ A standing worm (its filtered speed within STILL_SIGMAS of its own uncertainty o
 speed within STILL_SIGMAS of the tacho's noise) stays where it is: static friction holds it whatever
 the load and the current, so the period says nothing of the load and the estimate is held. Without
 this the model would read a stopped worm as the load that balances its current: on the T-RO drive's
-start-stop runs (evaluation.start_stop: a self-locked drive, at rest with no current), the estimate
-held over the standstill after lifting at 200 rpm would fall from 15.3 to 0.75 mN m, and the lowering
-streamed after it would take the wrong flank again.
+start-stop runs (evaluation.real_drive: a self-locked drive, at rest with no current), the estimate
+over a standstill would fall to the load that balances no current, near 0, and the next move would
+start from it on the wrong flank.
 
 The tacho's commutator ripple is periodic in the worm angle: with an encoder it is identified (two
 states, phased by θ), without one it is taken as noise. The tacho is sampled ``tacho_delay`` after

@@ -206,6 +206,10 @@ class Branches:
             load, u = self.hold.step()
             flags, _u = judged(0.0, load, u * u, limits, flags | EstimateFlags.STANDSTILL)
             return load, u, flags
+        if self.hold.keeps():  # after a stop, motion that has not lasted yet (branches.Hold.keeps)
+            load, u = self.hold.step()
+            flags, _u = judged(0.0, load, u * u, limits, flags | EstimateFlags.STANDSTILL)
+            return load, u, flags
         if self.hold.held is not None:
             if self.hold.stopped:  # the load may have changed while it stood: found anew
                 observer._resumed()
