@@ -14,7 +14,7 @@ import pytest
 
 from torque_estimator.graph.runner import Graph, process_file_name
 
-# the tests' own helper modules (markdown_tables): importable by name from every test here
+# the tests' own helper modules (markdown_tables, in_process): importable by name from every test here
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from worm_model.ros.testing import local_domain
 

@@ -13,13 +13,9 @@ against the installed executables (tests/test_bad_input_probe.py).
 """
 from __future__ import annotations
 
-import contextlib
 import hashlib
-import io
 import json
 import math
-import os
-import signal
 import subprocess
 import sys
 from collections.abc import Callable, Sequence
@@ -32,6 +28,8 @@ from hypothesis import strategies as st
 from worm_model.cli.options import check_number
 from worm_model.ros.ament import find_executable
 
+from in_process import run_main
+
 EXAMPLES = settings(max_examples=25, deadline=None, suppress_health_check=list(HealthCheck))
 FEW = settings(max_examples=3, deadline=None, suppress_health_check=list(HealthCheck))
 
@@ -41,25 +39,6 @@ FEW = settings(max_examples=3, deadline=None, suppress_health_check=list(HealthC
 def _digest(folder: Path) -> dict[str, str]:
     return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else "dir"
             for p in sorted(folder.rglob("*"))}
-
-
-def run_main(main: Callable[[list[str]], int], argv: Sequence[str], cwd: Path) -> tuple[int, str, str]:
-    """``main(argv)`` in ``cwd``: (exit code, stdout, stderr); SIGINT/SIGTERM handlers restored after."""
-    out, err = io.StringIO(), io.StringIO()
-    handlers = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    here = os.getcwd()
-    try:
-        os.chdir(cwd)
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            try:
-                code = main(list(argv))
-            except SystemExit as exit_:
-                code = exit_.code if isinstance(exit_.code, int) else 1
-    finally:
-        os.chdir(here)
-        for s, h in handlers.items():
-            signal.signal(s, h)
-    return code, out.getvalue(), err.getvalue()
 
 
 def assert_refused(tool: str, code: int, err: str, before: dict[str, str], folder: Path, names: str = "") -> None:

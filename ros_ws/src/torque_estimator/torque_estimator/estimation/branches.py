@@ -53,7 +53,8 @@ class LoadPrior:
 
     def __post_init__(self) -> None:
         if not self.low < self.high:
-            raise ValueError(f"load_min ({self.low:g} N m) must be below load_max ({self.high:g} N m)")
+            raise ValueError(f"load_min / load_max: load_min ({self.low:g} N m) must be below load_max "
+                             f"({self.high:g} N m)")
 
     def admits(self, load: float) -> bool:
         return self.low <= load <= self.high
@@ -73,9 +74,10 @@ class LoadPrior:
         if load_min == 0.0 and load_max == 0.0:
             return cls(*fallback) if fallback is not None else cls()
         if not (math.isfinite(load_min) and math.isfinite(load_max)):
-            raise ValueError(f"load_min and load_max must be finite, got {load_min!r}, {load_max!r}")
+            raise ValueError(f"load_min / load_max: both must be finite, got {load_min!r}, {load_max!r}")
         if not load_min < load_max:
-            raise ValueError(f"load_min ({load_min:g} N m) must be below load_max ({load_max:g} N m)")
+            raise ValueError(f"load_min / load_max: load_min ({load_min:g} N m) must be below load_max "
+                             f"({load_max:g} N m)")
         return cls(float(load_min), float(load_max), declared=True)
 
 

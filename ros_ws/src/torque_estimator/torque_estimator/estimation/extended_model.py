@@ -227,7 +227,8 @@ def checked_prior(load_min: float, load_max: float, fallback: tuple[float, float
     standing in when none is declared), checked against what ``rig`` can do (worm_model.physics.envelope).
 
     Raises:
-        ValueError: load_min not below load_max, or a bound far outside the rig's envelope (naming it).
+        ValueError: load_min not below load_max, a bound far outside the rig's envelope (naming it), or a prior
+            that shares no load with ``fallback`` (the model's range).
     """
     prior = LoadPrior.of(float(load_min), float(load_max), fallback)
     if prior.declared:
@@ -235,6 +236,12 @@ def checked_prior(load_min: float, load_max: float, fallback: tuple[float, float
         for name, value in (("load_min", prior.low), ("load_max", prior.high)):
             if (problem := envelope.problem("tau_load", value)) is not None:
                 raise ValueError(f"{name}: {problem}")
+        low, high = fallback
+        if prior.high < low or prior.low > high:  # no load the model knows: every candidate would be excluded
+            raise ValueError(f"load_min / load_max: the prior load_min..load_max [{prior.low:g}, {prior.high:g}] N m "
+                             f"shares no load with the "
+                             f"[{low:g}, {high:g}] N m the model was identified or calibrated over: every candidate "
+                             "would be excluded (identify the drive at those loads, or declare the loads it carries)")
     return prior
 
 

@@ -8,7 +8,7 @@ A ``worm_rig_parameters`` v1 file (worm_model.physics.parameters) that is the de
   (``friction.model``);
 * the ``sensors:`` noise the record showed (identification.noise: the current's and the speed's white
   noise and grid step, the encoder's counts per turn), each with its ``source:``;
-* ``free:`` (the identified parameters), ``effects:`` (the effects found, in the simulator's names
+* ``free:`` (the identified parameters a refit can fit again), ``effects:`` (the effects found, in the simulator's names
   and units, as worm_model.residuals.extended writes them) and ``identification:`` (the road, the
   ranges the record covered, what was fitted and what was held and why).
 
@@ -32,7 +32,7 @@ import yaml
 from worm_model.physics.parameters import default_rig_path, load_rig
 from worm_model.physics.units import UNITS, normalize_unit
 from worm_model.residuals.extended import ExtendedModel
-from worm_model.residuals.free import get_value
+from worm_model.residuals.free import FREE_PARAMETERS, get_value
 
 from torque_estimator.estimation.extended_model import identification_ranges
 
@@ -91,7 +91,9 @@ def document(rig_file: str | Path | None, ident: "Identification", source: str) 
         _leaf(doc, path, get_value(rig, path), _ci_text(provenance, unit, ident.corrections[path][2]))
     if ident.noise is not None:
         _sensors(doc, ident, f"measured on the record by identify from {source}")
-    doc["free"] = list(ident.fitted)
+    # the free list is what the next refit (identify or residuals --params this file) may fit: the parameters the
+    # time-series refit knows; the steady road's own (a support's low-speed rise) stay identified values only
+    doc["free"] = [name for name in ident.fitted if name in FREE_PARAMETERS]
     effects: dict[str, Any] = {}
     for effect, values, grid in ident.model.effects:
         effects[effect.name] = {k: float(f"{v:.6g}") for k, v in effect.simulator_entry(values, grid).items()}

@@ -140,7 +140,8 @@ class EstimatorNode(Node):
             self.get_logger().info(
                 f"{self.method} estimator on {len(built.database)} calibration points from "
                 f"{self.settings.calibration_file}" if built.database is not None else
-                f"{self.method} estimator without a calibration (ranges from the rig file)")
+                f"{self.method} estimator without a calibration (ranges from the "
+                f"{getattr(built.estimator, 'ranges_from', None) or 'rig'})")
         except (CalibrationError, ParameterError) as err:
             if self.settings.calibration_file or self.settings.model_file or self.settings.rig_file:
                 # a file the user named cannot be used: stop (exit 2)

@@ -329,7 +329,7 @@ def _main(argv: list[str] | None) -> int:
     except ValueError as err:
         where = ("--load-min / --load-max" if prior and str(err).startswith("load_") else
                  "--params-file" if args.params_file else "--method")
-        return fail(where, str(err))
+        return fail(where, str(err).removeprefix("load_min / load_max: "))
     try:  # its units checked against the rig
         data = read_rig_data(args.log, rig=built.rig, epos=epos_settings(args, built.rig))
     except InputError as err:

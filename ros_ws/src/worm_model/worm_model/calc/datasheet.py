@@ -119,6 +119,10 @@ def template_path() -> Path:
     return Path(__file__).resolve().parent.parent / "data" / "drive_template.yaml"
 
 
+#: a rig file's analogue channels are 10-bit, zero at mid-scale (worm_rig_driver.sim.sensors): +-512 steps
+ADC_HALF_SCALE = 512
+
+
 def _stand_in(value: float, unit: str, rule: str) -> dict[str, Any]:
     return {"value": float(f"{value:.6g}"), "unit": unit, "assumption": rule}
 
@@ -165,8 +169,20 @@ def scaled_stand_ins(doc: dict[str, Any], geometry: Mapping[str, float], args: A
     sensors = doc["sensors"]
     sensors["current_noise_std"] = _stand_in(0.01 * rated, "A", "unknown until measured: 1 % of the rated "
                                              "current stands in; identify measures it on the recording")
-    sensors["current_lsb"] = _stand_in(0.001 * rated, "A", "unknown until measured: 0.1 % of the rated current "
+    stall = volts / args.resistance
+    sensors["current_lsb"] = _stand_in(max(0.001 * rated, stall / ADC_HALF_SCALE), "A",
+                                       "unknown until measured: 0.1 % of the rated current, or the stall current "
+                                       f"over {ADC_HALF_SCALE} where more (a 10-bit channel's half scale spans it), "
                                        "stands in; identify measures it on the recording")
+    counts = (args.encoder_counts if args.encoder_counts is not None else
+              sensors["encoder_pulses_per_rev"]["value"] * sensors["encoder_decoding"]["value"])
+    rate = args.sample_rate_hz if args.sample_rate_hz is not None else sensors["sample_rate_hz"]["value"]
+    speed_step = 2.0 * math.pi * rate / counts
+    sensors["tacho_drive_lsb"] = _stand_in(speed_step, "rad/s",
+                                           "no tacho: the speed is the encoder's count difference a sample, in steps "
+                                           "of 2 pi x rate / counts; identify measures it on the recording")
+    sensors["tacho_load_lsb"] = _stand_in(speed_step / ratio, "rad/s",
+                                          "no load tacho: the worm's speed step through the ratio")
     if args.encoder_counts is not None:
         sensors["encoder_pulses_per_rev"] = _leaf(args.encoder_counts, "1", f"{args.source}: encoder counts a turn "
                                                   "(after decoding)")

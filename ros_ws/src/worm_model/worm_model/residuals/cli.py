@@ -197,6 +197,14 @@ def _analyse(args, rig, free, data, signals, split, settings, progress, out: Pat
                          f"identified by residuals from {Path(data.source).name}",
                          {"backlash": "angle identified from the transmission error (theta_gear); see report.json"}
                          if "backlash" in after.names else None)
+    try:  # a file the next tool cannot read is never written (atomic_dir drops the folder)
+        load_rig(params_out)
+        ExtendedModel.load(params_out)
+    except ParameterError as err:
+        problem_text = str(err).split(": ", 1)[1] if ": " in str(err) else str(err)
+        raise ParameterError(str(final / params_out.name), "",
+                             f"the fitted model is not a rig file the tools can read ({problem_text}); fit fewer "
+                             "parameters (--free) or record more speeds and loads") from None
     files = {"data": data.source, "report": str(final / "report.json"), "parameters": str(final / params_out.name)}
     plots = []
     if not args.no_plots:

@@ -32,6 +32,8 @@ class MomentumEstimator(ObserverEstimator):
     """
 
     name = "momentum"
+    #: current and speed suffice (the voltage, where a stream has it, is not read)
+    needs_voltage = False
 
     def __init__(self, database: CalibrationDatabase | None = None, rig_file: str | None = None,
                  model_file: str | None = None, *, bandwidth: float = DEFAULT_BANDWIDTH,
