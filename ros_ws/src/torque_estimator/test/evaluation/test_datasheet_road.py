@@ -18,12 +18,28 @@ def page_lines() -> list[str]:
     return re.findall(r"^foreign(?:_lift)?: .*$", PAGE.read_text(encoding="utf-8"), re.M)
 
 
+NUMBER = re.compile(r"-?\d+(?:\.(\d+))?")
+
+
+def same_line(printed: str, shown: str) -> bool:
+    """``printed`` says what ``shown`` says: the same words, and each number within 2 units of the last digit shown
+    or 1 % of it (the lift's figures move by one unit between machines: a different BLAS rounds a fit differently,
+    and a sample near the V's vertex changes arm)."""
+    if NUMBER.sub("#", printed) != NUMBER.sub("#", shown):
+        return False
+    for got, want in zip(NUMBER.finditer(printed), NUMBER.finditer(shown), strict=True):
+        unit = 10.0 ** -len(want.group(1) or "")
+        if abs(float(got.group()) - float(want.group())) > max(2 * unit, 0.01 * abs(float(want.group()))):
+            return False
+    return True
+
+
 def test_the_pages_lines(page_lines: list[str], tmp_path_factory) -> None:
     folder = tmp_path_factory.mktemp("road")
     big = run_drive("big50", folder)
     lift = run_drive("lift40", folder)
     printed = big.lines() + lift.lines() + lift_lines(folder)
-    assert printed == page_lines
+    assert len(printed) == len(page_lines) and all(map(same_line, printed, page_lines)), (printed, page_lines)
     # the targets on a back-drivable drive from its datasheet: <= 1.5 % mean, <= 5 % max for every estimator
     assert all(f.mae_pct <= 1.5 and f.max_pct <= 5.0 for f in big.figures.values()), big.lines()
     # the lift run with a prior: most moving samples trusted, the extended model and the momentum observer within

@@ -93,4 +93,7 @@ def test_residuals_and_identify_take_the_load_options_and_the_skip(tool: str, tm
     assert main([*argv, "--skip-bad-rows"]) == 0
     out = capsys.readouterr().out
     assert f"{tool}: note:" in out and "1.csv: line 15" in out
+    if tool == "residuals":  # the exports carry torque, not current: K_t cannot be fitted, and is not
+        assert "drive_motor.torque_constant held at its declared value" in out
+        assert "drive_motor.torque_constant" not in out.split("fitted parameters:")[1].split("(")[0]
     assert (tmp_path / "res" / "report.json").exists() if tool == "residuals" else (tmp_path / "id.yaml").exists()

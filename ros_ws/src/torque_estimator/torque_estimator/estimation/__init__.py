@@ -15,4 +15,6 @@
 ``database``        the calibration database the maps read, and its file format
 ``quasi_static``    the inertia's share taken out of the current (LiveEstimator's compensation)
 ``calibration_bias``  the model's steady error read off a calibration (added by the observer and momentum)
+``branches``        which of a self-locking drive's two candidate loads is the load: the declared prior and
+                    the motion (reversals, stops, holds)
 """

@@ -183,7 +183,7 @@ class SensorCorrection:
 
 def identification_ranges(model_file: str | Path) -> dict[str, float] | None:
     """{speed_max [rad/s], torque_min, torque_max [N m]} of the ``identification:`` section of a file written
-    by ``identify`` (torque_estimator.identification.fit.write_identified); None: no such section.
+    by ``identify`` (torque_estimator.identification.writing.write_identified); None: no such section.
 
     Raises:
         ParameterError: the section is there but malformed.
@@ -222,13 +222,13 @@ def model_ranges(model_file: str | Path | None, database: CalibrationDatabase | 
     return no_load, -rig.max_load_torque, rig.max_load_torque, "rig"
 
 
-def checked_prior(load_min: float, load_max: float, fallback: tuple[float, float], rig: Rig) -> LoadPrior:
+def checked_prior(load_min: float, load_max: float, fallback: tuple[float, float] | None, rig: Rig) -> LoadPrior:
     """The load prior of estimator options ``load_min``/``load_max`` [N·m] (branches.LoadPrior.of, ``fallback``
     standing in when none is declared), checked against what ``rig`` can do (worm_model.physics.envelope).
 
     Raises:
         ValueError: load_min not below load_max, a bound far outside the rig's envelope (naming it), or a prior
-            that shares no load with ``fallback`` (the model's range).
+            that shares no load with ``fallback`` (the model's range; None: the model has none, any load goes).
     """
     prior = LoadPrior.of(float(load_min), float(load_max), fallback)
     if prior.declared:
@@ -236,7 +236,7 @@ def checked_prior(load_min: float, load_max: float, fallback: tuple[float, float
         for name, value in (("load_min", prior.low), ("load_max", prior.high)):
             if (problem := envelope.problem("tau_load", value)) is not None:
                 raise ValueError(f"{name}: {problem}")
-        low, high = fallback
+        low, high = fallback if fallback is not None else (-np.inf, np.inf)
         if prior.high < low or prior.low > high:  # no load the model knows: every candidate would be excluded
             raise ValueError(f"load_min / load_max: the prior load_min..load_max [{prior.low:g}, {prior.high:g}] N m "
                              f"shares no load with the "

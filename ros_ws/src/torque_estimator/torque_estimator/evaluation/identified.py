@@ -39,7 +39,8 @@ from torque_estimator.estimation.observer import ObserverEstimator
 from torque_estimator.evaluation.held_out import Evaluation, measure_held_out, score
 from torque_estimator.evaluation.residual_cases import write_rig_file
 from torque_estimator.identification.excitation import DEFAULT_DURATION, default_excitation, total_duration
-from torque_estimator.identification.fit import identify, write_identified
+from torque_estimator.identification.fit import identify
+from torque_estimator.identification.writing import write_identified
 from torque_estimator.identification.simulated import record_on_simulator
 
 #: the declared values' errors: mu x1.3, K_t x1.05, drags x2 (perturbation groups of evaluation.residual_cases)

@@ -80,7 +80,6 @@ from worm_model.rig_data.schema import MeasuredData
 from torque_estimator.identification import steady
 from torque_estimator.identification.identifiability import Assessment, Held, RecordFacts
 from torque_estimator.identification.noise import SensorNoise, measure, measure_held
-from torque_estimator.identification.writing import write_identified
 
 #: the residual analysis' settings for identification (module docstring: what differs and why)
 IDENTIFY_SETTINGS = an.Settings(min_improvement=0.001, other_signal_tolerance=0.05, at_floor=0.0, max_effects=10,
@@ -376,4 +375,4 @@ def _worst(fit_: Fit, declared: Rig, free: Sequence[str], bound_only: bool = Fal
 
 
 __all__ = ["IDENTIFY_SETTINGS", "ONE_LOAD_MARGIN", "QUASI_STATIC_ACCELERATION", "Identification",
-           "IdentificationError", "default_refit", "identify", "record_facts", "write_identified"]
+           "IdentificationError", "default_refit", "identify", "record_facts"]

@@ -4,5 +4,6 @@
 ``modes`` (frame of motion, mode, flank), ``efficiency``, ``internal_forces``
 (Eqs 21-23), ``dynamics`` (Eqs 26-28), ``motor`` (Eq 29), ``gear_side`` (load
 motors' drag) and ``steady_state`` build on them; ``envelope`` is what a rig can physically do
-(the bounds measured data is checked against).
+(the bounds measured data is checked against); ``resolution`` what its sensors resolve (standstill,
+sliding speed and one current sample's spread, from the rig file's ``sensors:``).
 """

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,8 @@ from worm_model.residuals.report import build_report, console_summary, windowed_
 
 #: what residuals writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
 OUTPUT = Output("residuals", names=("report.json", "extended_rig.yaml", "*.png"))
+#: the motor constant a torque channel cannot tell (the export measured K_t x current)
+KT = "drive_motor.torque_constant"
 MIN_SAMPLES = 200  # per set: fewer cannot rank the 14 candidates (effects.EFFECTS)
 
 
@@ -143,6 +146,12 @@ def _main(argv: list[str] | None) -> int:
         data = load_data(args.data, rig, epos_settings(args, rig))  # its units checked against the rig
         for note in data.notes:
             print(f"residuals: note: {note}")
+        if data.current_from_torque and KT in (*free, *settings.refit):
+            # K_t x current is what a torque channel measured: the fit would trade K_t against K_e for nothing
+            free = [p for p in free if p != KT]
+            settings = replace(settings, refit=tuple(p for p in settings.refit if p != KT))
+            print(f"residuals: note: {KT} held at its declared value: the record's current is the drive's torque "
+                  "channel over K_t (K_t x current is what was measured)")
         progress.update_to(1)
         check_output(args.out, args.force, folder=True, inputs=[args.data, args.params], output=OUTPUT)
     finally:

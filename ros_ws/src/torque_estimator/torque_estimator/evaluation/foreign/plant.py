@@ -57,7 +57,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .drives import ForeignDrive
+from torque_estimator.evaluation.foreign.drives import ForeignDrive
 
 SPEED, OPEN, VOLTAGE = 0, 1, 2
 """Drive modes of a profile sample: PI speed control, motor open circuit (no current), a fixed voltage."""

@@ -32,8 +32,8 @@ from typing import Any
 
 import numpy as np
 
-from .drives import DRIVES, ForeignDrive
-from .plant import OPEN, Profile, Recording, driving_inertia, simulate
+from torque_estimator.evaluation.foreign.drives import DRIVES, ForeignDrive
+from torque_estimator.evaluation.foreign.plant import OPEN, Profile, Recording, driving_inertia, simulate
 
 HEADER = ("t", "current_drive", "omega_worm", "theta_worm", "tau_load", "voltage_drive")
 """The CSV's columns, in order (the ``worm_rig_data`` schema's required ones plus voltage_drive)."""
