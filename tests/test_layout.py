@@ -180,3 +180,40 @@ def test_every_module_is_named_in_its_folders_map(package: str) -> None:
             if module.name != "__init__.py" and f"``{module.stem}``" not in doc:
                 unnamed.append(str(module.relative_to(SRC)))
     assert unnamed == [], "modules their folder's __init__.py does not name as ``module``: " + ", ".join(unnamed)
+
+
+def _folders(package: str) -> list[str]:
+    """The package's concern folders, nested ones as ``parent/child``."""
+    root = SRC / package / package
+    return sorted(str(init.parent.relative_to(root)) for init in root.rglob("__init__.py") if init.parent != root)
+
+
+@pytest.mark.parametrize("package", PACKAGES)
+def test_every_folder_is_named_in_design_md(package: str) -> None:
+    """docs/design.md's layout block names each of the package's folders as ``name/`` on the package's lines (a
+    nested folder by its own name), as the package's own map does (test_every_package_and_concern_opens_with_a_map)."""
+    layout = (SRC.parents[1] / "docs" / "design.md").read_text(encoding="utf-8").split("\n## Layout", 1)[1]
+    block = layout.split("```", 2)[1]
+    lines = block.splitlines()
+    start = next(k for k, line in enumerate(lines) if line.startswith(f"{package}/"))
+    end = next((k for k in range(start + 1, len(lines)) if lines[k][:1] not in ("", " ")), len(lines))
+    ours = "\n".join(lines[start:end])
+    unnamed_design = [f for f in _folders(package) if f"{f.split('/')[-1]}/" not in ours]
+    assert unnamed_design == [], f"docs/design.md's layout does not name under {package}/: {unnamed_design}"
+
+
+def test_no_merge_conflict_markers() -> None:
+    """No file of the project holds a merge's conflict markers (they once sat inside a package map)."""
+    root = SRC.parents[1]
+    marked = []
+    for path in [*root.glob("*.md"), *(root / "docs").rglob("*.md"), *root.glob("Makefile"), *SRC.rglob("*"),
+                 *(root / "tests").rglob("*.py"), *(root / "bench").rglob("*.py"), *(root / "tools").rglob("*")]:
+        if not path.is_file() or path.suffix in (".png", ".pyc", ".db3", ".mcap", ".hex", ".elf", ".o"):
+            continue
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            continue
+        if re.search(r"^(<{7} |>{7} |={7}$)", text, re.M):
+            marked.append(str(path.relative_to(root)))
+    assert marked == [], f"merge conflict markers in: {marked}"

@@ -19,15 +19,11 @@ outside ``ros/`` and ``nodes/``):
               of CSV files, bags and EPOS Studio exports (``read_rig_data``); the ``bag``
               command
 ``residuals`` closing the loop with measured data: fit, residual, effects, report
-<<<<<<< HEAD
 ``health``    watching the gearbox's wear: the friction model with mu's temperature law,
               the check's fit, the trend and its baseline, the thermal estimate, the
               live window (torque_estimator.health: the CLI and the node)
-``calc``      ``worm_calc``: one operating point through the model
-=======
 ``calc``      ``worm_calc``: one operating point through the model; ``rig_from_datasheet``:
               a rig file from a gear catalogue and a motor datasheet
->>>>>>> drives
 ``figures``   ``report``: the paper's Figures 6-11 from a calibration
 ``ros``       what every node of the project shares (QoS, parameters, diagnostics,
               lifecycle, ament lookup)
