@@ -399,7 +399,7 @@ def test_node_bad_parameter_is_one_line(node: str, data: st.DataObject, ros_env,
 
 def test_check_number_agrees_with_the_option_types() -> None:
     """Files and options share one check: the same values pass and fail with the same words."""
-    from worm_model.cli.errors import InputError
+    from worm_model.errors import InputError
     from worm_model.cli.options import number
     import argparse
     for text in ("nan", "inf", "-1", "2", "abc"):
@@ -507,7 +507,8 @@ def test_every_unit_slip_of_a_valid_log_is_refused(column, exponent, smaller, tm
     import numpy as np
 
     from worm_model.rig_data.reader import read_rig_data
-    from worm_model.rig_data.schema import MeasuredData, RigDataError, write_rig_csv
+    from worm_model.rig_data.schema import MeasuredData, write_rig_csv
+    from worm_model.errors import RigDataError
 
     (low, high), named = SLIPS[column]
     factor = low * (high / low) ** exponent

@@ -135,8 +135,10 @@ def test_every_package_and_concern_opens_with_a_map(package: str) -> None:
     top = ast.get_docstring(ast.parse((root / "__init__.py").read_text(encoding="utf-8"))) or ""
     folders = sorted(p.parent for p in root.glob("*/__init__.py"))
     assert folders, f"{package} has no subpackages"
-    assert not [p for p in root.glob("*.py") if p.name != "__init__.py"], \
-        f"{package}: modules at the top level beside the concern folders"
+    assert not [p for p in root.glob("*.py") if p.name not in ("__init__.py", "errors.py")], \
+        f"{package}: modules at the top level beside the concern folders (errors.py, its errors, aside)"
+    assert (root / "errors.py").is_file() and "``errors``" in top, \
+        f"{package}: its errors in one module, errors.py, named in its map"
     for folder in folders:
         assert f"``{folder.name}``" in top, f"{package}/__init__.py's map does not name {folder.name}/"
         doc = ast.get_docstring(ast.parse((folder / "__init__.py").read_text(encoding="utf-8")))

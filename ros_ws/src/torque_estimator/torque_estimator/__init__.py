@@ -4,6 +4,7 @@ Map (dependencies point up this list; rclpy only in ``nodes`` and the ``*_node.p
 helpers beside the CLIs that talk to a live graph):
 
 ==================  ===========================================================
+``errors``          every error of the package (bad input subclasses worm_model.errors.InputError)
 ``estimation``      the estimators behind one interface (``base``: inputs, outputs,
                     flags, the streaming protocols; ``registry``: name -> factory and
                     options): ``observer`` (a folder: the shipped default, a Kalman

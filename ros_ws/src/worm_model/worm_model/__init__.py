@@ -4,6 +4,7 @@ Map (dependencies point up this list, never down; no module imports rclpy
 outside ``ros/`` and ``nodes/``):
 
 ============  =================================================================
+``errors``    every error of the package; bad input is an ``InputError`` (one line, exit 2)
 ``cli``       what every command-line tool shares: bad input as one line and exit 2
               (``errors``), checked options (``options``), progress bars
 ``files``     a user's files: ``reading`` (text, YAML, JSON, every refusal one line),

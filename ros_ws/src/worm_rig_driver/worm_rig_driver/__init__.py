@@ -3,6 +3,7 @@
 Map (dependencies point up this list; only ``nodes`` and ``fil.commander_node`` import rclpy):
 
 ============  =================================================================
+``errors``    every error of the package (bad input subclasses worm_model.errors.InputError)
 ``protocol``  the serial protocol as one table (``table``: frames, fields, units,
               scales; generates the firmware header and docs/protocol.md), its
               codec (COBS + CRC-16) and the raw-unit <-> SI ``scaling``

@@ -10,16 +10,9 @@ from typing import Any, Callable
 import numpy as np
 import pytest
 
-from torque_estimator.estimation.database import (
-    FORMAT,
-    POINT_COLUMNS,
-    UNITS,
-    VERSION,
-    CalibrationDatabase,
-    CalibrationError,
-    load_database,
-    save_database,
-)
+from torque_estimator.estimation.database import (FORMAT, POINT_COLUMNS, UNITS, VERSION, CalibrationDatabase,
+    load_database, save_database)
+from torque_estimator.errors import CalibrationError
 
 
 def small_database() -> CalibrationDatabase:

@@ -17,7 +17,8 @@ from worm_model.physics.parameters import load_rig
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import POINT_COLUMNS, load_database, save_database
-from torque_estimator.calibration.journal import CalibrationJournal, JournalError, default_journal_path
+from torque_estimator.calibration.journal import CalibrationJournal, default_journal_path
+from torque_estimator.errors import JournalError
 from torque_estimator.calibration.live import PointByPoint, live_settings
 from torque_estimator.calibration.operating_points import SteadyStateCriterion, SteadyStateDetector
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, SpeedController

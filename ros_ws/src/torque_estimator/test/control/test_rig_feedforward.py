@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from worm_model.physics.parameters import load_rig
-from worm_rig_driver.drive.feedforward_plugin import FeedforwardUnavailable, load_rig_feedforward
+from worm_rig_driver.drive.feedforward_plugin import load_rig_feedforward
+from worm_rig_driver.errors import FeedforwardUnavailable
 from worm_rig_driver.drive.rig_loop import RigLoop, SpeedCommand
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 from worm_rig_driver.sim.simulated_rig import SimulatedRig

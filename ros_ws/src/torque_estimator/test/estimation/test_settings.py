@@ -10,11 +10,13 @@ import numpy as np
 import pytest
 import yaml
 
-from worm_model.physics.parameters import ParameterError, default_rig_path, load_rig
+from worm_model.physics.parameters import default_rig_path, load_rig
+from worm_model.errors import ParameterError
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.base import AngleEstimator, StreamingEstimator
-from torque_estimator.estimation.database import CalibrationError, save_database
+from torque_estimator.estimation.database import save_database
+from torque_estimator.errors import CalibrationError
 from torque_estimator.estimation.extended_model import ExtendedModelEstimator
 from torque_estimator.estimation.knn import KnnEstimator
 from torque_estimator.estimation.live import LiveEstimator

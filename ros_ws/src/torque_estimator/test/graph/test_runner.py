@@ -8,8 +8,9 @@ from pathlib import Path
 import pytest
 import yaml
 
-from torque_estimator.graph.runner import (Graph, GraphError, graph_nodes, graph_sections, process_file_name,
-                                           rig_computer, split_name)
+from torque_estimator.graph.runner import (Graph, graph_nodes, graph_sections, process_file_name, rig_computer,
+    split_name)
+from torque_estimator.errors import GraphError
 
 GRAPH = """\
 /**:

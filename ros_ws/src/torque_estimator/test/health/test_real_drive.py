@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import pytest
 
-from torque_estimator.health.real_drive import RealDataMissing, real_drive_check, real_drive_line
+from torque_estimator.errors import RealDataMissing
+from torque_estimator.health.real_drive import real_drive_check, real_drive_line
 
 
 def test_one_half_of_the_real_drives_speeds_against_the_other_shows_no_change() -> None:

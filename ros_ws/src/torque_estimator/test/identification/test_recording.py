@@ -7,8 +7,8 @@ import pytest
 from worm_model.physics.parameters import load_rig
 
 from torque_estimator.identification.excitation import default_excitation
-from torque_estimator.identification.recording import (RESUME_GAP, ExcitationRun, Journal, JournalError, journal_paths,
-                                                       run_settings)
+from torque_estimator.identification.recording import RESUME_GAP, ExcitationRun, Journal, journal_paths, run_settings
+from torque_estimator.errors import JournalError
 
 RIG = load_rig()
 TIMELINE = default_excitation(RIG, 12.0)

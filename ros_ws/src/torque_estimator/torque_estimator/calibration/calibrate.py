@@ -28,15 +28,17 @@ import sys
 import time
 from pathlib import Path
 
-from worm_model.physics.parameters import ParameterError, load_rig
+from worm_model.physics.parameters import load_rig
 
 from torque_estimator.calibration.batch import DEFAULT_BATCH_SIZE, CalibrationGrid, calibrate_simulated
-from torque_estimator.estimation.database import FORMAT, CalibrationError, save_database
+from torque_estimator.estimation.database import FORMAT, save_database
+from torque_estimator.errors import CalibrationError, LiveRigError
 from torque_estimator.calibration.journal import CalibrationJournal, default_journal_path
-from torque_estimator.calibration.live import LiveRigError, PointByPoint, live_settings
+from torque_estimator.calibration.live import PointByPoint, live_settings
 from torque_estimator.calibration.operating_points import SteadyStateCriterion
 from worm_model.cli.progress import ProgressBar
-from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.errors import InputError
 from worm_model.cli.options import Parser, existing_file, integer, number, output_path
 from worm_model.files.reading import load_json
 from worm_model.files.writing import Output, check_output
@@ -114,7 +116,7 @@ def _interrupt(signum, _frame) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool("calibrate", lambda: _main(argv), (ParameterError, CalibrationError))
+    return run_tool("calibrate", lambda: _main(argv))
 
 
 def _main(argv: list[str] | None) -> int:

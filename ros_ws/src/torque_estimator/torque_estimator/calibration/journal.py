@@ -42,11 +42,12 @@ from typing import Any, Final
 
 import numpy as np
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError
 from worm_model.files.reading import load_json
 from worm_model.files.writing import write_text_atomically
 
-from torque_estimator.estimation.database import CalibrationDatabase, CalibrationError
+from torque_estimator.estimation.database import CalibrationDatabase
+from torque_estimator.errors import JournalError
 
 FORMAT: Final = "worm_torque_calibration_journal"
 VERSION: Final = 1
@@ -62,10 +63,6 @@ COLUMNS: Final[dict[str, str]] = {
     "samples": "1",
     "settled": "1",
 }
-
-
-class JournalError(CalibrationError):
-    """A journal cannot be used (unreadable, other format, other settings); the message says why."""
 
 
 def default_journal_path(database_path: str | os.PathLike[str]) -> Path:
@@ -301,4 +298,4 @@ class CalibrationJournal:
         )
 
 
-__all__ = ["FORMAT", "VERSION", "COLUMNS", "JournalError", "CalibrationJournal", "default_journal_path"]
+__all__ = ["FORMAT", "VERSION", "COLUMNS", "CalibrationJournal", "default_journal_path"]

@@ -38,10 +38,6 @@ TOPICS = {"samples": "rig/samples", "speed_command": "rig/speed_command",
           "speed_setpoint": "controller/speed_setpoint", "load_command": "rig/load_command"}
 
 
-class LiveRigError(RuntimeError):
-    """The graph does not provide what a live calibration needs; the message names the topic or node."""
-
-
 @dataclass(frozen=True)
 class Point:
     """One point of the plan: its plan index, worm speed [rad/s] and load torque [N m]."""
@@ -135,4 +131,4 @@ class PointByPoint:
                                            f"controller_node, sample period {self.sample_period:g} s")
 
 
-__all__ = ["LiveRigError", "Point", "PointByPoint", "TOPICS", "live_settings"]
+__all__ = ["Point", "PointByPoint", "TOPICS", "live_settings"]

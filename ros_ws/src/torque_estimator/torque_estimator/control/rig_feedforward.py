@@ -1,12 +1,13 @@
 """The feedforward a rig computes itself: a τ_d estimator beside its speed PI, on every sample.
 
 Why: through the node graph an estimate reaches the rig's PI one /rig/samples
-batch (5 samples) and a transit later. Averaged over where a load step falls in
-its batch, the observer's feedforward takes ~21 % off the worst load-step dip
-there (bench/controller_bench.py, graph timing), and even the true load through
-the same path only 46 %. Run beside the PI (sim_node's clock thread,
+batch and a transit later (the shipped graph batches 10 samples; the benchmark's
+graph timing, 5). Averaged over where a load step falls in its batch of 5, the
+observer's feedforward takes ~22 % off the worst load-step dip there
+(bench/controller_bench.py, graph timing), and even the true load through the
+same path only 46 %. Run beside the PI (sim_node's clock thread,
 driver_node's serial reader), the estimate of the sample just taken drives the
-very next period: the observer then takes ~43 % off (rig timing), on the same
+very next period: the observer then takes ~44 % off (rig timing), on the same
 estimator, calibration and gains.
 
 :class:`EstimatorFeedforward` is worm_rig_driver.drive.rig_loop's RigFeedforward:
@@ -22,7 +23,7 @@ The observer's step detector runs here at a false-alarm rate of 1e-3 per sample
 (estimator_node's: 1e-4). A feedforward pays for every sample a step goes
 unnoticed (0.45-0.6 rad/s of dip each on the bundled rig) and little for a false
 alarm, whose jump estimate the next samples undo: over controller_bench's runs at
-rig timing 1e-3 gave a worst dip of 2.83 against 2.96 rad/s at 1e-4, with the
+rig timing 1e-3 gave a worst dip of 2.77 against 2.91 rad/s at 1e-4, with the
 steady estimate error (0.21 % of the range) and the steady speed error (0.103
 rad/s RMS) no worse. A false alarm's jump is mostly small, but not always: a jump
 declared from one sample has a large variance, and one tacho reading 3.5 rad/s

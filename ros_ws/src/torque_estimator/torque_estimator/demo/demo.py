@@ -24,7 +24,7 @@ from worm_model.physics.parameters import load_rig
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import save_database
 from torque_estimator.estimation.registry import make_estimator
-from torque_estimator.graph.runner import GraphError, check_graph, default_graph_file, graph_nodes
+from torque_estimator.graph.runner import check_graph, default_graph_file, graph_nodes
 from torque_estimator.evaluation.held_out import evaluate_held_out, format_table
 from torque_estimator.demo.plots import EstimateTrace, SpeedTrace, estimate_vs_truth, load_steps, tracking
 from torque_estimator.evaluation.plots import held_out_deviation
@@ -81,7 +81,7 @@ def load_run(bag: Path, start_stamp: float) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool("demo", lambda: _main(argv), (GraphError,))
+    return run_tool("demo", lambda: _main(argv))
 
 
 def _main(argv: list[str] | None) -> int:

@@ -46,11 +46,12 @@ from typing import Any, Final
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError
 from worm_model.files.reading import load_json
 from worm_model.files.writing import write_text_atomically
 from worm_model.physics.parameters import Rig
 from worm_model.rig_data.plausibility import calibration_problem
+from torque_estimator.errors import CalibrationError
 
 FORMAT: Final = "worm_torque_calibration"
 VERSION: Final = 1
@@ -77,10 +78,6 @@ UNITS: Final[dict[str, str]] = {
     **{name: unit for name, (unit, _) in POINT_COLUMNS.items()},
     **GRID_COLUMNS,
 }
-
-
-class CalibrationError(ValueError):
-    """A calibration database or file is invalid; the message names the field."""
 
 
 def _as_float(name: str, value: ArrayLike) -> NDArray[np.float64]:
@@ -333,7 +330,6 @@ __all__ = [
     "UNITS",
     "POINT_COLUMNS",
     "GRID_COLUMNS",
-    "CalibrationError",
     "CalibrationDatabase",
     "save_database",
     "load_database",

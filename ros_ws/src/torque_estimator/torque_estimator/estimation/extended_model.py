@@ -83,7 +83,8 @@ from numpy.typing import ArrayLike, NDArray
 import yaml
 
 from worm_model.physics.envelope import Envelope
-from worm_model.physics.parameters import ParameterError, Rig, load_rig
+from worm_model.physics.parameters import Rig, load_rig
+from worm_model.errors import ParameterError
 from worm_model.residuals.extended import ExtendedModel
 
 from torque_estimator.estimation.database import CalibrationDatabase
@@ -265,7 +266,7 @@ class ExtendedModelEstimator:
     Raises:
         ValueError: bad option, empty database or zero torque range, a prior with load_min >= load_max or far
             outside what the rig can do.
-        worm_model.physics.parameters.ParameterError: a bad model or rig file.
+        worm_model.errors.ParameterError: a bad model or rig file.
     """
 
     name = "extended_model"

@@ -31,7 +31,8 @@ from typing import Any
 from worm_model.physics.parameters import Rig, load_rig
 
 from torque_estimator.estimation.base import TorqueEstimator
-from torque_estimator.estimation.database import CalibrationDatabase, CalibrationError, load_database
+from torque_estimator.estimation.database import CalibrationDatabase, load_database
+from torque_estimator.errors import CalibrationError
 from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.estimation.registry import MAP_OPTIONS, METHODS, Option, method
 

@@ -67,11 +67,12 @@ from typing import Any
 from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser, existing_file, integer, output_path
 from worm_model.files.writing import Output, atomic_dir, check_output
-from worm_model.physics.parameters import ParameterError, load_rig
+from worm_model.physics.parameters import load_rig
 from torque_estimator.evaluation.residual_cases import evaluate_lines, full_matrix, small_matrix
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
-from torque_estimator.estimation.database import CalibrationError, load_database
+from torque_estimator.estimation.database import load_database
+from torque_estimator.errors import CalibrationError
 from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
 from torque_estimator.evaluation.held_out import (format_table, measure_held_out, score, sweep_grid_density, sweep_k,
                                                   sweep_noise)
@@ -175,7 +176,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool("evaluate", lambda: _main(argv), (ParameterError, CalibrationError))
+    return run_tool("evaluate", lambda: _main(argv))
 
 
 def _main(argv: list[str] | None) -> int:

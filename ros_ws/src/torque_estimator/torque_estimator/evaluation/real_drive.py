@@ -56,12 +56,12 @@ from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser
 from worm_model.cli.progress import Progress
 from worm_model.files.writing import Output, atomic_dir, check_output
-from worm_model.physics.parameters import ParameterError, Rig, load_rig
+from worm_model.physics.parameters import Rig, load_rig
 from worm_model.physics.resolution import standstill_speed
 from worm_model.residuals.extended import ExtendedModel
 from worm_model.rig_data.epos import EposSettings, hanging_load
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import MeasuredData, RigDataError
+from worm_model.rig_data.schema import MeasuredData
 from worm_rig_driver.robot.standard_outputs import UNTRUSTED
 
 from torque_estimator.estimation.base import EstimateFlags
@@ -454,7 +454,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool("real_drive", lambda: _main(argv), (ParameterError, RigDataError))
+    return run_tool("real_drive", lambda: _main(argv))
 
 
 def _main(argv: list[str] | None) -> int:

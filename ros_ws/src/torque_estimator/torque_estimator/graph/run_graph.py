@@ -20,11 +20,11 @@ from pathlib import Path
 from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser, integer
 
-from torque_estimator.graph.runner import Graph, GraphError, parse_overrides
+from torque_estimator.graph.runner import Graph, parse_overrides
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool("run_graph", lambda: _main(argv), (GraphError,))
+    return run_tool("run_graph", lambda: _main(argv))
 
 
 def _main(argv: list[str] | None) -> int:

@@ -28,15 +28,12 @@ from typing import Any
 
 import yaml
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError
 from worm_model.files.reading import load_parameter_file, load_yaml
 from worm_model.physics.parameters import load_rig
 from worm_model.ros.ament import ament_prefixes, find_executable
 from worm_rig_driver.drive.realtime import realtime_permitted
-
-
-class GraphError(RuntimeError):
-    """A graph file or executable problem, naming the file or node."""
+from torque_estimator.errors import GraphError
 
 
 def default_graph_file() -> Path:

@@ -35,22 +35,23 @@ from pathlib import Path
 
 import numpy as np
 
-from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.errors import FitError, InputError
 from worm_model.cli.options import Parser, existing_file, number
 from worm_model.cli.progress import ProgressBar
 from worm_model.files.writing import check_output
 from worm_model.health.assess import Z95, assess_trend, baseline_from_rig, baseline_of
 from worm_model.health.blocks import blocks_from_data
-from worm_model.health.fit import FitError, Temperature, fit_points
+from worm_model.health.fit import Temperature, fit_points
 from worm_model.health.model import NAMES, UNITS, HealthParameters
 from worm_model.health.points import steady_points
 from worm_model.health.record import CheckRecord, Trend, read_trend, write_trend
-from worm_model.health.settings import HealthSettings, SettingsError, load_settings
-from worm_model.physics.parameters import ParameterError, load_rig
+from worm_model.health.settings import HealthSettings, load_settings
+from worm_model.physics.parameters import load_rig
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import MeasuredData, RigDataError, write_rig_csv
+from worm_model.rig_data.schema import MeasuredData, write_rig_csv
 
-from torque_estimator.calibration.live import LiveRigError
+from torque_estimator.errors import LiveRigError
 from torque_estimator.health.reference import LOADS, MAX_DURATION, SPEEDS, reference_run, total_duration
 
 PROG = "health_check"
@@ -128,7 +129,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool(PROG, lambda: _main(argv), (ParameterError, RigDataError, SettingsError))
+    return run_tool(PROG, lambda: _main(argv))
 
 
 def _main(argv: list[str] | None) -> int:

@@ -33,12 +33,10 @@ from worm_model.health.points import Points
 from worm_model.health.settings import HealthSettings
 from worm_model.physics.parameters import load_rig
 
+from torque_estimator.errors import RealDataMissing
+
 #: the hanging load: 0.096 kg on a 20 mm pulley at the lab's 9.812 m/s^2 (SOURCE.md of the data) [N m]
 LOAD = 9.812 * 0.096 * 0.02
-
-
-class RealDataMissing(RuntimeError):
-    """The real drive's data, reader or rig file are not in this tree."""
 
 
 @dataclass
@@ -131,4 +129,4 @@ def real_drive_line(settings: HealthSettings = HealthSettings()) -> str:
         return f"health: real=skipped ({err})"
 
 
-__all__ = ["LOAD", "RealCheck", "RealDataMissing", "real_drive_check", "real_drive_line"]
+__all__ = ["LOAD", "RealCheck", "real_drive_check", "real_drive_line"]

@@ -31,7 +31,8 @@ import numpy as np
 from worm_model.health.assess import Z95, assess_trend, baseline_of
 from worm_model.health.bound import detection_probability, one_check_sigma
 from worm_model.health.blocks import Blocks
-from worm_model.health.fit import FitError, Temperature, fit_points
+from worm_model.health.fit import Temperature, fit_points
+from worm_model.errors import FitError
 from worm_model.health.model import HealthParameters
 from worm_model.health.points import steady_points
 from worm_model.health.record import CheckRecord

@@ -80,6 +80,7 @@ from worm_model.rig_data.schema import MeasuredData
 from torque_estimator.identification import steady
 from torque_estimator.identification.identifiability import Assessment, Held, RecordFacts
 from torque_estimator.identification.noise import SensorNoise, measure, measure_held
+from torque_estimator.errors import IdentificationError
 
 #: the residual analysis' settings for identification (module docstring: what differs and why)
 IDENTIFY_SETTINGS = an.Settings(min_improvement=0.001, other_signal_tolerance=0.05, at_floor=0.0, max_effects=10,
@@ -94,10 +95,6 @@ ONE_LOAD_MARGIN = 0.5
 OUTPUT_INERTIA = "gearbox.gear_inertia"
 #: the inertias: never fitted from held speeds
 INERTIAS = frozenset({"drive_motor.rotor_inertia", "gearbox.worm_inertia", "gearbox.gear_inertia"})
-
-
-class IdentificationError(ValueError):
-    """The record cannot be fitted (too short, too slow, nothing identifiable); the message says what to change."""
 
 
 def default_refit(rig_file: str | Path | None, free: Sequence[str] | None = None) -> tuple[list[str], str]:
@@ -375,4 +372,4 @@ def _worst(fit_: Fit, declared: Rig, free: Sequence[str], bound_only: bool = Fal
 
 
 __all__ = ["IDENTIFY_SETTINGS", "ONE_LOAD_MARGIN", "QUASI_STATIC_ACCELERATION", "Identification",
-           "IdentificationError", "default_refit", "identify", "record_facts"]
+           "default_refit", "identify", "record_facts"]

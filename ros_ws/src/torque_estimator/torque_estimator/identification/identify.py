@@ -38,23 +38,24 @@ import sys
 import time
 from pathlib import Path
 
-from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.errors import InputError, ParameterError, RigDataError
 from worm_model.cli.options import Parser, output_path
 from worm_model.cli.progress import Progress, ProgressBar
 from worm_model.files.reading import load_yaml
 from worm_model.files.writing import Output, atomic_file, check_output
-from worm_model.physics.parameters import ParameterError, load_rig
+from worm_model.physics.parameters import load_rig
 from worm_model.residuals.free import FREE_PARAMETERS
 from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import RigDataError, is_rig_csv, write_rig_csv
+from worm_model.rig_data.schema import is_rig_csv, write_rig_csv
 
-from torque_estimator.calibration.live import LiveRigError
+from torque_estimator.errors import IdentificationError, JournalError, LiveRigError
 from torque_estimator.identification.excitation import (DEFAULT_DURATION, MAX_DURATION, default_excitation,
                                                         total_duration)
-from torque_estimator.identification.fit import IdentificationError, identify
+from torque_estimator.identification.fit import identify
 from torque_estimator.identification.writing import write_identified
-from torque_estimator.identification.recording import ExcitationRun, Journal, JournalError, journal_paths, run_settings
+from torque_estimator.identification.recording import ExcitationRun, Journal, journal_paths, run_settings
 
 PROG = "identify"
 EXIT_INTERRUPTED = 130
@@ -152,10 +153,10 @@ def _main(argv: list[str] | None) -> int:
     if args.source is not None:
         try:
             data = read_rig_data(args.source, rig=rig, epos=epos_settings(args, rig))
-        except InputError as err:
-            return _fail(err.where, err.what)
         except RigDataError as err:
             return _fail("--from", str(err))
+        except InputError as err:  # an option of the EPOS reader
+            return _fail(err.where, err.what)
         for note in data.notes:
             print(f"identify: note: {note}")
         source = str(args.source)

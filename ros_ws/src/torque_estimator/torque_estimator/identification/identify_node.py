@@ -10,43 +10,27 @@ set-point.  Timeline, samples and journal: identification.recording (no ROS ther
 """
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 
-from rclpy.node import Node
-from std_msgs.msg import Float64
-from worm_msgs.msg import LoadCommand, RigSamples, SpeedCommand
+from worm_msgs.msg import RigSamples
 
-from worm_model.ros.qos import COMMAND, STREAM
-
-from torque_estimator.calibration.live import TOPICS, LiveRigError
-from torque_estimator.calibration.rig_session_node import rig_session
+from torque_estimator.calibration.rig_session_node import RigClient, await_setpoint, measure_until, rig_session
 from torque_estimator.identification.recording import ExcitationRun
 
 #: a set-point is published again once it moved by this much (speed [rad/s], load [N m])
 RESEND = (0.05, 2e-4)
 
 
-class IdentifyClient(Node):
+class IdentifyClient(RigClient):
     """Commands the timeline's set-points and feeds the rig's samples to an ExcitationRun."""
 
     def __init__(self, run: ExcitationRun) -> None:
         super().__init__("identify")
         self.run = run
         self.recording = False
-        self.samples = 0
-        self.last_sample = time.monotonic()
-        self.speed_commands = 0
-        self.controller_setpoint: float | None = None
         self.sent: tuple[float, float] | None = None
-        self.speed_pub = self.create_publisher(Float64, TOPICS["speed_setpoint"], COMMAND)
-        self.load_pub = self.create_publisher(LoadCommand, TOPICS["load_command"], COMMAND)
-        self.create_subscription(RigSamples, TOPICS["samples"], self.on_samples, STREAM)
-        self.create_subscription(SpeedCommand, TOPICS["speed_command"], self.on_speed_command, STREAM)
 
-    def on_samples(self, msg: RigSamples) -> None:
-        self.samples += len(msg.omega_worm)
-        self.last_sample = time.monotonic()
+    def take(self, msg: RigSamples) -> None:
         if not self.recording:
             return
         for k in range(len(msg.omega_worm)):
@@ -58,10 +42,6 @@ class IdentifyClient(Node):
         if target is not None:
             self.command(*target)
 
-    def on_speed_command(self, msg: SpeedCommand) -> None:
-        self.speed_commands += 1
-        self.controller_setpoint = msg.speed_setpoint
-
     def stop_rig(self) -> None:
         self.recording = False
         self.command(0.0, 0.0, force=True)
@@ -72,10 +52,7 @@ class IdentifyClient(Node):
                 and abs(torque - self.sent[1]) < RESEND[1]:
             return
         self.sent = (speed, torque)
-        load = LoadCommand(torque=float(torque))
-        load.header.stamp = self.get_clock().now().to_msg()
-        self.load_pub.publish(load)
-        self.speed_pub.publish(Float64(data=float(speed)))
+        self.publish_setpoints(speed, torque)
 
 
 def run_live(run: ExcitationRun, *, start_timeout: float = 30.0, ack_timeout: float = 5.0,
@@ -93,15 +70,9 @@ def run_live(run: ExcitationRun, *, start_timeout: float = 30.0, ack_timeout: fl
         first = run.setpoints()
         if first is not None:
             node.command(*first, force=True)
-            if not spin_until(lambda: node.controller_setpoint == first[0], ack_timeout):
-                raise LiveRigError(f"controller_node did not take the speed set-point {first[0]:g} rad/s within "
-                                   f"{ack_timeout:g} s (its speed commands say {node.controller_setpoint!r})")
+            await_setpoint(node, spin_until, first[0], ack_timeout)
             node.recording = True
-            node.last_sample = time.monotonic()
-            spin_until(lambda: run.finished or time.monotonic() - node.last_sample > stall_timeout, float("inf"))
-            if not run.finished:
-                raise LiveRigError(f"no samples on {TOPICS['samples']} for {stall_timeout:g} s "
-                                   f"(segment {run.segment} of {len(run.timeline)})")
-
+            measure_until(node, spin_until, lambda: run.finished, stall_timeout,
+                          f"segment {run.segment} of {len(run.timeline)}")
 
 __all__ = ["IdentifyClient", "run_live"]

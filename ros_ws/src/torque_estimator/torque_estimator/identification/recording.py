@@ -29,8 +29,10 @@ from typing import Any, Final
 
 import numpy as np
 
-from worm_model.rig_data.schema import MeasuredData, RigDataError, read_rig_csv
-from torque_estimator.estimation.database import CalibrationError, write_text_atomically
+from worm_model.rig_data.schema import MeasuredData, read_rig_csv
+from worm_model.errors import RigDataError
+from torque_estimator.estimation.database import write_text_atomically
+from torque_estimator.errors import JournalError
 
 FORMAT: Final = "worm_torque_identification_journal"
 VERSION: Final = 1
@@ -41,10 +43,6 @@ COLUMNS: Final[tuple[str, ...]] = ("t", "current_drive", "omega_worm", "theta_wo
 REQUIRED: Final[tuple[str, ...]] = ("current_drive", "omega_worm", "theta_worm", "tau_load")
 #: gap [s] in the time axis where a resumed run continues
 RESUME_GAP: Final = 1.0
-
-
-class JournalError(CalibrationError):
-    """An identification journal cannot be used (unreadable, other settings, exists without --resume)."""
 
 
 def journal_paths(out: str | os.PathLike[str]) -> tuple[Path, Path]:
@@ -227,5 +225,5 @@ def run_settings(timeline, rig_values: dict, source: str, **extra: Any) -> dict:
     return {"timeline": [s.to_dict() for s in timeline], "rig": rig_values, "source": source, **extra}
 
 
-__all__ = ["COLUMNS", "ExcitationRun", "FORMAT", "Journal", "JournalError", "RESUME_GAP", "VERSION",
+__all__ = ["COLUMNS", "ExcitationRun", "FORMAT", "Journal", "RESUME_GAP", "VERSION",
            "journal_paths", "run_settings"]

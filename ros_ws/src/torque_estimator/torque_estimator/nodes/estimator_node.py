@@ -75,11 +75,11 @@ from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
 from worm_model.ros.qos import STREAM
-from worm_model.physics.parameters import ParameterError
+from worm_model.errors import ParameterError
 from worm_rig_driver.nodes.estimate_topics import EstimateTopics
 
 from torque_estimator.estimation.base import EstimateFlags
-from torque_estimator.estimation.database import CalibrationError
+from torque_estimator.errors import CalibrationError
 from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.estimation.registry import METHODS, Option
 from torque_estimator.estimation.settings import ALL_OPTIONS, SETTINGS_OPTIONS, EstimatorSettings, build_estimator

@@ -50,25 +50,26 @@ from pathlib import Path
 
 import numpy as np
 
-from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.errors import InputError, ParameterError, RigDataError
 from worm_model.cli.options import Parser, input_problem, number, output_path
 from worm_model.files.writing import Output, atomic_file, check_output
-from worm_model.physics.parameters import ParameterError, Rig
+from worm_model.physics.parameters import Rig
 from worm_model.physics.resolution import current_sigma, speed_sigma, standstill_speed
 from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import MeasuredData, RigDataError, csv_header
+from worm_model.rig_data.schema import MeasuredData, csv_header
 from worm_rig_driver.robot.standard_outputs import UNTRUSTED
 
 from torque_estimator.calibration.operating_points import SteadyStateCriterion
-from torque_estimator.estimation.database import CalibrationError
+from torque_estimator.errors import CalibrationError, ReplayError
 from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.estimation.registry import ESTIMATORS, METHODS
 from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.identification.steady import SteadyPoints, steady_points
 from torque_estimator.offline.moves import score_moves
-from torque_estimator.offline.replay import ReplayError, node_parameters
+from torque_estimator.offline.replay import node_parameters
 from worm_model.cli.progress import ProgressBar
 
 PROG = "estimate"
@@ -332,10 +333,10 @@ def _main(argv: list[str] | None) -> int:
         return fail(where, str(err).removeprefix("load_min / load_max: "))
     try:  # its units checked against the rig
         data = read_rig_data(args.log, rig=built.rig, epos=epos_settings(args, built.rig))
-    except InputError as err:
-        return fail(err.where, err.what)
     except RigDataError as err:
         return fail("log", str(err))
+    except InputError as err:  # an option of the EPOS reader
+        return fail(err.where, err.what)
     for note in data.notes:
         print(f"{PROG}: note: {note}")
     if METHODS[args.method].reads_voltage and (data.voltage_drive is None or not np.isfinite(data.voltage_drive).any()):

@@ -64,23 +64,22 @@ import yaml
 
 from worm_model.live.live_model import FIELDS as FORCE_FIELDS
 from worm_model.live.live_model import LiveModel
-from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.errors import BagRecordingError, InputError, ParameterError, RigDataError
 from worm_model.cli.options import Parser, existing_file, existing_bag, nearest, number
 from worm_model.files.reading import load_parameter_file
 from worm_model.physics.envelope import Envelope
-from worm_model.physics.parameters import ParameterError, load_rig
-from worm_model.rig_data.schema import RigDataError
+from worm_model.physics.parameters import load_rig
 from worm_model.bags.reader import BagReader
-from worm_model.bags.typestore import BagRecordingError
 from worm_model.rig_data.bags import find_sample_topic
 from worm_model.rig_data.plausibility import sample_rate_problem
 from worm_model.rig_data.reader import is_bag
 from worm_model.rig_data.samples import samples_of
 
-from torque_estimator.estimation.database import CalibrationError
+from torque_estimator.errors import CalibrationError, GraphError, ReplayError
 from torque_estimator.estimation.registry import ESTIMATORS
 from torque_estimator.estimation.settings import ALL_OPTIONS, EstimatorSettings, build_estimator
-from torque_estimator.graph.runner import GraphError, default_graph_file, parse_overrides
+from torque_estimator.graph.runner import default_graph_file, parse_overrides
 from worm_model.cli.progress import ProgressBar
 
 #: The nodes' parameter defaults (model_node.py; estimator_node.py: every method's options, from
@@ -102,10 +101,6 @@ ESTIMATE_TOPIC = "/torque_estimate"
 FORCES_TOPIC = "/gearbox/forces"
 ESTIMATE_FIELDS = ("torque", "uncertainty", "flags", "omega_worm", "current_drive")
 #: FORCE_FIELDS (imported above): the GearboxForces fields LiveModel returns and model_node publishes
-
-
-class ReplayError(RuntimeError):
-    """A bad bag, parameter file or calibration; the message names it."""
 
 
 # --- configuration ---------------------------------------------------------------------------------
@@ -431,7 +426,7 @@ def _print_comparison(c: Comparison, label: str) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    return run_tool("replay", lambda: _main(argv), (ReplayError, BagRecordingError, RigDataError, ParameterError))
+    return run_tool("replay", lambda: _main(argv))
 
 
 def _main(argv: Sequence[str] | None) -> int:

@@ -19,7 +19,8 @@ from rosbags.rosbag2 import Reader as RosbagsReader
 from sensor_msgs.msg import JointState
 from worm_msgs.msg import RigSample
 from worm_model.bags.reader import BagReader, storage_files
-from worm_model.bags.typestore import BagReadError, MessageTypes
+from worm_model.bags.typestore import MessageTypes
+from worm_model.errors import BagReadError
 from fixtures.rosbag2_layouts import (
     LAYOUTS,
     FixtureTopic,

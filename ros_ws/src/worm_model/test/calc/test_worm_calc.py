@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 from ament_index_python.packages import get_package_prefix
 
-from worm_model.calc.calculator import CalculatorError, efficiencies, forces, make_gearbox
+from worm_model.calc.calculator import efficiencies, forces, make_gearbox
+from worm_model.errors import CalculatorError
 from worm_model.physics.efficiency import backward_efficiency, forward_efficiency
 from worm_model.physics.friction import sliding_velocity
 from worm_model.physics.internal_forces import internal_forces

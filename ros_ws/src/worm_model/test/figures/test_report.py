@@ -18,7 +18,8 @@ from worm_model.physics.dynamics import reflected_input_torque
 from worm_model.physics.friction import friction_coefficient
 from worm_model.physics.gear_side import gear_side_drag, gear_side_load
 from worm_model.physics.modes import Mode
-from worm_model.figures.paper_figures import ReportError, compute, read_calibration, rig_for, trends
+from worm_model.figures.paper_figures import compute, read_calibration, rig_for, trends
+from worm_model.errors import ReportError
 from worm_model.physics.parameters import Rig, load_rig, rig_to_dict
 from worm_model.files.writing import MARKER
 from worm_model.figures.report import FIGURES

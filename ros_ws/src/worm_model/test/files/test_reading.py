@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError
 from worm_model.cli.options import existing_file, existing_input
 from worm_model.files.reading import (MAX_YAML_DEPTH, MAX_YAML_NODES, check_input, inputs_read, load_json,
                                       load_parameter_file, load_yaml, parse_json, parse_yaml, read_text)

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from worm_model.files.reading import read_text
-from worm_model.files.writing import (MARKER, Output, OutputError, atomic_dir, atomic_file, check_output,
-                                      write_text_atomically)
+from worm_model.files.writing import MARKER, Output, atomic_dir, atomic_file, check_output, write_text_atomically
+from worm_model.errors import OutputError
 
 TOOL = Output("mytool", recognise=lambda path: path.read_text().startswith("mytool"), names=("*.png",))
 

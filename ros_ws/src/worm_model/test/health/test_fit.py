@@ -11,7 +11,8 @@ import pytest
 from fixtures.health_runs import check_segments, steady_run
 
 from worm_model.health.blocks import blocks_from_data
-from worm_model.health.fit import FitError, fit_points
+from worm_model.health.fit import fit_points
+from worm_model.errors import FitError
 from worm_model.health.model import NAMES, HealthParameters
 from worm_model.health.points import Points, steady_points
 from worm_model.physics.parameters import load_rig

@@ -12,7 +12,8 @@ from worm_model.health.blocks import blocks_from_data
 from worm_model.health.fit import Temperature, fit_points
 from worm_model.health.model import HealthParameters
 from worm_model.health.points import steady_points
-from worm_model.health.record import CheckRecord, Trend, TrendError, read_trend, write_trend
+from worm_model.health.record import CheckRecord, Trend, read_trend, write_trend
+from worm_model.errors import TrendError
 from worm_model.physics.parameters import load_rig
 
 RIG = load_rig()

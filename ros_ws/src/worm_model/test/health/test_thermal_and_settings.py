@@ -6,7 +6,8 @@ import math
 
 import pytest
 
-from worm_model.health.settings import SettingsError, Thermal, load_settings
+from worm_model.health.settings import Thermal, load_settings
+from worm_model.errors import SettingsError
 from worm_model.health.thermal import ThermalEstimate
 
 

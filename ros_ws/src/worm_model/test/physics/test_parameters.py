@@ -12,15 +12,8 @@ from typing import Any
 import pytest
 import yaml
 
-from worm_model.physics.parameters import (
-    ADC_SEQUENCE,
-    ParameterError,
-    Sensors,
-    default_rig_path,
-    load_rig,
-    rig_from_dict,
-    rig_to_dict,
-)
+from worm_model.physics.parameters import ADC_SEQUENCE, Sensors, default_rig_path, load_rig, rig_from_dict, rig_to_dict
+from worm_model.errors import ParameterError
 
 
 def test_bundled_file_loads() -> None:

@@ -18,7 +18,8 @@ import yaml
 from worm_model.physics.dynamics import reflected_input_torque, worm_acceleration
 from worm_model.physics.friction import FRICTION_MODELS, friction_coefficient
 from worm_model.physics.gear_side import gear_side_load
-from worm_model.physics.parameters import ParameterError, default_rig_path, load_rig
+from worm_model.physics.parameters import default_rig_path, load_rig
+from worm_model.errors import ParameterError, RigDataError
 import worm_model.residuals.analysis as an
 import worm_model.residuals.cli as cli
 from worm_model.residuals.data import load_data
@@ -30,7 +31,7 @@ from worm_model.residuals.free import (READ_BY_MODEL, LOWER_BOUNDS, MU_PARAMETER
                                        typical_coulomb_drag)
 from worm_model.residuals.report import correction_line, corrections
 from worm_model.residuals.model import Signals, evaluate, prepare_signals, ripple_response
-from worm_model.rig_data.schema import MeasuredData, RigDataError, read_rig_csv, split_runs, write_rig_csv
+from worm_model.rig_data.schema import MeasuredData, read_rig_csv, split_runs, write_rig_csv
 
 RIG = load_rig()
 

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 import worm_model
-from worm_model.rig_data.epos import (DirtyRowsError, EposSettings, epos_files, hanging_load, is_epos_export,
-                                      read_epos, read_epos_folder, steady_point, to_measured)
+from worm_model.rig_data.epos import (EposSettings, epos_files, hanging_load, is_epos_export, read_epos,
+    read_epos_folder, steady_point, to_measured)
+from worm_model.errors import DirtyRowsError, RigDataError
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import RigDataError
 from worm_model.physics.parameters import load_rig
 
 DRIVE = Path(worm_model.__file__).resolve().parent / "data" / "tro2021" / "driveNo3"
@@ -197,7 +197,7 @@ def test_bad_files_are_one_line_naming_the_file(tmp_path: Path, content, words: 
 def test_the_load_options_of_the_tools() -> None:
     import argparse
 
-    from worm_model.cli.errors import InputError
+    from worm_model.errors import InputError
     from worm_model.rig_data.epos_options import add_epos_arguments, epos_settings
 
     parser = argparse.ArgumentParser()

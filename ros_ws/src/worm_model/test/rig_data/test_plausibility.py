@@ -11,7 +11,8 @@ import pytest
 from worm_model.physics.parameters import load_rig
 from worm_model.rig_data.plausibility import calibration_problem, check_rig_data
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import MeasuredData, RigDataError, write_rig_csv
+from worm_model.rig_data.schema import MeasuredData, write_rig_csv
+from worm_model.errors import RigDataError
 
 RIG = load_rig()
 

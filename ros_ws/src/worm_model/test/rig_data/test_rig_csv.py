@@ -10,7 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from worm_model.rig_data.schema import MeasuredData, RigDataError, read_rig_csv
+from worm_model.rig_data.schema import MeasuredData, read_rig_csv
+from worm_model.errors import RigDataError
 from worm_model.rig_data.bags import bag_to_csv, bag_to_measured, csv_to_bag, measured_to_bag
 
 

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from worm_model.rig_data.schema import MeasuredData, RigDataError, read_rig_csv, split_runs, write_rig_csv
+from worm_model.rig_data.schema import MeasuredData, read_rig_csv, split_runs, write_rig_csv
+from worm_model.errors import RigDataError
 
 HEADER = "t,current_drive,omega_worm,theta_worm,tau_load\n"
 

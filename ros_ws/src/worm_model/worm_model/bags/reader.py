@@ -50,7 +50,7 @@ order ``metadata.yaml`` lists them (rosbag2's sequential reader does the
 same). Timestamps are receive times, integer ns.
 
 Raises:
-    :class:`~worm_model.bags.typestore.BagReadError` for every failure, its
+    :class:`~worm_model.errors.BagReadError` for every failure, its
     message naming the file and, for a bad ``metadata.yaml``, the key.
 """
 
@@ -84,16 +84,9 @@ from rosbags.typesys.store import Typestore
 from ruamel.yaml import YAML
 from ruamel.yaml.error import YAMLError
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import BagReadError, BagRecordingError, InputError
 from worm_model.files.reading import MAX_YAML_BYTES, check_input, check_yaml, read_text
-from worm_model.bags.typestore import (
-    BagReadError,
-    BagRecordingError,
-    ClosesOnExit,
-    MessageTypes,
-    deserialize_cdr,
-    referenced_types,
-)
+from worm_model.bags.typestore import ClosesOnExit, MessageTypes, deserialize_cdr, referenced_types
 
 __all__ = [
     'BagMessage',

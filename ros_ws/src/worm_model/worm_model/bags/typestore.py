@@ -37,6 +37,7 @@ from rosbags.typesys import (
 from rosbags.typesys.store import Typestore
 
 from worm_model.ros.ament import ament_prefixes
+from worm_model.errors import BagClosedError, BagReadError, BagRecordingError, TypeDefinitionNotFoundError
 
 __all__ = [
     'STOCK_STORE',
@@ -65,22 +66,6 @@ INTERFACE_LOADERS: Final[Mapping[str, Callable[[str, str], Typesdict]]] = {
     '.idl': lambda text, _type_name: get_types_from_idl(text),
 }
 """Interface file suffix -> parser, in order of preference."""
-
-
-class BagRecordingError(Exception):
-    """A bag could not be written or read; the message names path/topic/type."""
-
-
-class TypeDefinitionNotFoundError(BagRecordingError):
-    """No definition of a message type in the stock store or the ament prefixes."""
-
-
-class BagClosedError(BagRecordingError):
-    """A write reached a bag that is already closed."""
-
-
-class BagReadError(BagRecordingError):
-    """A bag could not be opened or decoded."""
 
 
 class ClosesOnExit:

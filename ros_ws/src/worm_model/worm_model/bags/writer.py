@@ -35,18 +35,9 @@ from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, W
 from rosbags.typesys import TypesysError
 
 from worm_model.bags.reader import BagReader
-from worm_model.bags.typestore import (
-    STOCK_STORE,
-    BagClosedError,
-    BagReadError,
-    BagRecordingError,
-    ClosesOnExit,
-    MessageTypes,
-    TypeDefinitionNotFoundError,
-    ament_prefixes,
-    deserialize_cdr,
-    normalize_type_name,
-)
+from worm_model.bags.typestore import (STOCK_STORE, ClosesOnExit, MessageTypes, ament_prefixes, deserialize_cdr,
+    normalize_type_name)
+from worm_model.errors import BagClosedError, BagReadError, BagRecordingError, TypeDefinitionNotFoundError
 
 __all__ = [
     'COMPRESSIONS',

@@ -28,10 +28,7 @@ from worm_model.physics.friction import sliding_velocity
 from worm_model.physics.internal_forces import internal_forces, mesh_force_components
 from worm_model.physics.modes import Flank, Mode
 from worm_model.physics.parameters import Gearbox
-
-
-class CalculatorError(ValueError):
-    """An input of the calculator is out of range; the message names the input."""
+from worm_model.errors import CalculatorError
 
 
 #: JSON names of the modes and flanks

@@ -44,11 +44,12 @@ from typing import Any
 
 import yaml
 
-from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.errors import InputError
 from worm_model.cli.options import Parser, existing_file, integer, number
 from worm_model.files.reading import load_yaml
 from worm_model.files.writing import Output, check_output, write_text_atomically
-from worm_model.physics.parameters import ParameterError, load_rig
+from worm_model.physics.parameters import load_rig
 
 PROG = "rig_from_datasheet"
 def _is_ours(path: Path) -> bool:
@@ -294,7 +295,7 @@ def build_parser() -> Parser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool(PROG, lambda: _main(argv), (ParameterError,))
+    return run_tool(PROG, lambda: _main(argv))
 
 
 def _main(argv: list[str] | None) -> int:

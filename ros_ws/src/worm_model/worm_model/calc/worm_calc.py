@@ -13,10 +13,11 @@ import math
 import sys
 from typing import Any
 
-from worm_model.calc.calculator import CalculatorError, efficiencies, forces, make_gearbox, to_json_ready
+from worm_model.calc.calculator import efficiencies, forces, make_gearbox, to_json_ready
+from worm_model.errors import CalculatorError, ParameterError
 from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser, existing_file, number
-from worm_model.physics.parameters import ParameterError, load_rig
+from worm_model.physics.parameters import load_rig
 
 #: what the calculator takes: bounds far beyond any worm gear set (the largest make ~1e5 N m), so that a
 #: typo or an overflow is refused instead of computed
@@ -129,7 +130,7 @@ def render_text(result: dict[str, Any]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool("worm_calc", lambda: _main(argv), (CalculatorError, ParameterError))
+    return run_tool("worm_calc", lambda: _main(argv))
 
 
 def _main(argv: list[str] | None) -> int:

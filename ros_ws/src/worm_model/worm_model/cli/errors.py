@@ -1,12 +1,11 @@
-"""Bad input, said once: the error every tool and loader raises for it, and how a tool's main ends.
+"""How a tool's main ends: bad input as one line and exit 2, Ctrl-C as 130, a bug as a saved traceback.
 
 Every command-line tool of the project refuses bad input the same way: one line on stderr,
 ``tool: where: what is wrong``, and exit code 2 (:data:`EXIT_BAD_INPUT`); no traceback reaches the
-user. :class:`InputError` carries ``where`` (an option, a file, ``file: line 7, column 'x'``) and
-``what``; the loaders' own errors (ParameterError, CalibrationError, RigDataError, ...) are ValueErrors
-with the same ``where: what`` message and count as bad input too. :func:`run_tool` wraps a tool's
-main: bad input -> the one line and exit 2, Ctrl-C -> 130, anything else -> one line saying it is a
-bug, the traceback saved to a file.
+user. Bad input is a :class:`worm_model.errors.InputError` (the loaders' own errors, ParameterError,
+RigDataError, torque_estimator's CalibrationError, ..., subclass it: each package's ``errors`` module
+holds them all). :func:`run_tool` wraps a tool's main: an InputError -> the one line and exit 2,
+Ctrl-C -> 130, anything else -> one line saying it is a bug, the traceback saved to a file.
 """
 from __future__ import annotations
 
@@ -16,20 +15,13 @@ import sys
 import threading
 import tempfile
 import traceback
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import Final
+
+from worm_model.errors import InputError
 
 EXIT_BAD_INPUT: Final = 2
 EXIT_INTERRUPTED: Final = 130
-
-
-class InputError(ValueError):
-    """Bad input: ``where`` it is (option, file, line, column) and ``what`` is wrong with it."""
-
-    def __init__(self, where: str, what: str) -> None:
-        self.where = str(where)
-        self.what = what
-        super().__init__(f"{self.where}: {what}" if self.where else what)
 
 
 def one_line(err: BaseException) -> str:
@@ -61,10 +53,10 @@ def restore_ctrl_c() -> None:
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
-def run_tool(tool: str, main: Callable[[], int], bad_input: Sequence[type[BaseException]] = ()) -> int:
+def run_tool(tool: str, main: Callable[[], int]) -> int:
     """Run a tool's ``main`` and turn what escapes it into an exit code and one stderr line.
 
-    InputError and the loaders' errors the tool names in ``bad_input`` -> exit 2;
+    InputError (every package's bad-input errors subclass it) -> exit 2;
     KeyboardInterrupt (Ctrl-C, and SIGTERM, which is made to raise it so that temporary outputs are
     removed alike) -> 130; OSError (disk full, ...) -> exit 1; any other exception is a bug: one line
     saying so, the traceback written to a file named in that line, exit 1.
@@ -72,7 +64,7 @@ def run_tool(tool: str, main: Callable[[], int], bad_input: Sequence[type[BaseEx
     _terminate_as_interrupt()
     try:
         return main()
-    except (InputError, *bad_input) as err:
+    except InputError as err:
         print(f"{tool}: {one_line(err)}", file=sys.stderr)
         return EXIT_BAD_INPUT
     except KeyboardInterrupt:

@@ -15,7 +15,8 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
-from worm_model.cli.errors import EXIT_BAD_INPUT, InputError
+from worm_model.cli.errors import EXIT_BAD_INPUT
+from worm_model.errors import InputError
 
 
 def _bound(low: float | None, high: float | None, open_low: bool, open_high: bool, unit: str) -> str:

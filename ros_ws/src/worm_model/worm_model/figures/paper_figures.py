@@ -35,13 +35,13 @@ from typing import Any
 
 import numpy as np
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError, ParameterError, ReportError
 from worm_model.files.reading import load_json
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.physics.internal_forces import internal_forces
 from worm_model.physics.modes import Mode, classify_mode
 from worm_model.physics.motor import electromagnetic_torque, shaft_torque
-from worm_model.physics.parameters import ParameterError, Rig, load_rig, rig_from_dict
+from worm_model.physics.parameters import Rig, load_rig, rig_from_dict
 from worm_model.rig_data.plausibility import calibration_problem
 
 FORMAT = "worm_torque_calibration"
@@ -49,10 +49,6 @@ VERSION = 1
 DRAG_MODELS = ("none", "declared")
 #: point columns read from the file
 COLUMNS = ("omega_worm", "current_drive", "tau_load")
-
-
-class ReportError(ValueError):
-    """The calibration file or the options are unusable; the message names the file and field."""
 
 
 @dataclass(frozen=True)

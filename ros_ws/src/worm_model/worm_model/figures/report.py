@@ -22,8 +22,7 @@ from matplotlib.colors import Normalize  # noqa: E402
 from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser, existing_file, output_path
 from worm_model.files.writing import Output, atomic_dir, check_output
-from worm_model.figures.paper_figures import (  # noqa: E402
-    DRAG_MODELS, PaperFigures, ReportError, compute, read_calibration, rig_for, trends)
+from worm_model.figures.paper_figures import DRAG_MODELS, PaperFigures, compute, read_calibration, rig_for, trends
 
 #: what report writes into --out; --force replaces only a folder it wrote (worm_model.files.writing)
 OUTPUT = Output("report", names=("fig*.png",))
@@ -162,7 +161,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool("report", lambda: _main(argv), (ReportError,))
+    return run_tool("report", lambda: _main(argv))
 
 
 def _main(argv: list[str] | None) -> int:

@@ -32,7 +32,7 @@ from typing import Any, Final
 
 import yaml
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError
 from worm_model.cli.options import article, input_problem
 
 #: largest file the text readers accept [bytes]: a calibration database is far smaller

@@ -31,17 +31,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Final
 
-from worm_model.cli.errors import InputError
 from worm_model.files.reading import inputs_read, not_an_input
+from worm_model.errors import OutputError
 
 #: the file every output folder holds, naming the tool that wrote it (what lets --force replace it)
 MARKER: Final = ".written-by"
 
 PathLike = str | os.PathLike[str]
-
-
-class OutputError(InputError):
-    """An output that may not or cannot be written; ``where`` is the option and the user's path."""
 
 
 def _resolved(path: PathLike) -> Path:

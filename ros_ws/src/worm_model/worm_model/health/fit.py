@@ -41,6 +41,7 @@ from worm_model.health.model import NAMES, HealthParameters, TemperatureLaw, gea
 from worm_model.health.points import Points
 from worm_model.health.settings import Priors
 from worm_model.physics.parameters import Rig
+from worm_model.errors import FitError
 
 #: points whose gear-side mesh load is within this of zero [N m] give no backlash (the flank is uncertain)
 FLANK_MARGIN = 0.02
@@ -50,10 +51,6 @@ IDENTIFIED_SHRINK = 0.5
 RUNOUT = ("runout_sin", "runout_cos", "runout_load_sin", "runout_load_cos")
 #: a gearbox's shape: what a baseline fixes to within settings.Priors' drift_* widths (fit_points' ``shape``)
 SHAPE = ("mu_speed_exponent", "mu_load_slope", "gear_viscous")
-
-
-class FitError(ValueError):
-    """The run cannot be fitted (too few steady points); the message says what is missing."""
 
 
 @dataclass(frozen=True)
@@ -178,5 +175,5 @@ def _backlash(points: Points, rig: Rig, params: HealthParameters) -> tuple[float
     return gap, sigma
 
 
-__all__ = ["FLANK_MARGIN", "FitError", "FitResult", "IDENTIFIED_SHRINK", "RUNOUT", "SHAPE", "Temperature",
+__all__ = ["FLANK_MARGIN", "FitResult", "IDENTIFIED_SHRINK", "RUNOUT", "SHAPE", "Temperature",
            "fit_points"]

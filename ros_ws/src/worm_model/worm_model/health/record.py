@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError, TrendError
 from worm_model.files.reading import read_text
 from worm_model.files.writing import write_text_atomically
 from worm_model.health.fit import FitResult, Temperature
@@ -42,10 +42,6 @@ from worm_model.health.points import Points
 FORMAT_NAME = "worm_gearbox_health_trend"
 FORMAT_VERSION = 1
 LEVELS = ("OK", "WARN", "ERROR")
-
-
-class TrendError(InputError):
-    """A trend file is unreadable or wrong; ``where`` names the file and the line."""
 
 
 def _number(raw, where: str, allow_none: bool = False) -> float:
@@ -227,5 +223,5 @@ def write_trend(path: str | os.PathLike[str], trend: Trend) -> None:
     write_text_atomically(Path(path), trend.to_text())
 
 
-__all__ = ["CheckRecord", "FORMAT_NAME", "FORMAT_VERSION", "LEVELS", "Trend", "TrendError", "read_trend",
+__all__ = ["CheckRecord", "FORMAT_NAME", "FORMAT_VERSION", "LEVELS", "Trend", "read_trend",
            "write_trend"]

@@ -19,16 +19,12 @@ import os
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError, SettingsError
 from worm_model.files.reading import load_yaml
 from worm_model.health.points import PointRules
 
 FORMAT_NAME = "worm_gearbox_health_settings"
 FORMAT_VERSION = 1
-
-
-class SettingsError(InputError):
-    """A settings file is unreadable or wrong: ``where`` names the file and the key."""
 
 
 @dataclass(frozen=True)
@@ -190,4 +186,4 @@ def load_settings(path: str | os.PathLike[str] | None) -> HealthSettings:
 
 
 __all__ = ["FORMAT_NAME", "FORMAT_VERSION", "HealthSettings", "Limits", "Live", "Priors", "SECTIONS",
-           "SettingsError", "TemperaturePrior", "Thermal", "load_settings"]
+           "TemperaturePrior", "Thermal", "load_settings"]

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError, ParameterError
 from worm_model.files.reading import load_yaml
 from worm_model.physics.friction import FRICTION_MODELS
 from worm_model.physics.units import UNITS, normalize_unit, to_si
@@ -55,21 +55,6 @@ RATIO_TOLERANCE = 0.05
 #: Eqs 19-30, see worm_model.residuals.effects and the simulator's effect plug-ins) and
 #: ``identification`` (what torque_estimator's ``identify`` recorded and found: ranges, corrections)
 OPTIONAL_TOP_SECTIONS = frozenset({"free", "effects", "identification"})
-
-
-class ParameterError(ValueError):
-    """A parameter file (or dict) is unreadable or inconsistent.
-
-    Attributes:
-        source: the file (or other origin) that was being read.
-        field: dotted name of the offending field ("" if the whole file).
-    """
-
-    def __init__(self, source: str, field_name: str, problem: str) -> None:
-        self.source = str(source)
-        self.field = field_name
-        where = f"{self.source}: {field_name}" if field_name else self.source
-        super().__init__(f"{where}: {problem}")
 
 
 # ---------------------------------------------------------------------------

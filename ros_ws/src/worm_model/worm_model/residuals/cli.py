@@ -23,11 +23,11 @@ from pathlib import Path
 
 import numpy as np
 
-from worm_model.physics.parameters import ParameterError, default_rig_path, load_rig
+from worm_model.physics.parameters import default_rig_path, load_rig
+from worm_model.errors import ParameterError
 from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser, existing_file, integer, number, output_path
 from worm_model.files.writing import Output, atomic_dir, check_output
-from worm_model.rig_data.schema import RigDataError
 
 from worm_model.residuals.analysis import Problem, Settings, analyse, extended_effects, make_split
 from worm_model.residuals.data import load_data
@@ -120,7 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool("residuals", lambda: _main(argv), (RigDataError, ParameterError))
+    return run_tool("residuals", lambda: _main(argv))
 
 
 def _main(argv: list[str] | None) -> int:

@@ -11,7 +11,8 @@ from typing import Any
 
 from worm_model.rig_data.epos import EposSettings
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import MeasuredData, RigDataError
+from worm_model.rig_data.schema import MeasuredData
+from worm_model.errors import RigDataError
 
 #: the analysis takes derivatives and sample periods: fewer samples is no data set
 MIN_ROWS = 2

@@ -33,7 +33,8 @@ import numpy as np
 import yaml
 from numpy.typing import ArrayLike
 
-from worm_model.physics.parameters import ParameterError, Rig, default_rig_path, load_rig
+from worm_model.physics.parameters import Rig, default_rig_path, load_rig
+from worm_model.errors import ParameterError
 from worm_model.physics.units import UNITS, FloatArray, normalize_unit
 
 from worm_model.residuals.effects import EFFECTS, Effect, channels_of

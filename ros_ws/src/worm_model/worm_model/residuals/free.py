@@ -57,9 +57,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError, ParameterError
 from worm_model.files.reading import load_yaml
-from worm_model.physics.parameters import Motor, ParameterError, Rig, default_rig_path
+from worm_model.physics.parameters import Motor, Rig, default_rig_path
 
 #: the name of the friction model's mu parameter, whichever model (:func:`resolve_parameters`)
 MU = "friction.mu"

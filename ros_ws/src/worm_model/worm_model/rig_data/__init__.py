@@ -19,6 +19,7 @@ reading, writing) are :mod:`worm_model.bags`; the ``bag`` command is
 ``worm_rig_driver.recording.bag_cli``.
 """
 from worm_model.rig_data.reader import read_rig_data
-from worm_model.rig_data.schema import MeasuredData, RigDataError, read_rig_csv, write_rig_csv
+from worm_model.rig_data.schema import MeasuredData, read_rig_csv, write_rig_csv
+from worm_model.errors import RigDataError
 
 __all__ = ["MeasuredData", "RigDataError", "read_rig_csv", "read_rig_data", "write_rig_csv"]

@@ -1,7 +1,7 @@
 """Bags of RigSample to and from rig data (the ``worm_rig_data`` CSV schema of worm_model.rig_data.schema).
 
 The schema, :class:`~worm_model.rig_data.schema.MeasuredData`, the CSV reader and writer and
-:class:`~worm_model.rig_data.schema.RigDataError` are worm_model.rig_data.schema's; this module only
+:class:`~worm_model.errors.RigDataError` are worm_model.rig_data.schema's; this module only
 converts between them and rosbag2 bags.
 
 :func:`bag_to_measured` reads a sample stream (``worm_msgs/msg/RigSamples`` batches or
@@ -24,14 +24,8 @@ from typing import Any, Final
 
 import numpy as np
 
-from worm_model.rig_data.schema import (
-    REQUIRED_COLUMNS,
-    MeasuredData,
-    RigDataError,
-    is_rig_csv,
-    read_rig_csv,
-    write_rig_csv,
-)
+from worm_model.rig_data.schema import REQUIRED_COLUMNS, MeasuredData, is_rig_csv, read_rig_csv, write_rig_csv
+from worm_model.errors import RigDataError
 from worm_model.rig_data.samples import SAMPLE_TOPICS, SAMPLE_TYPES, iter_samples, recorded_name
 from worm_model.bags.reader import BagReader
 from worm_model.files.writing import Output, atomic_dir, atomic_file

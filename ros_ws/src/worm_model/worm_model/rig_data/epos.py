@@ -63,7 +63,8 @@ from typing import Final
 import numpy as np
 
 from worm_model.physics.units import FloatArray
-from worm_model.rig_data.schema import MeasuredData, RigDataError
+from worm_model.rig_data.schema import MeasuredData
+from worm_model.errors import DirtyRowsError, RigDataError
 
 RPM: Final = 2.0 * math.pi / 60.0
 """rad/s per rev/min."""
@@ -119,18 +120,6 @@ class EposHeader:
     recorded_samples: int
     sampling_period: float
     channels: tuple[tuple[str, str], ...]
-
-
-class DirtyRowsError(RigDataError):
-    """Dirty rows refused (not ``skip_bad_rows``): the message names the first as ``file: line N: what`` and
-    counts them. ``rows``: every dirty row of the file (or folder)."""
-
-    def __init__(self, rows: list["DirtyRow"], files: int = 1, of_files: int = 1) -> None:
-        self.rows = rows
-        first = rows[0]
-        where = "this file" if of_files == 1 else f"{files} of the folder's {of_files} files"
-        super().__init__(first.source, f"{first.what} ({len(rows)} dirty row(s) in {where}: refused; "
-                                       "--skip-bad-rows leaves them out and reports them)", first.line)
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError
 from worm_model.cli.options import number
 from worm_model.physics.parameters import Rig
 from worm_model.rig_data.epos import STANDARD_GRAVITY, EposSettings, hanging_load

@@ -29,7 +29,8 @@ from typing import Any, Final
 import numpy as np
 
 from worm_model.physics.envelope import MARGIN, Envelope
-from worm_model.rig_data.schema import MeasuredData, RigDataError
+from worm_model.rig_data.schema import MeasuredData
+from worm_model.errors import RigDataError
 
 #: a log whose median step of t is up to this many rig sample periods is a decimated log, not a unit slip
 MAX_DECIMATION: Final = 100.0

@@ -14,15 +14,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from worm_model.bags.typestore import BagRecordingError
-from worm_model.cli.errors import InputError
+from worm_model.errors import BagRecordingError, InputError, RigDataError
 from worm_model.files.reading import check_input
 from worm_model.physics.parameters import load_rig
 from worm_model.physics.envelope import Envelope
 from worm_model.rig_data.plausibility import check_rig_data, envelope_problem
 from worm_model.rig_data.bags import bag_to_measured
 from worm_model.rig_data.epos import EposSettings, is_epos_export, is_epos_folder, read_epos_data
-from worm_model.rig_data.schema import MeasuredData, RigDataError, read_rig_csv
+from worm_model.rig_data.schema import MeasuredData, read_rig_csv
 
 #: file suffixes read as a bag (besides a directory)
 BAG_SUFFIXES = (".mcap", ".db3")

@@ -50,7 +50,7 @@ from typing import Final
 
 import numpy as np
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError, RigDataError
 from worm_model.files.reading import check_input
 from worm_model.physics.units import FloatArray
 
@@ -71,25 +71,6 @@ OPTIONAL_COLUMNS: Final[dict[str, str]] = {
 """Optional column -> unit, in the order written."""
 RUN_GAP_PERIODS: Final[float] = 5.0
 """A time step longer than this many median sample periods starts a new run."""
-
-
-class RigDataError(ValueError):
-    """Unreadable or inconsistent rig data; the message names the file, line (1 = header) and column.
-
-    Attributes:
-        source: the file (or other origin, e.g. ``bag:/rig/sample``).
-        line: 1-based line of the file (1 = header), 0 if not about one line.
-        column: the offending column ("" if not about one column).
-    """
-
-    def __init__(self, source: str, problem: str, line: int = 0, column: str = "") -> None:
-        self.source = str(source)
-        self.line = line
-        self.column = column
-        where = [f"line {line}"] if line else []
-        where += [f"column {column!r}"] if column else []
-        prefix = f"{self.source}: {', '.join(where)}" if where else self.source
-        super().__init__(f"{prefix}: {problem}")
 
 
 @dataclass

@@ -29,7 +29,8 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from worm_model.cli.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, InputError, one_line
+from worm_model.cli.errors import EXIT_BAD_INPUT, EXIT_INTERRUPTED, one_line
+from worm_model.errors import InputError
 from worm_model.files.reading import load_parameter_file, ros_arguments
 from worm_model.ros.parameters import (check_undeclared, help_text, undeclared_problem, wants_help,
                                       wildcard_names)

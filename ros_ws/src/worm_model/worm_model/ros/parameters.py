@@ -24,7 +24,7 @@ from rclpy.exceptions import InvalidTopicNameException
 from rclpy.parameter import Parameter
 from rclpy.validate_full_topic_name import validate_full_topic_name
 
-from worm_model.cli.errors import InputError
+from worm_model.errors import InputError
 from worm_model.cli.options import article, nearest
 from worm_model.files.reading import load_parameter_file, parameter_kind, parse_yaml, ros_arguments
 

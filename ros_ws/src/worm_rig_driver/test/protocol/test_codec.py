@@ -6,8 +6,9 @@ import random
 import pytest
 
 import worm_rig_driver.protocol.table as table
-from worm_rig_driver.protocol.codec import (
-    CobsError, CodecError, StreamDecoder, cobs_decode, cobs_encode, crc16, encode_frame, encode_raw, pack_frame)
+from worm_rig_driver.protocol.codec import (StreamDecoder, cobs_decode, cobs_encode, crc16, encode_frame, encode_raw,
+    pack_frame)
+from worm_rig_driver.errors import CobsError, CodecError
 from worm_rig_driver.protocol.stream_fuzz import frame_pool, mutated_stream, random_frame, random_stream
 
 

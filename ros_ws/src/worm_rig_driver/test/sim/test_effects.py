@@ -19,17 +19,9 @@ from worm_model.physics.dynamics import reflected_input_torque
 from worm_model.physics.friction import friction_coefficient, sliding_velocity
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.physics.parameters import default_rig_path, load_rig
-from worm_rig_driver.sim.effects import (
-    EFFECTS,
-    UNITS,
-    EffectsConfig,
-    EffectsError,
-    Parameter,
-    SenseContext,
-    load_effects,
-    main,
-    template,
-)
+from worm_rig_driver.sim.effects import (EFFECTS, UNITS, EffectsConfig, Parameter, SenseContext, load_effects, main,
+    template)
+from worm_rig_driver.errors import EffectsError
 from worm_rig_driver.sim.plant import RigPlant
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 

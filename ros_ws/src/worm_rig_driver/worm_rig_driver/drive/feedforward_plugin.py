@@ -19,12 +19,9 @@ from importlib.metadata import entry_points
 from worm_model.physics.parameters import Rig
 
 from worm_rig_driver.drive.rig_loop import RigFeedforward
+from worm_rig_driver.errors import FeedforwardUnavailable
 
 GROUP = "worm_rig_driver.feedforward"
-
-
-class FeedforwardUnavailable(Exception):
-    """No rig feedforward could be built; the message says why, in one line."""
 
 
 def load_rig_feedforward(method: str, calibration_file: str, rig: Rig, sample_period: float) -> RigFeedforward:
@@ -47,4 +44,4 @@ def load_rig_feedforward(method: str, calibration_file: str, rig: Rig, sample_pe
     raise FeedforwardUnavailable("; ".join(reasons))
 
 
-__all__ = ["GROUP", "FeedforwardUnavailable", "load_rig_feedforward"]
+__all__ = ["GROUP", "load_rig_feedforward"]

@@ -33,6 +33,7 @@ import worm_rig_driver.protocol.table as table
 from worm_rig_driver.protocol.scaling import RigScaling, adc_code_to_simavr_mv
 from worm_rig_driver.sim.sensors import Measurement
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
+from worm_rig_driver.errors import FilError
 
 
 
@@ -46,10 +47,6 @@ class FilOutputs(ctypes.Structure):
                 ("host_bytes", ctypes.c_uint64), ("avr_bytes", ctypes.c_uint64), ("dropped", ctypes.c_uint64),
                 ("state", ctypes.c_int32), ("cut", ctypes.c_int32), ("cut_last_byte_cycle", ctypes.c_uint64),
                 ("stop_cycle", ctypes.c_uint64)]
-
-
-class FilError(RuntimeError):
-    """The harness could not start, or the simulated AVR stopped."""
 
 
 class FilHarness:

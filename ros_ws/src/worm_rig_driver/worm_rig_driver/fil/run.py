@@ -36,7 +36,8 @@ from pathlib import Path
 
 from worm_model.physics.parameters import load_rig
 
-from worm_rig_driver.fil.harness import FilError, FilHarness, FilPlant, FirmwareInTheLoop
+from worm_rig_driver.fil.harness import FilHarness, FilPlant, FirmwareInTheLoop
+from worm_rig_driver.errors import FilError
 
 STATS_MARK = "link statistics at exit: "
 

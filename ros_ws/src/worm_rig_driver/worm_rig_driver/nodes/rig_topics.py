@@ -51,7 +51,8 @@ from worm_model.ros.commands import subscribe_command
 from worm_model.ros.parameters import declare
 from worm_model.ros.qos import STREAM
 
-from worm_rig_driver.drive.feedforward_plugin import FeedforwardUnavailable, load_rig_feedforward
+from worm_rig_driver.drive.feedforward_plugin import load_rig_feedforward
+from worm_rig_driver.errors import FeedforwardUnavailable
 from worm_rig_driver.drive.rig_loop import RigFeedforward
 from worm_rig_driver.drive.rig_loop import SpeedCommand as LoopCommand
 from worm_rig_driver.nodes.estimate_topics import EstimateTopics

@@ -28,18 +28,11 @@ from dataclasses import dataclass, fields
 from typing import Any, NamedTuple
 
 import worm_rig_driver.protocol.table as table
+from worm_rig_driver.errors import CobsError, CodecError
 
 _HEADER = struct.Struct("<BH")
 _CRC = struct.Struct(">H")
 _MIN_FRAME = table.HEADER_LEN + table.CRC_LEN
-
-
-class CodecError(ValueError):
-    """A frame cannot be encoded (unknown type, wrong or out-of-range field values)."""
-
-
-class CobsError(ValueError):
-    """Bytes that are not a valid COBS encoding."""
 
 
 def crc16(data: bytes) -> int:

@@ -27,10 +27,10 @@ from tqdm import tqdm
 from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser, existing_file, existing_bag, integer, number, output_path
 from worm_model.files.writing import check_output
-from worm_model.physics.parameters import ParameterError, load_rig
-from worm_model.rig_data.schema import OPTIONAL_COLUMNS, REQUIRED_COLUMNS, RigDataError
+from worm_model.physics.parameters import load_rig
+from worm_model.rig_data.schema import OPTIONAL_COLUMNS, REQUIRED_COLUMNS
 from worm_model.bags.reader import BagMessage, BagReader
-from worm_model.bags.typestore import BagRecordingError
+from worm_model.errors import BagRecordingError
 from worm_model.bags.message_yaml import message_to_yaml
 from worm_model.rig_data.bags import DEFAULT_TOPIC, EXPORT_OUTPUT, IMPORT_OUTPUT, bag_to_csv, csv_to_bag
 from worm_model.bags.seq_check import StreamCheck
@@ -236,7 +236,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return export(args.bag, args.out, args.topic, err, args.allow_truncated, args.force)
         return import_csv(args.csv, args.out, args.storage, args.topic, args.start, err, args.rig, args.force)
 
-    return run_tool(f'bag {args.command}', run, (BagRecordingError, RigDataError, ParameterError))
+    return run_tool(f'bag {args.command}', run)
 
 
 if __name__ == '__main__':

@@ -66,34 +66,20 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.errors import InputError
 from worm_model.cli.options import Parser, existing_file, output_path
 from worm_model.files.reading import load_yaml
 from worm_model.files.writing import Output, atomic_file, check_output
-from worm_model.physics.parameters import ParameterError, Rig, finite_number
+from worm_model.physics.parameters import Rig, finite_number
 
 import worm_rig_driver.protocol.table as protocol_table
+from worm_rig_driver.errors import EffectsError
 
 FORMAT_NAME = "worm_rig_effects"
 FORMAT_VERSION = 1
 #: a rig parameter file (worm_model.physics.parameters) may carry an ``effects`` section too
 RIG_FORMAT_NAME = "worm_rig_parameters"
-
-
-class EffectsError(ParameterError):
-    """An effects file (or mapping) is unreadable or wrong; the message names file and key.
-
-    A :class:`worm_model.physics.parameters.ParameterError` (same message form, ``source: key: problem``),
-    so number parsing is shared with the rig file's loader.
-
-    Attributes:
-        source: the file (or other origin) that was being read.
-        key: dotted name of the offending key ("" for the whole file).
-    """
-
-    @property
-    def key(self) -> str:
-        return self.field
 
 
 # --- parameters and their units ------------------------------------------------------------------
@@ -1118,7 +1104,7 @@ TEMPLATE_OUTPUT = Output("worm_effects", recognise=lambda path: TEMPLATE_MARK in
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool("worm_effects", lambda: _main(argv), (EffectsError,))
+    return run_tool("worm_effects", lambda: _main(argv))
 
 
 def _main(argv: list[str] | None) -> int:

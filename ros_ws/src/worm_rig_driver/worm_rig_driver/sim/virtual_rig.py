@@ -43,7 +43,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from worm_model.cli.errors import InputError, run_tool
+from worm_model.cli.errors import run_tool
+from worm_model.errors import InputError
 from worm_model.cli.options import Parser, existing_file, integer, number, output_path
 from worm_model.files.writing import unwritable
 from worm_model.physics.parameters import load_rig
@@ -374,7 +375,7 @@ def serve(firmware: VirtualFirmware, port: PtyPort, stop: Callable[[], bool], du
 
 
 def main(argv: list[str] | None = None) -> int:
-    return run_tool("virtual_rig", lambda: _main(argv), (ValueError,))  # ParameterError, EffectsError
+    return run_tool("virtual_rig", lambda: _main(argv))
 
 
 def _main(argv: list[str] | None) -> int:
