@@ -186,7 +186,7 @@ IDENTIFY_CASES = {  # name -> (record, extra options, what the line says)
 def test_identify_refuses_a_record_that_identifies_nothing(case: str, inputs: Path, tmp_path: Path) -> None:
     record, extra, names = IDENTIFY_CASES[case]
     before = digest(inputs)
-    ((done, left),) = run_in_empty_folders([("identify", "--from", str(inputs / record), "--params", str(RIG),
+    ((done, left),) = run_in_empty_folders([("identify", "--from", str(inputs / record), "--rig", str(RIG),
                                              *extra, "--out", "identified.yaml", "--quiet")], tmp_path)
     assert_refused("identify", done.returncode, done.stderr, names)
     assert left == {}, f"left behind: {left}"

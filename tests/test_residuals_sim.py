@@ -279,7 +279,7 @@ def test_cli_writes_report_parameter_file_and_plots(cogging_csv: Path, tmp_path:
     doc["free"] = FREE
     params.write_text(yaml.safe_dump(doc))
     out = tmp_path / "out"
-    run = _residuals(str(cogging_csv), "--out", str(out), "--params", str(params))
+    run = _residuals(str(cogging_csv), "--out", str(out), "--rig", str(params))
     assert run.returncode == 0, run.stderr
     last = run.stdout.strip().splitlines()[-1]
     report = json.loads((out / "report.json").read_text())
@@ -487,7 +487,7 @@ def test_identify_corrects_mu_and_kt_of_a_catalogue_rig_file_and_estimate_scores
     catalogue file itself 6.14 / 15.5 %)."""
     logs = constant_rig_logs
     identified = tmp_path / "identified.yaml"
-    assert identify_main(["--from", str(logs["record"]), "--params", str(logs["catalogue"]), "--out", str(identified),
+    assert identify_main(["--from", str(logs["record"]), "--rig", str(logs["catalogue"]), "--out", str(identified),
                           "--quiet"]) == 0
     printed = capsys.readouterr().out
     assert "parameter friction.mu_constant: declared 0.0625 -> " in printed, printed

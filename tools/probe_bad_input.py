@@ -96,7 +96,7 @@ def options_cases() -> list[Case]:
         # --- tracebacks ---
         Case("worm_calc --rig binary", ["worm_calc", "--rig", "{binary}", "--mu", "0.05"]),
         Case("report binary", ["report", "{binary}", "--out", "figs"]),
-        Case("residuals --params binary", ["residuals", "{csv}", "--out", "res", "--params", "{binary}", "--quiet"]),
+        Case("residuals --rig binary", ["residuals", "{csv}", "--out", "res", "--rig", "{binary}", "--quiet"]),
         Case("worm_effects --check binary", ["worm_effects", "--check", "{binary}"]),
         Case("run_graph binary", ["run_graph", "{binary}"]),
         Case("calibrate --settle-time inf", ["calibrate", "--out", "cal.json", "--settle-time", "inf", "--quiet"]),
@@ -194,7 +194,7 @@ def output_cases() -> list[Case]:
         # an output that is an input, holds one, lies inside one
         Case("residuals --out the folder of its data --force", ["residuals", "d/run.csv", "--out", "d", "--force",
              *QUICK_RESIDUALS], user_files={"d/run.csv": "csv"}, stderr_has="input"),
-        Case("residuals --out its --params file --force", ["residuals", "run.csv", "--params", "rig.yaml", "--out",
+        Case("residuals --out its --rig file --force", ["residuals", "run.csv", "--rig", "rig.yaml", "--out",
              "rig.yaml", "--force", *QUICK_RESIDUALS], user_files={"run.csv": "csv", "rig.yaml": "rig"}),
         Case("residuals --out its bag --force", ["residuals", "b", "--out", "b", "--force", *QUICK_RESIDUALS],
              user_files={"b": "bag"}),
@@ -216,7 +216,7 @@ def output_cases() -> list[Case]:
              "--force"], user_files={"run.csv": "csv"}),
         Case("estimate --out inside its bag", ["estimate", "b", "--method", "observer", "--out", "b/e.csv"],
              user_files={"b": "bag"}),
-        Case("identify --out its --params file", ["identify", "--params", "rig.yaml", "--out", "rig.yaml", "--from",
+        Case("identify --out its --rig file", ["identify", "--rig", "rig.yaml", "--out", "rig.yaml", "--from",
              "{csv}"], user_files={"rig.yaml": "rig"}),
         Case("identify --out its --from log --force", ["identify", "--from", "run.csv", "--out", "run.csv",
              "--force"], user_files={"run.csv": "csv"}),
@@ -331,7 +331,7 @@ def input_cases() -> list[Case]:
         *[Case(f"{name} a FIFO", [*argv], fifos=(fifo[kind],), stderr_has="FIFO", timeout=40)
           for name, kind, argv in (
               ("residuals", "csv", ["residuals", "f.csv", "--out", "res", *QUICK_RESIDUALS]),
-              ("residuals --params", "yaml", ["residuals", "{csv}", "--params", "f.yaml", "--out", "res"]),
+              ("residuals --rig", "yaml", ["residuals", "{csv}", "--rig", "f.yaml", "--out", "res"]),
               ("estimate", "csv", ["estimate", "f.csv", "--method", "observer", "--out", "e.csv"]),
               ("identify --from", "csv", ["identify", "--from", "f.csv", "--out", "x.yaml"]),
               ("bag import", "csv", ["bag", "import", "f.csv", "--out", "nb"]),
@@ -371,8 +371,8 @@ def input_cases() -> list[Case]:
         Case("worm_calc a rig file with anchors and merge keys", ["worm_calc", "--rig", "{rig}", "--mu", "0.05"],
              expect=0),
         *[Case(f"{tool} a YAML bomb", argv, stderr_has="billion laughs", timeout=40) for tool, argv in (
-            ("residuals --params", ["residuals", "{csv}", "--params", "{rig_bomb}", "--out", "res"]),
-            ("identify --params", ["identify", "--params", "{rig_bomb}", "--from", "{csv}", "--out", "x.yaml"]),
+            ("residuals --rig", ["residuals", "{csv}", "--rig", "{rig_bomb}", "--out", "res"]),
+            ("identify --rig", ["identify", "--rig", "{rig_bomb}", "--from", "{csv}", "--out", "x.yaml"]),
             ("worm_calc --rig", ["worm_calc", "--rig", "{rig_bomb}", "--mu", "0.05"]),
             ("calibrate --rig", ["calibrate", "--rig", "{rig_bomb}", "--out", "c.json"]),
             ("worm_effects --check", ["worm_effects", "--check", "{effects_bomb}"]),
@@ -383,8 +383,8 @@ def input_cases() -> list[Case]:
             ("run_graph", ["run_graph", "{graph_bomb}"]),
             ("estimator_node --params-file", _node("estimator_node", "--params-file", "{graph_bomb}")))],
         *[Case(f"{tool} deep YAML", argv, stderr_has="nested", timeout=40) for tool, argv in (
-            ("residuals --params", ["residuals", "{csv}", "--params", "{yaml_deep}", "--out", "res"]),
-            ("identify --params", ["identify", "--params", "{yaml_deep}", "--from", "{csv}", "--out", "x.yaml"]),
+            ("residuals --rig", ["residuals", "{csv}", "--rig", "{yaml_deep}", "--out", "res"]),
+            ("identify --rig", ["identify", "--rig", "{yaml_deep}", "--from", "{csv}", "--out", "x.yaml"]),
             ("worm_calc --rig", ["worm_calc", "--rig", "{yaml_deep}", "--mu", "0.05"]),
             ("calibrate --rig", ["calibrate", "--rig", "{yaml_deep}", "--out", "c.json"]),
             ("worm_effects --check", ["worm_effects", "--check", "{yaml_deep}"]),
@@ -462,9 +462,9 @@ def unit_cases() -> list[Case]:
         c += [
               Case(f"worm_calc --rig {fixture}", ["worm_calc", "--rig", "{" + fixture + "}", "--mu", "0.05"],
                    stderr_has=has),
-              Case(f"residuals --params {fixture}", ["residuals", "{csv}", "--params", "{" + fixture + "}", "--out",
+              Case(f"residuals --rig {fixture}", ["residuals", "{csv}", "--rig", "{" + fixture + "}", "--out",
                                                      "res"], stderr_has=has),
-              Case(f"identify --params {fixture}", ["identify", "--params", "{" + fixture + "}", "--from", "{csv}",
+              Case(f"identify --rig {fixture}", ["identify", "--rig", "{" + fixture + "}", "--from", "{csv}",
                                                     "--out", "x.yaml"], stderr_has=has),
               Case(f"virtual_rig --rig {fixture}", ["virtual_rig", "--rig", "{" + fixture + "}", "--duration", "1"],
                    stderr_has=has),

@@ -23,13 +23,16 @@ NUMBER = re.compile(r"-?\d+(?:\.(\d+))?")
 
 def same_line(printed: str, shown: str) -> bool:
     """``printed`` says what ``shown`` says: the same words, and each number within 2 units of the last digit shown
-    or 1 % of it (the lift's figures move by one unit between machines: a different BLAS rounds a fit differently,
-    and a sample near the V's vertex changes arm)."""
+    or a share of it: 1 % for a back-drivable drive, 15 % for the self-locking lift. The lift's figures hinge on
+    which arm of the V a few samples near its vertex take, and that flips with round-off: the same commands in two
+    processes of one machine (one had run another drive first) printed max_pct 0.35 and 0.37, 0.30 and 0.33, and
+    another machine 7.87 for 7.88."""
     if NUMBER.sub("#", printed) != NUMBER.sub("#", shown):
         return False
+    share = 0.15 if "drive=lift40" in shown else 0.01
     for got, want in zip(NUMBER.finditer(printed), NUMBER.finditer(shown), strict=True):
         unit = 10.0 ** -len(want.group(1) or "")
-        if abs(float(got.group()) - float(want.group())) > max(2 * unit, 0.01 * abs(float(want.group()))):
+        if abs(float(got.group()) - float(want.group())) > max(2 * unit, share * abs(float(want.group()))):
             return False
     return True
 
@@ -44,11 +47,11 @@ def test_the_pages_lines(page_lines: list[str], tmp_path_factory) -> None:
     # the targets on a back-drivable drive from its datasheet: <= 1.5 % mean, <= 5 % max for every estimator
     assert all(f.mae_pct <= 1.5 and f.max_pct <= 5.0 for f in big.figures.values()), big.lines()
     # the lift run with a prior: most moving samples trusted, the extended model and the momentum observer within
-    # 0.35 % at their worst steady point
+    # 0.4 % at their worst steady point
     lift_figures = {(m.group(1), m.group(2)): (float(m.group(3)), float(m.group(4)))
                     for m in (re.search(r"method=(\w+) prior=(\w+) mae_pct=[\d.]+ max_pct=([\d.]+) "
                                         r"trusted_pct=([\d.]+)", line) for line in printed[6:])}
     for method in ("extended_model", "momentum"):
-        assert lift_figures[(method, "yes")][0] <= 0.35
-    assert all(81.55 <= trusted <= 96.35 for (_, prior), (_, trusted) in lift_figures.items() if prior == "yes")
+        assert lift_figures[(method, "yes")][0] <= 0.4
+    assert all(80.0 <= trusted <= 97.0 for (_, prior), (_, trusted) in lift_figures.items() if prior == "yes")
     assert all(trusted < 50.0 for (_, prior), (_, trusted) in lift_figures.items() if prior == "no")

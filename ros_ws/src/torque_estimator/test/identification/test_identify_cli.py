@@ -39,7 +39,7 @@ def record(tmp_path_factory) -> tuple[Path, Path]:
 def test_identify_from_a_record(record, tmp_path, capsys) -> None:
     csv, declared = record
     out = tmp_path / "identified.yaml"
-    assert main(["--from", str(csv), "--params", str(declared), "--out", str(out), "--quiet"]) == 0
+    assert main(["--from", str(csv), "--rig", str(declared), "--out", str(out), "--quiet"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     assert LINE.match(lines[-1]), lines[-1]
     model = ExtendedModel.load(out)
@@ -82,7 +82,7 @@ def test_a_friction_parameter_the_model_does_not_read_is_refused(record, tmp_pat
     """Under the constant friction model friction.scale is dead: asking to fit it is one line and exit 2."""
     csv, _declared = record
     constant = write_rig_file(tmp_path / "constant.yaml", "nmrv030_constant", {})
-    code = main(["--from", str(csv), "--params", str(constant), "--out", str(tmp_path / "o.yaml"), "--quiet",
+    code = main(["--from", str(csv), "--rig", str(constant), "--out", str(tmp_path / "o.yaml"), "--quiet",
                  "--free", "friction.scale"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "friction.mu_constant" in err[0], err
@@ -93,7 +93,7 @@ def test_a_friction_parameter_the_model_does_not_read_is_refused(record, tmp_pat
     (["--duration", "120"], "--duration"),
     (["--from", "/nonexistent.csv"], "--from"),
     (["--free", "gearbox.lead_angle"], "--free"),
-    (["--params", "/nonexistent.yaml"], "--params"),
+    (["--rig", "/nonexistent.yaml"], "--rig"),
     (["--from", "x.csv", "--resume"], "--from"),
 ])
 def test_bad_input_is_one_line_and_exit_2(args, where, tmp_path) -> None:
@@ -107,7 +107,7 @@ def test_bad_input_is_one_line_and_exit_2(args, where, tmp_path) -> None:
 
 def test_help_explains_every_option() -> None:
     text = subprocess.run([str(find_executable("identify")), "--help"], capture_output=True, text=True).stdout
-    for option in ("--out", "--params", "--free", "--from", "--duration", "--record", "--resume", "--start-timeout",
+    for option in ("--out", "--rig", "--free", "--from", "--duration", "--record", "--resume", "--start-timeout",
                    "--quiet"):
         assert option in text
     assert np.all([len(line) < 130 for line in text.splitlines()])

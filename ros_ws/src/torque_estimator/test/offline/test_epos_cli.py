@@ -32,8 +32,8 @@ def run(tool: str, path: Path, tmp_path: Path) -> int:
         return estimate_main([str(path), "--method", "extended_model", "--rig", str(RIG), "--out",
                               str(tmp_path / "est.csv"), "--load-torque", "0.0188", "--quiet"])
     if tool == "residuals":
-        return residuals_main([str(path), "--params", str(RIG), "--out", str(tmp_path / "res"), "--quiet"])
-    return identify_main(["--from", str(path), "--params", str(RIG), "--out", str(tmp_path / "id.yaml"),
+        return residuals_main([str(path), "--rig", str(RIG), "--out", str(tmp_path / "res"), "--quiet"])
+    return identify_main(["--from", str(path), "--rig", str(RIG), "--out", str(tmp_path / "id.yaml"),
                           "--quiet"])
 
 
@@ -82,11 +82,11 @@ def test_residuals_and_identify_take_the_load_options_and_the_skip(tool: str, tm
         shutil.copy(STEADY / name, folder / name)
     load = ["--load-mass", "0.096", "--pulley-radius", "0.02", "--gravity", "9.812"]
     if tool == "residuals":
-        argv = [str(folder), "--params", str(RIG), "--out", str(tmp_path / "res"), "--quiet", "--no-plots",
+        argv = [str(folder), "--rig", str(RIG), "--out", str(tmp_path / "res"), "--quiet", "--no-plots",
                 "--min-speed", "0.05", *load]
         main = residuals_main
     else:
-        argv = ["--from", str(folder), "--params", str(RIG), "--out", str(tmp_path / "id.yaml"), "--quiet", *load]
+        argv = ["--from", str(folder), "--rig", str(RIG), "--out", str(tmp_path / "id.yaml"), "--quiet", *load]
         main = identify_main
     assert main(argv) == 2  # 1.csv's edited first row, refused
     assert "--skip-bad-rows" in capsys.readouterr().err

@@ -85,7 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--trend", type=Path, required=True,
                    help="the gearbox's trend file (worm_gearbox_health_trend, JSON Lines): read, the check appended, "
                         "written back atomically; created with the first check")
-    p.add_argument("--params", type=existing_file, default=None,
+    p.add_argument("--rig", type=existing_file, default=None,
                    help="rig parameter file (worm_rig_parameters; e.g. identify's extended rig file): the model's "
                         "mu law, geometry and motor constant (default: the bundled NMRV030 rig)")
     p.add_argument("--settings", type=existing_file, default=None,
@@ -136,7 +136,7 @@ def _main(argv: list[str] | None) -> int:
     args = build_parser().parse_args(argv)
     if args.source is not None and args.record is not None:
         raise InputError("--record", "applies to a live run only (not with --from)")
-    rig = load_rig(args.params)
+    rig = load_rig(args.rig)
     settings = load_settings(args.settings)
     trend = read_trend(args.trend) if args.trend.exists() else Trend(rig.name, source=str(args.trend))
     if not args.trend.exists():

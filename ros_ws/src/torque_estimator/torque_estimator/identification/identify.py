@@ -1,8 +1,8 @@
 """identify: calibrate in a minute; fit the rig from one short excitation and write an extended rig file.
 
-    ros2 run torque_estimator identify --out identified_rig.yaml [--params rig.yaml]     # the rig on the graph
+    ros2 run torque_estimator identify --out identified_rig.yaml [--rig rig.yaml]     # the rig on the graph
     ros2 run torque_estimator identify --out identified_rig.yaml --resume                # after Ctrl-C
-    ros2 run torque_estimator identify --from run.csv|bag --params rig.yaml --out identified_rig.yaml
+    ros2 run torque_estimator identify --from run.csv|bag --rig rig.yaml --out identified_rig.yaml
 
 Live (no --from): drives whatever rig is on the graph (sim_node or driver_node, held by
 controller_node, which must run) through an excitation of at most 90 s of rig time: at 7
@@ -81,7 +81,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "replaced only with --force, and only if identify wrote it")
     p.add_argument("--force", action="store_true",
                    help="replace an existing --out (and --record) that identify wrote before")
-    p.add_argument("--params", type=Path, default=None,
+    p.add_argument("--rig", type=Path, default=None,
                    help="the rig file to start from (worm_rig_parameters); the standard set (mu, K_t, drags, rotor "
                         "inertia) is fitted whatever its source:/assumption: marks, plus its optional free: list "
                         "(default: the bundled NMRV030 rig)")
@@ -137,7 +137,7 @@ def _main(argv: list[str] | None) -> int:
             return _fail("--free", f"{bad[0] if bad else args.free!r} cannot be fitted "
                                    f"(allowed: {', '.join(FREE_PARAMETERS)})")
     record = None if args.source is not None else args.record or args.out.with_name(args.out.stem + "_record.csv")
-    inputs = [args.params, args.source]
+    inputs = [args.rig, args.source]
     try:  # before any work: never over an input, --force only over identify's own output
         check_output(args.out, args.force, inputs=inputs, output=OUTPUT)
         if record is not None:
@@ -145,9 +145,9 @@ def _main(argv: list[str] | None) -> int:
     except InputError as err:
         return _fail(err.where, err.what)
     try:
-        rig = load_rig(args.params)
+        rig = load_rig(args.rig)
     except ParameterError as err:
-        return _fail("--params", str(err))
+        return _fail("--rig", str(err))
     signal.signal(signal.SIGTERM, _interrupt)  # `kill` gets the same clean stop as Ctrl-C
     start = time.monotonic()
     if args.source is not None:
@@ -187,9 +187,9 @@ def _main(argv: list[str] | None) -> int:
         progress.update_to(done)
 
     try:
-        ident = identify(data, args.params, free, progress=on_progress)
+        ident = identify(data, args.rig, free, progress=on_progress)
         with atomic_file(args.out, args.force, inputs=inputs, output=OUTPUT) as tmp:
-            write_identified(tmp, args.params, ident, source)
+            write_identified(tmp, args.rig, ident, source)
     except KeyboardInterrupt:
         progress.close()
         print(f"\n{PROG}: interrupted while fitting" + ("; the record is in the journal: run the same command with "
@@ -198,7 +198,7 @@ def _main(argv: list[str] | None) -> int:
         return EXIT_INTERRUPTED
     except ParameterError as err:
         progress.close()
-        return _fail("--free" if free else "--params", str(err))
+        return _fail("--free" if free else "--rig", str(err))
     except IdentificationError as err:
         progress.close()
         return _fail("--from" if args.source else "record", str(err))

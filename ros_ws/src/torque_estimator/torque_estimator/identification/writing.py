@@ -91,7 +91,7 @@ def document(rig_file: str | Path | None, ident: "Identification", source: str) 
         _leaf(doc, path, get_value(rig, path), _ci_text(provenance, unit, ident.corrections[path][2]))
     if ident.noise is not None:
         _sensors(doc, ident, f"measured on the record by identify from {source}")
-    # the free list is what the next refit (identify or residuals --params this file) may fit: the parameters the
+    # the free list is what the next refit (identify or residuals --rig this file) may fit: the parameters the
     # time-series refit knows; the steady road's own (a support's low-speed rise) stay identified values only
     doc["free"] = [name for name in ident.fitted if name in FREE_PARAMETERS]
     effects: dict[str, Any] = {}

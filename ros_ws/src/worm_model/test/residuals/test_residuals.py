@@ -306,7 +306,7 @@ def test_cli_refuses_a_friction_parameter_the_model_does_not_read(tmp_path: Path
     doc["free"] = ["friction.scale"]
     params = tmp_path / "constant.yaml"
     params.write_text(yaml.safe_dump(doc))
-    assert cli.main([str(data), "--out", str(tmp_path / "out"), "--params", str(params), "--quiet"]) == 2
+    assert cli.main([str(data), "--out", str(tmp_path / "out"), "--rig", str(params), "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "friction.scale" in err[0] and "its mu is friction.mu_constant" in err[0], err
     assert not (tmp_path / "out").exists()

@@ -1,6 +1,6 @@
 """``residuals``: close the loop between the gearbox model and measured data.
 
-    residuals <data.csv | bag directory> --out <dir> [--params rig.yaml] [options]
+    residuals <data.csv | bag directory> --out <dir> [--rig rig.yaml] [options]
 
 Fits the declared model (paper Eqs 28-30 with the motor; the parameters the rig file's
 ``free:`` list names, plus a standard set refitted always, ``--refit``) to part of the data,
@@ -75,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="output directory (created; an existing one is replaced only with --force): report.json, "
                         "extended_rig.yaml, PNG plots")
     p.add_argument("--force", action="store_true", help="replace an existing --out directory")
-    p.add_argument("--params", type=existing_file, default=None,
+    p.add_argument("--rig", type=existing_file, default=None,
                    help=f"rig parameter file (worm_rig_parameters); its optional 'free:' list names the parameters "
                         f"to fit. Default: the bundled {default_rig_path().name}")
     p.add_argument("--free", default=None,
@@ -136,11 +136,11 @@ def _main(argv: list[str] | None) -> int:
                         refit=tuple(check_free(_names(args.refit, FREE_PARAMETERS, "refit parameter", parser))))
     progress = Progress(enabled=not args.quiet)
     try:
-        rig = load_rig(args.params)
+        rig = load_rig(args.rig)
         free = check_free(_names(args.free, FREE_PARAMETERS, "free parameter", parser)) if args.free is not None \
-            else read_free(args.params)
+            else read_free(args.rig)
         # a friction parameter the rig's friction model does not read would be a correction that cannot move
-        resolve_parameters(rig, free, "--free" if args.free is not None else str(args.params or default_rig_path()))
+        resolve_parameters(rig, free, "--free" if args.free is not None else str(args.rig or default_rig_path()))
         resolve_parameters(rig, settings.refit, "--refit")
         progress.stage("reading data", 1)
         data = load_data(args.data, rig, epos_settings(args, rig))  # its units checked against the rig
@@ -153,7 +153,7 @@ def _main(argv: list[str] | None) -> int:
             print(f"residuals: note: {KT} held at its declared value: the record's current is the drive's torque "
                   "channel over K_t (K_t x current is what was measured)")
         progress.update_to(1)
-        check_output(args.out, args.force, folder=True, inputs=[args.data, args.params], output=OUTPUT)
+        check_output(args.out, args.force, folder=True, inputs=[args.data, args.rig], output=OUTPUT)
     finally:
         progress.close()
     settings = settings.for_rig(rig)
@@ -166,7 +166,7 @@ def _main(argv: list[str] | None) -> int:
                   f"{settings.min_speed} rad/s (need {MIN_SAMPLES}); record longer or lower --block / --min-speed",
                   file=sys.stderr)
             return 2
-    with atomic_dir(args.out, args.force, inputs=[args.data, args.params], output=OUTPUT) as folder:
+    with atomic_dir(args.out, args.force, inputs=[args.data, args.rig], output=OUTPUT) as folder:
         return _analyse(args, rig, free, data, signals, split, settings, progress, folder, Path(args.out))
 
 
@@ -201,7 +201,7 @@ def _analyse(args, rig, free, data, signals, split, settings, progress, out: Pat
         progress.update_to(k + 1)
 
     params_out = out / "extended_rig.yaml"
-    write_parameter_file(params_out, args.params or default_rig_path(), after,
+    write_parameter_file(params_out, args.rig or default_rig_path(), after,
                          [p for p in problem.free if p not in result.aliased_parameters], result.final.free_ci,
                          f"identified by residuals from {Path(data.source).name}",
                          {"backlash": "angle identified from the transmission error (theta_gear); see report.json"}
