@@ -69,10 +69,10 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from worm_msgs.msg import RigSamples
 
-from worm_model.rig_data.joint_states import EFFORT_KINDS, JOINT_SIDES
 from worm_model.rig_data.samples import batch_problem
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
+from worm_model.nodes.joint_state_input import declare_joint_state_input
 from worm_model.ros.parameters import declare
 from worm_model.ros.qos import STREAM
 from worm_model.errors import ParameterError
@@ -151,16 +151,8 @@ class EstimatorNode(Node):
         self.create_subscription(RigSamples, "rig/samples", self.on_samples, STREAM)
 
     def _start_joint_state(self, values: dict) -> None:
-        topic = declare(self, "joint_state_topic", "joint_states",
-                        "Topic of the robot's sensor_msgs/JointState (relative: in this node's namespace).")
-        names = declare(self, "joint_names", Parameter.Type.STRING_ARRAY,
-                        "The joints to estimate, by their names in the JointState (any order there).") or []
-        side = declare(self, "joint_side", "output", "Shaft of the JointState's position and velocity: output (the "
-                       "gear shaft, as a robot's joint) or motor (the worm); the rig file's ratio converts.",
-                       choices=JOINT_SIDES)
-        effort_is = declare(self, "effort_is", "current", "What the JointState's effort is: current (the drive "
-                            "current [A]) or motor_torque (K_t i [N m]; the rig file's K_t converts).",
-                            choices=EFFORT_KINDS)
+        joint_input = declare_joint_state_input(self)
+        topic, names, side, effort_is = joint_input.topic, joint_input.names, joint_input.side, joint_input.effort_is
         volts = declare(self, "voltage_topics", Parameter.Type.STRING_ARRAY,
                         "Per joint (parallel to joint_names), a std_msgs/Float64 topic of the drive voltage [V] "
                         "('' for none): needed by a method that reads it (the observer).")

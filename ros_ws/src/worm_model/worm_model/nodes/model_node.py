@@ -33,10 +33,11 @@ from sensor_msgs.msg import JointState
 from worm_msgs.msg import GearboxForces, RigSamples, TorqueEstimate
 
 from worm_model.live.live_model import ForceFlags, LiveForces, LiveModel
-from worm_model.rig_data.joint_states import EFFORT_KINDS, JOINT_SIDES, JointConversion, JointStateReader
+from worm_model.rig_data.joint_states import JointConversion, JointStateReader
 from worm_model.rig_data.samples import batch_problem
 from worm_model.ros.diagnostics import OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
+from worm_model.nodes.joint_state_input import declare_joint_state_input
 from worm_model.ros.parameters import declare
 from worm_model.ros.qos import STREAM
 from worm_model.physics.parameters import load_rig
@@ -87,16 +88,11 @@ class ModelNode(Node):
         Diagnostics(self, self.report)
 
     def _start_joint_state(self, rig_file: str, use_acceleration: bool, tau: float) -> None:
-        topic = declare(self, "joint_state_topic", "joint_states", "Topic of the robot's sensor_msgs/JointState.")
-        names = declare(self, "joint_names", Parameter.Type.STRING_ARRAY,
-                        "The joints, by their names in the JointState (any order there).") or []
+        joint_input = declare_joint_state_input(self)
+        topic, names, side, effort_is = joint_input.topic, joint_input.names, joint_input.side, joint_input.effort_is
         rig_files = declare(self, "rig_files", Parameter.Type.STRING_ARRAY,
                             "Per joint (parallel to joint_names), its rig file ('' for none); empty: rig_file "
                             "for every joint.") or []
-        side = declare(self, "joint_side", "output", "Shaft of the JointState's position and velocity: output "
-                       "or motor.", choices=JOINT_SIDES)
-        effort_is = declare(self, "effort_is", "current", "What the JointState's effort is: current [A] or "
-                            "motor_torque (K_t i [N m]).", choices=EFFORT_KINDS)
         rate = declare(self, "sample_rate", 1000.0, "Rate [Hz] of the JointState publisher.", low=1.0, high=100000.0)
         if not names or (rig_files and len(rig_files) != len(names)):
             raise ValueError(f"parameters joint_names {list(names)} and rig_files {list(rig_files)}: name the joints, "
