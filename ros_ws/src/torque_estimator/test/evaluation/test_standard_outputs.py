@@ -103,13 +103,12 @@ def demo_reversal(feedforward: bool, seed: int) -> dict[str, np.ndarray]:
         segment = scenario[segment_at(scenario, k * sim.sample_period)]
         sim.command(load_torque=segment.load)
         m = sim.sample()
-        loop.observe(float(m.omega_worm[0]), float(m.current_drive[0]), float(m.voltage_drive[0]),
-                     float(m.theta_worm[0]), sim.seq)
+        est = loop.observe(float(m.omega_worm[0]), float(m.current_drive[0]), float(m.voltage_drive[0]),
+                           float(m.theta_worm[0]), sim.seq)
         loop.command_speed(SpeedCommand(segment.speed, 0.0, DEFAULT_GAINS.kp, DEFAULT_GAINS.ki, RIG.supply_voltage,
                                         at_rig=feedforward), k * sim.sample_period)
         out = loop.step(k * sim.sample_period, float(m.omega_worm[0]), sim.seq)
         sim.command(voltage_drive=out.voltage)
-        est = source.last
         rows.append((est.torque, est.flags, float(sim.applied_load_torque[0])))
     torque, flags, truth = (np.array(c) for c in zip(*rows))
     return {"torque": torque, "flags": flags, "truth": truth}

@@ -57,24 +57,25 @@ class EstimatorFeedforward:
         sample_period: [s] between samples.
         method: the estimator's registry name (``method``).
 
-    ``last`` is the estimate of the sample observed last (None before the first): the rig publishes it as
-    the graph's estimate, so what the graph sees is what is fed forward.
+    ``observe`` returns the sample's estimate: the rig publishes it as the graph's estimate, so what the
+    graph sees is what is fed forward.
     """
 
     def __init__(self, rig: Rig, live: LiveEstimator, sample_period: float, method: str = "") -> None:
         self.live = live
         self.method = method
-        self.last: LiveEstimate | None = None
         self.gate = FeedforwardGate(timeout=0.0, max_load=1.5 * rig.max_load_torque)
         self.sample_period = sample_period
         self._balancing = make_balancing_torque_float(rig)
         self._stamp = 0.0
 
-    def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> None:
-        """Sample ``seq``: worm speed [rad/s], drive current [A], drive voltage [V], worm angle [rad]."""
-        est = self.last = self.live.update(omega, current, voltage, theta, seq)
+    def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> LiveEstimate:
+        """Sample ``seq``: worm speed [rad/s], drive current [A], drive voltage [V], worm angle [rad]; returns
+        its estimate."""
+        est = self.live.update(omega, current, voltage, theta, seq)
         self._stamp = seq * self.sample_period
         self.gate.offer(est.torque, est.flags, self._stamp)
+        return est
 
     def torque(self, setpoint: float) -> float:
         """Torque at the worm [N m] for the next period at set-point ``setpoint`` [rad/s]; 0 when unusable."""

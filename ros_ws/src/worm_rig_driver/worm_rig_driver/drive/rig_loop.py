@@ -38,7 +38,7 @@ import math
 from collections import Counter
 from dataclasses import dataclass
 from enum import IntEnum
-from typing import Protocol
+from typing import Any, Protocol
 
 from worm_model.physics.parameters import Rig
 
@@ -92,16 +92,15 @@ class RigFeedforward(Protocol):
     the sample [V] and the worm encoder angle [rad]; ``torque`` gives the torque at the worm [N m]
     (positive turns the worm positively) to add to the PI output for the period that follows, at
     worm speed set-point ``setpoint`` [rad/s]: 0 when the estimate is unusable. Both run in the
-    rig's sample thread, so they must take microseconds, not milliseconds. ``last`` is the load
-    estimate of the sample observed last (torque_estimator's LiveEstimate: tau_d, uncertainty,
-    flags, the filtered speed and current; None before the first), which the rig publishes as the
-    graph's estimate (nodes.rig_topics); ``method`` names its estimator.
+    rig's sample thread, so they must take microseconds, not milliseconds. ``observe`` returns the
+    sample's load estimate (torque_estimator's LiveEstimate: tau_d, uncertainty, flags, the filtered
+    speed and current), which the rig publishes as the graph's estimate (nodes.rig_topics);
+    ``method`` names its estimator.
     """
 
     method: str
-    last: object | None
 
-    def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> None: ...
+    def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> Any: ...
 
     def torque(self, setpoint: float) -> float: ...
 
@@ -170,11 +169,13 @@ class RigLoop:
         self._pending = None
 
     # --- every sample (the rig's thread) ---------------------------------------------------
-    def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> None:
+    def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> Any:
         """Hand sample ``seq`` to the rig's feedforward source, if any (call for every sample, before
-        :meth:`step`): worm speed [rad/s], drive current [A], drive voltage [V], worm angle [rad]."""
-        if self.feedforward is not None:
-            self.feedforward.observe(omega, current, voltage, theta, seq)
+        :meth:`step`): worm speed [rad/s], drive current [A], drive voltage [V], worm angle [rad].
+        Returns the source's estimate of the sample (RigFeedforward.observe), None without a source."""
+        if self.feedforward is None:
+            return None
+        return self.feedforward.observe(omega, current, voltage, theta, seq)
 
     def step(self, now: float, omega_measured: float, seq: int) -> LoopOutput:
         """The voltage for the period starting at ``now`` [s], sample ``seq`` having just been taken

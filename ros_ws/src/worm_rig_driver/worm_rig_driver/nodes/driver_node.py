@@ -153,9 +153,10 @@ class DriverNode(Node):
             values = {name: getattr(s, name) for name in FIELDS}
             values["status"] |= stopped
             # every sample to the rig's own estimator, numbered in samples (its gaps are lost samples)
-            self.loop.observe(s.omega_worm, s.current_drive, s.voltage_drive, s.theta_worm, s.seq // self._seq_step)
+            estimate = self.loop.observe(s.omega_worm, s.current_drive, s.voltage_drive, s.theta_worm,
+                                         s.seq // self._seq_step)
             # its estimate before the graph's stream (the controller waits for the estimate), then the sample
-            self.estimate.after_sample(s.seq, s.stamp_ns, self.topics.closes_batch(s.seq))
+            self.estimate.after_sample(s.seq, s.stamp_ns, self.topics.closes_batch(s.seq), estimate)
             self.topics.add(s.seq, s.stamp_ns, values, self._command_seq)
         newest = samples[-1]
         out = self.loop.step(time.monotonic(), newest.omega_worm, newest.seq)

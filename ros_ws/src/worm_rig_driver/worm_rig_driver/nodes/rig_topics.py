@@ -40,6 +40,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 from rclpy.node import Node
 from rclpy.time import Time
@@ -226,18 +227,17 @@ class RigEstimate:
         wrench_frame = declare(node, "wrench_frame", "gear_output",
                                "frame_id of torque_estimate/wrench: its z axis is the output shaft, positive "
                                "rotation about +z.")
-        self.feedforward = feedforward if publish else None
         self.frame_id = frame_id
         self.topics = (EstimateTopics(node, feedforward.method, [joint_name], [1.5 * rig.max_load_torque],
                                       sample_period=1.0 / rig.sensors.sample_rate_hz, wrench_frame=wrench_frame)
-                       if self.feedforward is not None else None)
+                       if feedforward is not None and publish else None)
 
-    def after_sample(self, seq: int, stamp_ns: int, closes_batch: bool) -> None:
-        """Sample ``seq`` (stamped ``stamp_ns``) went to the feedforward: judge its estimate for the standard
-        outputs, and publish it if the sample closes a batch of rig/samples (``RigTopics.closes_batch``).
-        Called before that batch is published: the estimate is what the controller waits for."""
-        estimate = self.feedforward.last if self.topics is not None else None
-        if estimate is None:
+    def after_sample(self, seq: int, stamp_ns: int, closes_batch: bool, estimate: Any) -> None:
+        """Sample ``seq`` (stamped ``stamp_ns``) went to the feedforward, which returned ``estimate`` (None: no
+        feedforward): judge it for the standard outputs, and publish it if the sample closes a batch of
+        rig/samples (``RigTopics.closes_batch``). Called before that batch is published: the estimate is what
+        the controller waits for."""
+        if self.topics is None or estimate is None:
             return
         self.topics.observe(0, estimate.flags, estimate.torque)
         if closes_batch:

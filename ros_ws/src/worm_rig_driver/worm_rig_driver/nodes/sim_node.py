@@ -179,8 +179,8 @@ class SimNode(Node):
         m = self.sim.sample()
         seq = self.sim.seq
         command_seq, status_bits = self._in_force
-        self.loop.observe(float(m.omega_worm[0]), float(m.current_drive[0]), float(m.voltage_drive[0]),
-                          float(m.theta_worm[0]), seq)
+        estimate = self.loop.observe(float(m.omega_worm[0]), float(m.current_drive[0]), float(m.voltage_drive[0]),
+                                     float(m.theta_worm[0]), seq)
         out = self.loop.step(seq * self.period, float(m.omega_worm[0]), seq)
         self.sim.command(voltage_drive=out.voltage)
         self._in_force = (out.command_seq, (_WATCHDOG if self.loop.watchdog_stopped or out.mode == DriveMode.STOPPED
@@ -197,7 +197,7 @@ class SimNode(Node):
         stamp_ns = self._start_ns + int(round(seq * self.period * 1e9))
         opens = self.pub_truths is not None and self.topics.opens_batch(seq)
         # the estimate (observed above) before the graph's stream: the controller waits for the estimate
-        self.estimate.after_sample(seq, stamp_ns, self.topics.closes_batch(seq))
+        self.estimate.after_sample(seq, stamp_ns, self.topics.closes_batch(seq), estimate)
         self.topics.add(seq, stamp_ns, values, command_seq)
         if opens:
             # a /rig/samples batch started here: so does a truth batch, if anyone listens (asked once a batch)
