@@ -147,6 +147,13 @@ def options_cases() -> list[Case]:
         Case("worm_effects --check duplicate keys", ["worm_effects", "--check", "{effects_duplicate}"]),
         Case("worm_effects --check 1e300 N m", ["worm_effects", "--check", "{effects_huge}"]),
         Case("bag import current 1e300", ["bag", "import", "{csv_huge_current}", "--out", "newbag"]),
+        Case("bag import --topic 'not a topic'", ["bag", "import", "{csv}", "--out", "newbag", "--topic",
+                                                  "not a topic"], stderr_has="not a valid topic name"),
+        Case("worm_effects --check low_speed_gain 1e6", ["worm_effects", "--check", "{effects_gain}"],
+             stderr_has="low_speed_gain"),
+        Case("run_graph --log-dir a file", ["run_graph", "--log-dir", "{text}"], stderr_has="--log-dir"),
+        Case("driver_node -p port:=a folder", ["driver_node", "--ros-args", "-p", "port:=/tmp"],
+             stderr_has="not a serial"),
         # --- never ending ---
         *[Case(f"{node} --help", [node, "--help"], expect=0, stdout_has=param) for node, param in nodes.items()],
         Case("virtual_rig --duration nan", ["virtual_rig", "--link", "link", "--duration", "nan"]),
@@ -651,6 +658,8 @@ def build_fixtures(folder: Path) -> dict[str, Path]:
                                   "  viscous_drag: {enabled: false}\n")
     put("effects_huge.yaml", "format: worm_rig_effects\nversion: 1\neffects:\n  bearing_coulomb:\n"
                              "    worm_torque: {value: 1e300, unit: N m}\n")
+    put("effects_gain.yaml", "format: worm_rig_effects\nversion: 1\neffects:\n  speed_dependent_mu:\n"
+                             "    low_speed_gain: 1e6\n")
     put("effects_user.yaml", "# my effects, edited by hand\nformat: worm_rig_effects\nversion: 1\neffects: {}\n")
     _policy_fixtures(folder, f, data, doc, put)
     return f

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from worm_model.cli.errors import run_tool
-from worm_model.cli.options import Parser, integer
+from worm_model.cli.options import Parser, integer, log_folder
 
 from torque_estimator.graph.runner import Graph, parse_overrides
 
@@ -37,7 +37,7 @@ def _main(argv: list[str] | None) -> int:
                              "e.g. --together sim_node,model_node,estimator_node,controller_node)")
     parser.add_argument("--priority", type=integer(0, 99), default=0, metavar="0-99",
                         help="SCHED_FIFO priority of the graph's processes (0: normal scheduling)")
-    parser.add_argument("--log-dir", type=Path, default=None,
+    parser.add_argument("--log-dir", type=log_folder, default=None,
                         help="write each node's output to <dir>/<node>.log instead of this terminal")
     args = parser.parse_args(argv)
     stop = []

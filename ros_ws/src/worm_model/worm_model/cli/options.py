@@ -138,6 +138,14 @@ def output_path(text: str) -> Path:
     return Path(text)
 
 
+def log_folder(text: str) -> Path:
+    """An argparse ``type`` for a folder written into (created if missing): not empty, and not an existing file."""
+    path = output_path(text)
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{path}: a file, not a folder (name a folder to write the logs into)")
+    return path
+
+
 def nearest(name: str, known: Iterable[str]) -> str:
     """`` (did you mean 'x'?)`` for the known name closest to a misspelt ``name``, or ""."""
     match = difflib.get_close_matches(name, list(known), n=1, cutoff=0.6)

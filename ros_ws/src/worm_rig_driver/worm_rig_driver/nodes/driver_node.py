@@ -24,6 +24,8 @@ said there); the protocol, the limits and the statistics are link.LinkCore.
 from __future__ import annotations
 
 import json
+import os
+import stat
 
 import time
 
@@ -51,6 +53,11 @@ class DriverNode(Node):
         super().__init__("driver_node")
         port = declare(self, "port", "/dev/ttyACM0", "Serial device of the rig (a /dev/serial/by-id/... link "
                        "survives re-enumeration); reopened within reconnect_period when it comes back.")
+        if os.path.isdir(port) or (os.path.exists(port) and stat.S_ISREG(os.stat(port).st_mode)):
+            # a port that is not there yet is waited for (reconnect_period); a folder or a plain file never
+            # becomes a serial device
+            raise ValueError(f"parameter port: {port!r} is a {'folder' if os.path.isdir(port) else 'regular file'}, "
+                             "not a serial device (e.g. /dev/ttyACM0 or a /dev/serial/by-id/... link)")
         baud = declare(self, "baud", table.BAUD, f"Line rate [bit/s]; the firmware uses {table.BAUD}.",
                        low=min(SUPPORTED_BAUDS), high=max(SUPPORTED_BAUDS))
         rig_file = declare(self, "rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")

@@ -87,8 +87,6 @@ from rosbags.interfaces import (
     QosTime,
 )
 
-from rclpy.exceptions import InvalidTopicNameException
-from rclpy.validate_full_topic_name import validate_full_topic_name
 
 from worm_model.cli.errors import one_line
 from worm_model.files.writing import check_output
@@ -105,6 +103,7 @@ from worm_model.bags.writer import (
     normalize_type_name,
 )
 from worm_model.bags.seq_check import DeliveryCheck, StreamCheck
+from worm_model.bags.topic_names import topic_name_problem
 from worm_model.rig_data.samples import EVERY_SAMPLE_TYPES
 
 DEFAULT_QUEUE_DEPTH: Final[int] = 10000
@@ -495,16 +494,13 @@ def drain(executor: Executor, recorder: TopicRecorder) -> None:
 
 
 def check_topic_name(topic: str) -> None:
-    """Refuse a topic name ROS cannot subscribe to, before anything is created.
+    """Refuse a topic name ROS cannot subscribe to, before anything is created (worm_model.bags.topic_names).
 
     Raises:
         ValueError: naming the topic and what is wrong with it.
     """
-    try:
-        validate_full_topic_name(topic if topic.startswith(('/', '~')) else '/' + topic)
-    except InvalidTopicNameException as err:
-        reason = one_line(err).split(':', 1)[-1].strip()
-        raise ValueError(f'parameter topics/exclude: {topic!r} is not a valid topic name ({reason})') from None
+    if (problem := topic_name_problem(topic)) is not None:
+        raise ValueError(f'parameter topics/exclude: {topic!r} is not a valid topic name ({problem})')
 
 
 def main(args: list[str] | None = None) -> int:

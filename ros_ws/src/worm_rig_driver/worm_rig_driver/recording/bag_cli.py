@@ -30,7 +30,8 @@ from worm_model.files.writing import check_output
 from worm_model.physics.parameters import load_rig
 from worm_model.rig_data.schema import OPTIONAL_COLUMNS, REQUIRED_COLUMNS
 from worm_model.bags.reader import BagMessage, BagReader
-from worm_model.errors import BagRecordingError
+from worm_model.bags.topic_names import topic_name_problem
+from worm_model.errors import BagRecordingError, InputError
 from worm_model.bags.message_yaml import message_to_yaml
 from worm_model.rig_data.bags import DEFAULT_TOPIC, EXPORT_OUTPUT, IMPORT_OUTPUT, bag_to_csv, csv_to_bag
 from worm_model.bags.seq_check import StreamCheck
@@ -153,6 +154,8 @@ def export(path: Path, csv_path: Path, topic: str | None, err: TextIO, allow_tru
 def import_csv(csv_path: Path, bag: Path, storage: str, topic: str, start: float,
                err: TextIO, rig: Path | None = None, force: bool = False) -> int:
     """``bag import``: a ``worm_rig_data`` CSV as a bag of RigSample (its units checked against the rig)."""
+    if (problem := topic_name_problem(topic)) is not None:  # a bag no ROS tool could play or subscribe to
+        raise InputError("--topic", f"{topic!r} is not a valid topic name ({problem})")
     check_output(bag, force, folder=True, inputs=[csv_path, rig], output=IMPORT_OUTPUT)
     n = csv_to_bag(csv_path, bag, storage, topic, round(start * 1e9), rig=load_rig(rig), force=force)
     err.write(f'bag import: {n} RigSample messages on {topic} from {csv_path} to {bag} ({storage})\n')

@@ -112,7 +112,8 @@ CHECKS: dict[str, tuple[Any, str]] = {
     "any": (lambda x: True, ""),
     "nonnegative": (lambda x: x >= 0.0, "must be >= 0"),
     "positive": (lambda x: x > 0.0, "must be > 0"),
-    "relative": (lambda x: x > -1.0, "must be > -1 (a relative error)"),
+    # a relative change or error: above +1000 % is a slip (a percentage written as a fraction, a unit), not a gearbox
+    "relative": (lambda x: -1.0 < x <= 10.0, "must be > -1 and <= 10 (a relative change, -100 % .. +1000 %)"),
     "count": (lambda x: x >= 1 and float(x).is_integer(), "must be an integer >= 1"),
     "count0": (lambda x: x >= 0 and float(x).is_integer(), "must be an integer >= 0"),
 }
