@@ -167,7 +167,7 @@ def test_replay_cli_reports_speed_factor(recorded: tuple[Path, list[str], str, P
     assert bad.returncode == 2 and "/no/such.json" in bad.stderr, bad.stderr
 
 
-def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str]) -> None:
+def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str], tmp_path: Path) -> None:
     """replay fills what the parameter file leaves out with NODE_DEFAULTS: they must be what the
     nodes declare, or replay silently differs from a live graph run without a parameter file."""
     import rclpy
@@ -177,13 +177,21 @@ def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str]
     from torque_estimator.offline.replay import NODE_DEFAULTS
     from worm_model.nodes.model_node import ModelNode
 
-    rclpy.init()  # the nodes take the default context
+    from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
+    from torque_estimator.estimation.database import save_database
+    from worm_model.physics.parameters import load_rig
+
+    # the default method (knn) does not start without a calibration: one is given, the rest stays default
+    rig = load_rig()
+    save_database(calibrate_simulated(rig, CalibrationGrid.paper(rig, 3, 4), seed=0), tmp_path / "cal.json")
+    rclpy.init(args=["--ros-args", "-p", f"calibration_file:={tmp_path / 'cal.json'}"])  # the default context
     try:
         for name, node_class in (("model_node", ModelNode), ("estimator_node", EstimatorNode)):
             node = node_class()
             try:
                 # estimator_node declares the options of its method only (the default's)
-                known = {p: v for p, v in NODE_DEFAULTS[name].items() if node.has_parameter(p)}
+                known = {p: v for p, v in NODE_DEFAULTS[name].items()
+                         if node.has_parameter(p) and p != "calibration_file"}
                 assert {p: node.get_parameter(p).value for p in known} == known, name
                 assert "method" not in known or set(known) >= {o.name for o in METHODS[known["method"]].options}
                 undeclared = (set(node._parameters) - set(NODE_DEFAULTS[name])
@@ -198,21 +206,28 @@ def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str]
 @pytest.mark.parametrize("method, reads", [("observer", set()), ("extended_model", {"input_filter"}),
                                            ("knn", {"input_filter", "k"})])
 def test_estimator_node_declares_a_methods_options_only_and_names_the_others(
-        method: str, reads: set[str], ros_env: dict[str, str], capfd: pytest.CaptureFixture[str]) -> None:
+        method: str, reads: set[str], ros_env: dict[str, str], capfd: pytest.CaptureFixture[str],
+        tmp_path: Path) -> None:
     """The map's filters and k-NN's options are parameters only for the methods that read them; one given for
     another method (or no parameter at all) is named in a warning at start, not silently ignored."""
     import rclpy
 
+    from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
+    from torque_estimator.estimation.database import save_database
     from torque_estimator.nodes.estimator_node import EstimatorNode
+    from worm_model.physics.parameters import load_rig
 
     given = {"input_filter": "0.004", "k": "3", "nosuch": "1"}
     args = ["--ros-args", "-p", f"method:={method}", *[a for n, v in given.items() for a in ("-p", f"{n}:={v}")]]
+    if method == "knn":  # it needs a calibration to start
+        rig = load_rig()
+        save_database(calibrate_simulated(rig, CalibrationGrid.paper(rig), seed=0), tmp_path / "cal.json")
+        args += ["-p", f"calibration_file:={tmp_path / 'cal.json'}"]
     rclpy.init(args=args)
     try:
         node = EstimatorNode()
         try:
             assert {n for n in given if node.has_parameter(n)} == reads
-            assert node.estimator is None or method != "knn"  # knn has no calibration here: reported, no crash
         finally:
             node.destroy_node()
     finally:

@@ -152,6 +152,8 @@ def options_cases() -> list[Case]:
         Case("worm_effects --check low_speed_gain 1e6", ["worm_effects", "--check", "{effects_gain}"],
              stderr_has="low_speed_gain"),
         Case("run_graph --log-dir a file", ["run_graph", "--log-dir", "{text}"], stderr_has="--log-dir"),
+        Case("estimator_node -p method:=knn without a calibration", _node("estimator_node", "-p", "method:=knn"),
+             stderr_has="calibration_file"),
         Case("driver_node -p port:=a folder", ["driver_node", "--ros-args", "-p", "port:=/tmp"],
              stderr_has="not a serial"),
         # --- never ending ---
@@ -442,7 +444,8 @@ def unit_cases() -> list[Case]:
     c = [Case(f"{tool} a log with {fixture.split('_', 1)[1]}", argv("{" + fixture + "}"), stderr_has=has)
          for fixture, has in logs.items() for tool, argv in tools.items()
          if fixture in everywhere or tool in ("residuals", "identify --from")]
-    calibrations = {"cal_zero_range": "torque range", "cal_identical": "same operating point", "cal_rpm": "rpm"}
+    calibrations = {"cal_zero_range": "torque range", "cal_identical": "same operating point", "cal_rpm": "rpm",
+                    "cal_flipped": "sign opposite"}
     for fixture, has in calibrations.items():
         c += [Case(f"estimate --calibration {fixture}", ["estimate", "{csv}", "--method", "knn", "--calibration",
                                                           "{" + fixture + "}", "--out", "e.csv"], stderr_has=has),
@@ -720,6 +723,7 @@ def _policy_fixtures(folder: Path, f: dict[str, Path], data, cal_doc: dict, put)
     first = {c: cal_doc["points"][c][0] for c in ("omega_worm", "current_drive", "tau_load")}
     calibration("cal_identical", **{c: (lambda v, x=x: x) for c, x in first.items()})
     calibration("cal_rpm", omega_worm=lambda v: v * 60 / (2 * math.pi))
+    calibration("cal_flipped", tau_load=lambda v: -v)  # a load cell wired the other way
     put("cal_bom.json", b"\xef\xbb\xbf" + (folder / "cal.json").read_bytes())
     put("json_deep.json", "[" * 100_000 + "]" * 100_000)
 

@@ -55,10 +55,9 @@ max_load_torque (worm_rig_driver.robot.standard_outputs: what and why). TorqueEs
 every estimate with its flags.
 
 A calibration, model or rig file that is named but cannot be used (missing, damaged, implausible
-for the rig) stops the node at start: one line, exit code 2. With none named and a method that
-needs a calibration (knn), the node reports it (log + /diagnostics ERROR) and keeps running without
-publishing estimates, so the rest of the graph (the controller falls back to no feedforward)
-carries on.
+for the rig) stops the node at start: one line, exit code 2. So does a method that needs a
+calibration (knn) with none named: a node that cannot do its job with the parameters it was given
+does not start (the shipped observer needs none, so a graph runs before it is calibrated).
 """
 from __future__ import annotations
 
@@ -70,17 +69,15 @@ from std_msgs.msg import Float64
 from worm_msgs.msg import RigSamples
 
 from worm_model.rig_data.samples import batch_problem
-from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
+from worm_model.ros.diagnostics import OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.nodes.joint_state_input import declare_joint_state_input
 from worm_model.ros.parameters import declare
 from worm_model.ros.qos import STREAM
-from worm_model.errors import ParameterError
 from worm_rig_driver.nodes.estimate_topics import EstimateTopics
 
 from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.errors import CalibrationError
-from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.estimation.registry import METHODS, Option
 from torque_estimator.estimation.settings import ALL_OPTIONS, SETTINGS_OPTIONS, EstimatorSettings, build_estimator
 from torque_estimator.joints.estimators import JointEstimators
@@ -108,7 +105,6 @@ class EstimatorNode(Node):
         rate = declare(self, "sample_rate", 1000.0, "Sample rate [Hz] of the input: the rig's, or the JointState "
                        "publisher's (its messages' stamps are numbered at this rate).", low=1.0, high=100000.0)
         self.period = 1.0 / rate
-        self.problem = ""
         self.flag_counts = {flag.name: 0 for flag in EstimateFlags if flag}
         self.received = 0
         self.malformed = 0  # rig/samples messages refused
@@ -131,7 +127,6 @@ class EstimatorNode(Node):
                                "frame_id of torque_estimate/wrench: its z axis is the output shaft, positive "
                                "rotation about +z.")
         self.settings = EstimatorSettings.from_parameters(values)
-        self.estimator: LiveEstimator | None = None
         try:
             built = build_estimator(self.settings)
             self.estimator = built.live(self.period)
@@ -142,12 +137,12 @@ class EstimatorNode(Node):
                 f"{self.settings.calibration_file}" if built.database is not None else
                 f"{self.method} estimator without a calibration (ranges from the "
                 f"{getattr(built.estimator, 'ranges_from', None) or 'rig'})")
-        except (CalibrationError, ParameterError) as err:
-            if self.settings.calibration_file or self.settings.model_file or self.settings.rig_file:
-                # a file the user named cannot be used: stop (exit 2)
-                raise
-            self.problem = str(err)
-            self.get_logger().error(f"no estimates: {err}")
+        except CalibrationError as err:
+            if self.settings.calibration_file:
+                raise  # a file the user named cannot be used: stop (exit 2)
+            # a method that cannot run on what it was given: stop too, saying which parameter to set
+            raise CalibrationError(f"parameter calibration_file: {err}; set calibration_file, or a method that "
+                                   "needs none (observer, momentum, extended_model)") from None
         self.create_subscription(RigSamples, "rig/samples", self.on_samples, STREAM)
 
     def _start_joint_state(self, values: dict) -> None:
@@ -165,18 +160,17 @@ class EstimatorNode(Node):
                                      "message is estimated.", low=1, high=100000)
         self.period_ns = self.period * 1e9
         setups = joint_setups(values, names, volts, files)  # ValueError: one line, exit 2
-        self.joints: JointEstimators | None = None
         try:
             self.joints = JointEstimators(setups, self.period, side, effort_is)
             self.topics = EstimateTopics(self, self.method, [s.name for s in setups], self.joints.max_loads,
                                          sample_period=self.period, per_joint=True)
             self.get_logger().info(f"{self.method} estimators for joints {', '.join(s.name for s in setups)} of "
                                    f"{self.resolve_topic_name(topic)} ({side} side, effort as {effort_is})")
-        except (CalibrationError, ParameterError) as err:
-            if any(s.settings.calibration_file or s.settings.model_file or s.settings.rig_file for s in setups):
+        except CalibrationError as err:
+            if any(s.settings.calibration_file for s in setups):
                 raise  # a file the user named cannot be used: stop (exit 2)
-            self.problem = str(err)
-            self.get_logger().error(f"no estimates: {err}")
+            raise CalibrationError(f"parameter calibration_files: {err}; name each joint's calibration, or a "
+                                   "method that needs none (extended_model, momentum)") from None
         self.voltages: dict[str, float] = {}
         for setup in setups:
             if setup.voltage_topic:
@@ -208,7 +202,7 @@ class EstimatorNode(Node):
             return
         n = len(batch.omega_worm)
         self.received += n
-        if self.estimator is None or not n:
+        if not n:
             return
         omega, current, voltage, theta = batch.omega_worm, batch.current_drive, batch.voltage_drive, batch.theta_worm
         restarts = self.estimator.restarts
@@ -229,8 +223,6 @@ class EstimatorNode(Node):
 
     def on_joint_state(self, msg: JointState) -> None:
         self.messages += 1
-        if self.joints is None:
-            return
         stamp = Time.from_msg(msg.header.stamp).nanoseconds
         # the messages at every publish_every-th period of the stamps' clock: a phase of the clock, not of
         # this node's start, so every estimator of one JointState publishes the same stamps
@@ -249,16 +241,12 @@ class EstimatorNode(Node):
     def report(self) -> tuple[bytes, str, dict]:
         outputs = self.topics.report() if self.topics is not None else {}
         if self.input == "joint_state":
-            if self.joints is None:
-                return ERROR, f"no estimates: {self.problem}", {"messages": self.messages}
             values = {**self.joints.report(), **outputs}
             refused = self.joints.reader.refused_total()
             invalid = sum(c["INVALID_INPUT"] for c in self.joints.flag_counts)
             return (WARN if refused or invalid else OK), (
                 f"estimating {len(self.joints.names)} joints" + (f"; {refused} joint samples refused" if refused
                                                                  else "")), values
-        if self.estimator is None:
-            return ERROR, f"no calibration: {self.problem}", {"samples": self.received}
         level = WARN if self.flag_counts["INVALID_INPUT"] else OK
         e = self.estimator
         return level, "estimating", {"samples": self.received, "malformed_batches": self.malformed,

@@ -113,3 +113,4 @@ def test_the_users_page_states_the_thresholds_in_force() -> None:
         assert figure in page, figure
     assert parameters.PLAUSIBLE["torque_constant"] == (1e-4, 50.0) and parameters.PLAUSIBLE["voltage"] == (0.1, 1e3)
     assert parameters.PLAUSIBLE["frequency"] == (1.0, 1e7)
+

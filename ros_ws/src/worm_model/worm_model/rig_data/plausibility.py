@@ -29,6 +29,8 @@ from typing import Any, Final
 import numpy as np
 
 from worm_model.physics.envelope import MARGIN, Envelope
+from worm_model.physics.motor import coulomb_friction
+from worm_model.physics.steady_state import balancing_torque
 from worm_model.rig_data.schema import MeasuredData
 from worm_model.errors import RigDataError
 
@@ -172,7 +174,8 @@ def calibration_problem(omega: Any, current: Any, tau: Any, rig: Any | None = No
 
     Refused: no point; every point the same operating point; no torque range (every point at one load:
     errors are in % of that range and the k-NN map has nothing to interpolate); with ``rig``, a point far
-    outside what it can do (speeds in rpm, currents in mA, with the unit named).
+    outside what it can do (speeds in rpm, currents in mA, with the unit named), and torques whose sign
+    contradicts the currents (:func:`torque_sign_problem`).
     """
     columns = {"omega_worm": np.asarray(omega, dtype=float), "current_drive": np.asarray(current, dtype=float),
                "tau_load": np.asarray(tau, dtype=float)}
@@ -193,4 +196,31 @@ def calibration_problem(omega: Any, current: Any, tau: Any, rig: Any | None = No
     if not span > 0:
         return (f"its {n} point(s) span no torque range (every tau_load {columns['tau_load'][0]:g} N m): errors "
                 "are in % of that range and the map has no load to interpolate; calibrate at two loads at least")
+    if rig is not None:
+        return torque_sign_problem(rig, columns["omega_worm"], columns["current_drive"], columns["tau_load"])
+    return None
+
+
+#: the rig's steady current must fit the points this many times better with their torques negated to refuse them
+SIGN_FLIP_FACTOR: Final = 2.0
+
+
+def torque_sign_problem(rig: Any, omega: np.ndarray, current: np.ndarray, tau: np.ndarray) -> str | None:
+    """Why points' tau_load [N m] cannot be the load their currents [A] carried at their speeds [rad/s] on
+    ``rig``, or None: the rig's steady current (Eq. 28 at a_w = 0 and the motor's drags, over K_t) fits them
+    SIGN_FLIP_FACTOR times better with every torque negated (the sign convention: tau_load positive opposes
+    positive worm rotation). A model error shifts or scales the fit; it does not turn it over."""
+    motor = rig.drive_motor
+    drag = coulomb_friction(motor, omega) + motor.viscous_drag * omega
+
+    def rms(load: np.ndarray) -> float:
+        return float(np.sqrt(np.mean(((balancing_torque(rig, load, omega) + drag) / motor.torque_constant
+                                      - current) ** 2)))
+
+    as_given, negated = rms(tau), rms(-tau)
+    if negated * SIGN_FLIP_FACTOR < as_given:
+        return (f"field 'points.tau_load': the torques have the sign opposite to the currents for this rig: the "
+                f"rig's steady current fits them {as_given / negated:.1f} x better with every tau_load negated "
+                f"(rms {as_given:.3g} A as given, {negated:.3g} A negated); tau_load is positive when the load "
+                "opposes positive worm rotation (is the load cell's sign reversed?)")
     return None
