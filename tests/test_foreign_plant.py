@@ -83,6 +83,8 @@ def test_the_simulator_imports_nothing_of_the_project() -> None:
             if isinstance(node, ast.Import):
                 roots = {a.name.split(".")[0] for a in node.names}
             elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                if (node.module or "").startswith("torque_estimator.evaluation.foreign."):
+                    continue  # its own folder (the project's imports are absolute)
                 roots = {(node.module or "").split(".")[0]}
             else:
                 continue
