@@ -146,8 +146,7 @@ class EstimatorNode(Node):
         self.create_subscription(RigSamples, "rig/samples", self.on_samples, STREAM)
 
     def _start_joint_state(self, values: dict) -> None:
-        joint_input = declare_joint_state_input(self)
-        topic, names, side, effort_is = joint_input.topic, joint_input.names, joint_input.side, joint_input.effort_is
+        topic, names, side, effort_is = declare_joint_state_input(self)
         volts = declare(self, "voltage_topics", Parameter.Type.STRING_ARRAY,
                         "Per joint (parallel to joint_names), a std_msgs/Float64 topic of the drive voltage [V] "
                         "('' for none): needed by a method that reads it (the observer).")

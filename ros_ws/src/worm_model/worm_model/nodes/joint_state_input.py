@@ -7,7 +7,7 @@ conversion itself is worm_model.rig_data.joint_states'.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from typing import NamedTuple
 
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -16,8 +16,7 @@ from worm_model.rig_data.joint_states import EFFORT_KINDS, JOINT_SIDES
 from worm_model.ros.parameters import declare
 
 
-@dataclass(frozen=True)
-class JointStateInput:
+class JointStateInput(NamedTuple):
     """The declared values: topic, the joints' names, their shaft (``output`` or ``motor``), the effort's kind."""
 
     topic: str

@@ -88,8 +88,7 @@ class ModelNode(Node):
         Diagnostics(self, self.report)
 
     def _start_joint_state(self, rig_file: str, use_acceleration: bool, tau: float) -> None:
-        joint_input = declare_joint_state_input(self)
-        topic, names, side, effort_is = joint_input.topic, joint_input.names, joint_input.side, joint_input.effort_is
+        topic, names, side, effort_is = declare_joint_state_input(self)
         rig_files = declare(self, "rig_files", Parameter.Type.STRING_ARRAY,
                             "Per joint (parallel to joint_names), its rig file ('' for none); empty: rig_file "
                             "for every joint.") or []
