@@ -4,6 +4,9 @@ Publishes a fixed drive-voltage / load-torque profile (timed from the first
 /rig/sample it receives, in wall time) and records what comes back, so the run
 exercises the whole loop: commands -> driver_node -> serial -> firmware -> PWM ->
 plant -> ADC/encoders -> firmware -> serial -> driver_node -> /rig/sample.
+When the first sample arrives it creates `ready_file` (when set): the run's rig time
+starts counting from then, so a commander that discovers the driver late under a
+loaded machine misses nothing of the profile.
 On shutdown it writes a JSON summary to `report_file` (when set): per profile
 phase the mean speed and load torque over the samples with the motors running
 (samples flagged STATUS_WATCHDOG_STOP are only counted).
@@ -53,6 +56,8 @@ class FilCommander(Node):
         super().__init__("fil_commander")
         rate = declare(self, "command_rate", 50.0, "Drive commands per second [Hz].", low=1.0, high=1000.0)
         self.report_file = declare(self, "report_file", "", "Write the JSON summary here at shutdown (empty: no file).")
+        self.ready_file = declare(self, "ready_file", "",
+                                  "Create this file when the first sample arrives (empty: no file).")
         self.speed_mode = declare(self, "speed_mode", False,
                                   "Run the profile with the rig's speed loop (SpeedCommand) instead of voltages.")
         self.drive = self.create_publisher(DriveCommand, "rig/drive_command", STREAM)
@@ -76,6 +81,8 @@ class FilCommander(Node):
         """One sample (worm_model.rig_data.samples.Sample: RigSample's fields)."""
         if self.start is None:
             self.start = time.monotonic()
+            if self.ready_file:
+                Path(self.ready_file).touch()
         self.samples += 1
         if self.last_seq is not None and s.seq != self.last_seq + 1:
             self.seq_gaps += 1

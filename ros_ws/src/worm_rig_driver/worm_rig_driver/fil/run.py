@@ -7,7 +7,8 @@
    pins and the PWM duties.
 2. driver_node is started on that path (exactly as on /dev/ttyACM0), and
    fil_commander drives the rig through it (a voltage/load profile).
-3. Once telemetry flows, the loop runs --duration seconds of rig time.
+3. Once telemetry flows and fil_commander receives it, the loop runs --duration
+   seconds of rig time.
 4. The host -> rig line is cut (at a frame boundary) and the time from the last
    byte the firmware received to every bridge off is measured in rig time.
 5. Both nodes are stopped (SIGINT); driver_node's link statistics at exit give the
@@ -77,8 +78,9 @@ class Nodes:
     def __init__(self, log_dir: Path, link: str, env: dict[str, str], speed_mode: bool = False) -> None:
         self.log_dir = log_dir
         self.report = log_dir / "commander.json"
-        if self.report.exists():
-            self.report.unlink()
+        self.ready = log_dir / "commander.ready"
+        for stale in (self.report, self.ready):
+            stale.unlink(missing_ok=True)
         common = [sys.executable, "-m"]
         self.driver_log = log_dir / "driver_node.log"
         self.commander_log = log_dir / "fil_commander.log"
@@ -90,6 +92,7 @@ class Nodes:
         with open(self.commander_log, "w") as out:
             self.commander = subprocess.Popen(
                 common + ["worm_rig_driver.fil.commander_node", "--ros-args", "-p", f"report_file:={self.report}",
+                          "-p", f"ready_file:={self.ready}",
                           "-p", f"speed_mode:={str(speed_mode).lower()}"],
                 stdout=out, stderr=subprocess.STDOUT, env=env)
 
@@ -166,6 +169,15 @@ def closed_loop(args: argparse.Namespace, loop: FirmwareInTheLoop, nodes: Nodes)
         if problem or time.monotonic() > deadline:
             say(f"no telemetry stream: {problem or f'link not up within {args.link_timeout:g} s'}\n"
                 f"{nodes.tail(nodes.driver_log)}")
+            return 1
+    # --- wait for the commander to hear the rig: DDS discovery may take seconds on a busy host ----
+    while not nodes.ready.exists():
+        for _ in range(20):
+            loop.step()
+        problem = nodes.failed()
+        if problem or time.monotonic() > deadline:
+            say(f"fil_commander never received a sample: {problem or f'not within {args.link_timeout:g} s'}\n"
+                f"{nodes.tail(nodes.commander_log)}")
             return 1
     start_rig = loop.rig_time
     start_wall = time.monotonic()
