@@ -167,9 +167,21 @@ def test_replay_cli_reports_speed_factor(recorded: tuple[Path, list[str], str, P
     assert bad.returncode == 2 and "/no/such.json" in bad.stderr, bad.stderr
 
 
-def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str], tmp_path: Path) -> None:
+def value(node, name: str):
+    """A node's parameter's value; a declared string array nothing set holds no value (replay's []): []."""
+    from rclpy.exceptions import ParameterUninitializedException
+
+    try:
+        return node.get_parameter(name).value
+    except ParameterUninitializedException:
+        return []
+
+
+@pytest.mark.parametrize("given", ["rig_samples", "joint_state"])
+def test_replay_defaults_are_the_nodes_declared_defaults(given: str, ros_env: dict[str, str], tmp_path: Path) -> None:
     """replay fills what the parameter file leaves out with NODE_DEFAULTS: they must be what the
-    nodes declare, or replay silently differs from a live graph run without a parameter file."""
+    nodes declare, for either input, or replay silently differs from a live graph run without a parameter
+    file (or refuses a file the nodes read)."""
     import rclpy
 
     from torque_estimator.estimation.registry import METHODS
@@ -184,16 +196,20 @@ def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str]
     # the default method (knn) does not start without a calibration: one is given, the rest stays default
     rig = load_rig()
     save_database(calibrate_simulated(rig, CalibrationGrid.paper(rig, 3, 4), seed=0), tmp_path / "cal.json")
-    rclpy.init(args=["--ros-args", "-p", f"calibration_file:={tmp_path / 'cal.json'}"])  # the default context
+    rclpy.init(args=["--ros-args", "-p", f"calibration_file:={tmp_path / 'cal.json'}",  # the default context
+                     "-p", f"input:={given}", "-p", "joint_names:=[gear]"])
     try:
         for name, node_class in (("model_node", ModelNode), ("estimator_node", EstimatorNode)):
             node = node_class()
             try:
                 # estimator_node declares the options of its method only (the default's)
                 known = {p: v for p, v in NODE_DEFAULTS[name].items()
-                         if node.has_parameter(p) and p != "calibration_file"}
-                assert {p: node.get_parameter(p).value for p in known} == known, name
-                assert "method" not in known or set(known) >= {o.name for o in METHODS[known["method"]].options}
+                         if node.has_parameter(p) and p not in ("calibration_file", "input", "joint_names", "method")}
+                assert {p: value(node, p) for p in known} == known, name
+                assert given == "rig_samples" or set(known) >= {"joint_state_topic", "joint_side", "effort_is"}, name
+                if name == "estimator_node":
+                    method = node.get_parameter("method").value
+                    assert set(known) >= {o.name for o in METHODS[method].options} - {"calibration_file"}
                 undeclared = (set(node._parameters) - set(NODE_DEFAULTS[name])
                               - {"use_sim_time", "start_type_description_service"})
                 assert not undeclared, f"{name} declares {sorted(undeclared)} that replay does not know"
@@ -201,6 +217,25 @@ def test_replay_defaults_are_the_nodes_declared_defaults(ros_env: dict[str, str]
                 node.destroy_node()
     finally:
         rclpy.try_shutdown()
+
+
+def test_replay_reads_a_joint_state_graphs_file_and_says_it_replays_rig_samples(tmp_path: Path) -> None:
+    """A parameter file of a graph fed by a robot's JointState (every name one the nodes declare) is read, and
+    refused in one line naming the input replay does not replay, not as a misspelt parameter."""
+    from torque_estimator.errors import ReplayError
+    from torque_estimator.offline.replay import node_parameters
+
+    graph = tmp_path / "robot_graph.yaml"
+    graph.write_text("model_node:\n  ros__parameters:\n    input: joint_state\n    joint_names: [elbow]\n"
+                     "    rig_files: ['']\n    sample_rate: 500.0\n"
+                     "estimator_node:\n  ros__parameters:\n    input: joint_state\n    joint_names: [elbow]\n"
+                     "    model_files: ['']\n    publish_every: 2\n    joint_side: motor\n")
+    with pytest.raises(ReplayError, match=r"^model_node.input=joint_state: replay feeds the nodes a rig's samples"):
+        node_parameters(graph)
+    graph.write_text(graph.read_text().replace("input: joint_state", "input: rig_samples"))
+    params = node_parameters(graph)
+    assert params["estimator_node"]["publish_every"] == 2 and params["model_node"]["rig_files"] == [""]
+    assert params["estimator_node"]["voltage_topics"] == [] and params["model_node"]["publish_period"] == 0.02
 
 
 @pytest.mark.parametrize("method, reads", [("observer", set()), ("extended_model", {"input_filter"}),

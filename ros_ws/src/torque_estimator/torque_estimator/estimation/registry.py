@@ -11,25 +11,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, Callable
 
+from worm_model.cli.node_options import Option
+
 from torque_estimator.estimation.base import TorqueEstimator
 from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.extended_model import ExtendedModelEstimator
 from torque_estimator.estimation.knn import WEIGHTINGS, KnnEstimator
 from torque_estimator.estimation.momentum import DEFAULT_BANDWIDTH, DEFAULT_FALSE_ALARM, MomentumEstimator
 from torque_estimator.estimation.observer import ObserverEstimator
-
-
-@dataclass(frozen=True)
-class Option:
-    """One option a method reads: estimator_node's parameter of that name, declared with this default,
-    description and range (``low``/``high`` for numbers, ``choices`` for strings)."""
-
-    name: str
-    default: Any
-    description: str
-    low: float | None = None
-    high: float | None = None
-    choices: tuple[str, ...] | None = None
 
 
 #: LiveEstimator's matched filters, change detector and inertia compensation in front of a quasi-static map
@@ -137,6 +126,5 @@ def make_estimator(name: str, database: CalibrationDatabase | None, **options: A
     return row.factory(database, **options)
 
 
-__all__ = ["ESTIMATORS", "KNN_OPTIONS", "MAP_OPTIONS", "METHODS", "MOMENTUM_OPTIONS", "Method", "Option",
-           "PRIOR_OPTIONS",
+__all__ = ["ESTIMATORS", "KNN_OPTIONS", "MAP_OPTIONS", "METHODS", "MOMENTUM_OPTIONS", "Method", "PRIOR_OPTIONS",
            "make_estimator", "method"]

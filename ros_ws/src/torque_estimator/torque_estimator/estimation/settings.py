@@ -2,7 +2,7 @@
 feedforward all go through :func:`build_estimator`.
 
 :class:`EstimatorSettings` holds the method (a name of registry.METHODS), the rig file, the
-calibration file, the model file and the method's options (registry.Option: the parameters
+calibration file, the model file and the method's options (worm_model.cli.node_options.Option rows: the parameters
 estimator_node declares for that method). :data:`SETTINGS_OPTIONS` are the four files' and the
 method's own parameters, declared for every method.
 
@@ -34,7 +34,9 @@ from torque_estimator.estimation.base import TorqueEstimator
 from torque_estimator.estimation.database import CalibrationDatabase, load_database
 from torque_estimator.errors import CalibrationError
 from torque_estimator.estimation.live import LiveEstimator
-from torque_estimator.estimation.registry import MAP_OPTIONS, METHODS, Option, method
+from worm_model.cli.node_options import Option
+
+from torque_estimator.estimation.registry import MAP_OPTIONS, METHODS, method
 
 #: estimator_node's parameters for the settings themselves, declared whatever the method.
 SETTINGS_OPTIONS: tuple[Option, ...] = (
@@ -54,6 +56,25 @@ SETTINGS_OPTIONS: tuple[Option, ...] = (
            "model."),
 )
 
+#: What estimator_node reads.
+INPUTS: tuple[str, ...] = ("rig_samples", "joint_state")
+
+#: estimator_node's input and its rate, whatever the method (worm_model.cli.node_options rows).
+INPUT_OPTIONS: tuple[Option, ...] = (
+    Option("input", "rig_samples", "What the estimates are computed from: rig_samples (rig/samples, a rig's batches) "
+           "or joint_state (a robot's sensor_msgs/JointState on joint_state_topic).", choices=INPUTS),
+    Option("sample_rate", 1000.0, "Sample rate [Hz] of the input: the rig's, or the JointState publisher's (its "
+           "messages' stamps are numbered at this rate).", low=1.0, high=100000.0),
+)
+
+#: The rig_samples input's own: the standard outputs' joint and frame (the joint_state input's are
+#: joints.settings.JOINT_STATE_ESTIMATOR_OPTIONS).
+RIG_SAMPLES_OPTIONS: tuple[Option, ...] = (
+    Option("joint_name", "gear", "Name of the joint in torque_estimate/joint_states."),
+    Option("wrench_frame", "gear_output", "frame_id of torque_estimate/wrench: its z axis is the output shaft, "
+           "positive rotation about +z."),
+)
+
 #: Every estimator parameter of estimator_node, whatever the method, by name (replay fills in their defaults).
 ALL_OPTIONS: dict[str, Option] = {o.name: o for o in SETTINGS_OPTIONS
                                   + tuple(opt for row in METHODS.values() for opt in row.options)}
@@ -68,7 +89,7 @@ class EstimatorSettings:
     Attributes:
         method: a name of registry.METHODS.
         rig_file, calibration_file, model_file: paths, "" for none.
-        options: the method's options by name (registry.Option names; missing ones take their default).
+        options: the method's options by name (its Option rows' names; missing ones take their default).
 
     Raises:
         ValueError: an unknown method, or an option the method does not read.

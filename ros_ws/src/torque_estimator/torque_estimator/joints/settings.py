@@ -19,6 +19,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
+from worm_model.cli.node_options import STRING_ARRAY, Option
+
 from torque_estimator.estimation.base import needs_voltage
 from torque_estimator.estimation.registry import METHODS
 from torque_estimator.estimation.settings import EstimatorSettings
@@ -30,6 +32,17 @@ JOINT_STATE_METHOD = "extended_model"
 #: The per-joint list parameters (module docstring) -> the single parameter each falls back on.
 PER_JOINT_FILES: dict[str, str] = {"rig_files": "rig_file", "model_files": "model_file",
                                    "calibration_files": "calibration_file"}
+
+#: estimator_node's joint_state input's own parameters, besides the JointState input's
+#: (worm_model.rig_data.joint_states.JOINT_STATE_OPTIONS).
+JOINT_STATE_ESTIMATOR_OPTIONS: tuple[Option, ...] = (
+    Option("voltage_topics", STRING_ARRAY, "Per joint (parallel to joint_names), a std_msgs/Float64 topic of the "
+           "drive voltage [V] ('' for none): needed by a method that reads it (the observer)."),
+    *(Option(name, STRING_ARRAY, f"Per joint (parallel to joint_names), its {single} ('' for none); empty: "
+             f"{single} for every joint.") for name, single in PER_JOINT_FILES.items()),
+    Option("publish_every", 5, "Publish the estimates of the JointStates stamped at every n-th sample period of the "
+           "stamps' clock (5: 200 Hz from 1 kHz); every message is estimated.", low=1, high=100000),
+)
 
 
 @dataclass(frozen=True)

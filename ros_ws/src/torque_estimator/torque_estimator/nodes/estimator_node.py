@@ -62,7 +62,6 @@ does not start (the shipped observer needs none, so a graph runs before it is ca
 from __future__ import annotations
 
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -72,38 +71,33 @@ from worm_model.rig_data.samples import batch_problem
 from worm_model.ros.diagnostics import OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.nodes.joint_state_input import declare_joint_state_input
-from worm_model.ros.parameters import declare
+from worm_model.rig_data.joint_states import JOINT_STATE_OPTIONS
+from worm_model.ros.parameters import declare_option
 from worm_model.ros.qos import STREAM
 from worm_rig_driver.nodes.estimate_topics import EstimateTopics
 
 from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.errors import CalibrationError
-from torque_estimator.estimation.registry import METHODS, Option
-from torque_estimator.estimation.settings import ALL_OPTIONS, SETTINGS_OPTIONS, EstimatorSettings, build_estimator
+from torque_estimator.estimation.registry import METHODS
+from torque_estimator.estimation.settings import (ALL_OPTIONS, INPUT_OPTIONS, RIG_SAMPLES_OPTIONS, SETTINGS_OPTIONS,
+                                                  EstimatorSettings, build_estimator)
 from torque_estimator.joints.estimators import JointEstimators
-from torque_estimator.joints.settings import JOINT_STATE_METHOD, PER_JOINT_FILES, joint_setups
+from torque_estimator.joints.settings import JOINT_STATE_ESTIMATOR_OPTIONS, JOINT_STATE_METHOD, joint_setups
 
-#: what the node reads
-INPUTS = ("rig_samples", "joint_state")
 #: each input's own parameters (a parameter of the other input is reported as not read)
-INPUT_PARAMETERS = {"rig_samples": ("joint_name", "wrench_frame"),
-                    "joint_state": ("joint_state_topic", "joint_names", "joint_side", "effort_is", "voltage_topics",
-                                    "publish_every", *PER_JOINT_FILES)}
+INPUT_PARAMETERS = {"rig_samples": tuple(o.name for o in RIG_SAMPLES_OPTIONS),
+                    "joint_state": tuple(o.name for o in JOINT_STATE_OPTIONS + JOINT_STATE_ESTIMATOR_OPTIONS)}
 
 
 class EstimatorNode(Node):
     def __init__(self) -> None:
         super().__init__("estimator_node")
-        self.input = declare(self, "input", "rig_samples",
-                             "What the estimates are computed from: rig_samples (rig/samples, a rig's batches) or "
-                             "joint_state (a robot's sensor_msgs/JointState on joint_state_topic).", choices=INPUTS)
+        self.input, rate = (declare_option(self, row) for row in INPUT_OPTIONS)
         joint_state = self.input == "joint_state"
-        values = {o.name: self._declare(o, JOINT_STATE_METHOD if joint_state and o.name == "method" else None)
+        values = {o.name: declare_option(self, o, JOINT_STATE_METHOD if joint_state and o.name == "method" else None)
                   for o in SETTINGS_OPTIONS}
         self.method = values["method"]
-        values.update({o.name: self._declare(o) for o in METHODS[self.method].options})
-        rate = declare(self, "sample_rate", 1000.0, "Sample rate [Hz] of the input: the rig's, or the JointState "
-                       "publisher's (its messages' stamps are numbered at this rate).", low=1.0, high=100000.0)
+        values.update({o.name: declare_option(self, o) for o in METHODS[self.method].options})
         self.period = 1.0 / rate
         self.flag_counts = {flag.name: 0 for flag in EstimateFlags if flag}
         self.received = 0
@@ -117,15 +111,8 @@ class EstimatorNode(Node):
         self._warn_undeclared()
 
     # --- start-up ----------------------------------------------------------------------------------
-    def _declare(self, option: Option, default=None):
-        return declare(self, option.name, option.default if default is None else default, option.description,
-                       low=option.low, high=option.high, choices=option.choices)
-
     def _start_rig_samples(self, values: dict) -> None:
-        joint_name = declare(self, "joint_name", "gear", "Name of the joint in torque_estimate/joint_states.")
-        wrench_frame = declare(self, "wrench_frame", "gear_output",
-                               "frame_id of torque_estimate/wrench: its z axis is the output shaft, positive "
-                               "rotation about +z.")
+        joint_name, wrench_frame = (declare_option(self, row) for row in RIG_SAMPLES_OPTIONS)
         self.settings = EstimatorSettings.from_parameters(values)
         try:
             built = build_estimator(self.settings)
@@ -147,16 +134,8 @@ class EstimatorNode(Node):
 
     def _start_joint_state(self, values: dict) -> None:
         topic, names, side, effort_is = declare_joint_state_input(self)
-        volts = declare(self, "voltage_topics", Parameter.Type.STRING_ARRAY,
-                        "Per joint (parallel to joint_names), a std_msgs/Float64 topic of the drive voltage [V] "
-                        "('' for none): needed by a method that reads it (the observer).")
-        files = {name: declare(self, name, Parameter.Type.STRING_ARRAY,
-                               f"Per joint (parallel to joint_names), its {single} ('' for none); empty: "
-                               f"{single} for every joint.")
-                 for name, single in PER_JOINT_FILES.items()}
-        self.publish_every = declare(self, "publish_every", 5, "Publish the estimates of the JointStates stamped at "
-                                     "every n-th sample period of the stamps' clock (5: 200 Hz from 1 kHz); every "
-                                     "message is estimated.", low=1, high=100000)
+        volts, *lists, self.publish_every = (declare_option(self, row) for row in JOINT_STATE_ESTIMATOR_OPTIONS)
+        files = dict(zip((row.name for row in JOINT_STATE_ESTIMATOR_OPTIONS[1:-1]), lists))
         self.period_ns = self.period * 1e9
         setups = joint_setups(values, names, volts, files)  # ValueError: one line, exit 2
         try:

@@ -64,6 +64,9 @@ import yaml
 
 from worm_model.live.live_model import FIELDS as FORCE_FIELDS
 from worm_model.live.live_model import LiveModel
+from worm_model.live.model_node_options import MODEL_NODE_JOINT_STATE_OPTIONS, MODEL_NODE_OPTIONS
+from worm_model.cli.node_options import defaults
+from worm_model.rig_data.joint_states import JOINT_STATE_OPTIONS
 from worm_model.cli.errors import run_tool
 from worm_model.errors import BagRecordingError, InputError, ParameterError, RigDataError
 from worm_model.cli.options import Parser, existing_file, existing_bag, nearest, number
@@ -78,17 +81,20 @@ from worm_model.rig_data.samples import samples_of
 
 from torque_estimator.errors import CalibrationError, GraphError, ReplayError
 from torque_estimator.estimation.registry import ESTIMATORS
-from torque_estimator.estimation.settings import ALL_OPTIONS, EstimatorSettings, build_estimator
+from torque_estimator.estimation.settings import (ALL_OPTIONS, INPUT_OPTIONS, RIG_SAMPLES_OPTIONS, EstimatorSettings,
+                                                  build_estimator)
+from torque_estimator.joints.settings import JOINT_STATE_ESTIMATOR_OPTIONS
 from torque_estimator.graph.runner import default_graph_file, parse_overrides
 from worm_model.cli.progress import ProgressBar
 
-#: The nodes' parameter defaults (model_node.py; estimator_node.py: every method's options, from
-#: estimation.settings), for what the file leaves out.
+#: The nodes' parameter defaults, for what the file leaves out: the rows each node declares (model_node:
+#: worm_model.live.model_node_options; estimator_node: estimation.settings' and every method's; both: the
+#: JointState input's, worm_model.rig_data.joint_states), so a file written for either input is read.
 NODE_DEFAULTS: dict[str, dict[str, Any]] = {
-    "model_node": {"input": "rig_samples", "rig_file": "", "use_acceleration": True, "acceleration_filter": 0.01,
-                   "publish_period": 0.02},
-    "estimator_node": {**{name: option.default for name, option in ALL_OPTIONS.items()}, "sample_rate": 1000.0,
-                       "input": "rig_samples", "joint_name": "gear", "wrench_frame": "gear_output"},
+    "model_node": defaults(MODEL_NODE_OPTIONS + MODEL_NODE_JOINT_STATE_OPTIONS + JOINT_STATE_OPTIONS),
+    "estimator_node": {**{name: option.value for name, option in ALL_OPTIONS.items()},
+                       **defaults(INPUT_OPTIONS + RIG_SAMPLES_OPTIONS + JOINT_STATE_OPTIONS
+                                  + JOINT_STATE_ESTIMATOR_OPTIONS)},
 }
 #: The rig nodes whose feedforward estimator may be the graph's live estimator, and what replay reads of them
 #: (sim_node.py, driver_node.py; their other parameters are ignored here).
@@ -154,6 +160,10 @@ def node_parameters(params_file: Path | None, overrides: Sequence[str] = ()) -> 
                                   f"node's default {default!r}")
             params[node][name] = value
     params["live"] = {"node": live_estimator(document, params)}
+    for node in ("model_node", "estimator_node"):
+        if params[node]["input"] != "rig_samples":  # replay feeds the nodes a rig's sample stream
+            raise ReplayError(f"{node}.input={params[node]['input']}: replay feeds the nodes a rig's samples "
+                              "(/rig/samples); a graph reading a robot's JointState is replayed with ros2 bag play")
     return params
 
 

@@ -10,10 +10,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 
-from worm_model.rig_data.joint_states import EFFORT_KINDS, JOINT_SIDES
-from worm_model.ros.parameters import declare
+from worm_model.rig_data.joint_states import JOINT_STATE_OPTIONS
+from worm_model.ros.parameters import declare_option
 
 
 class JointStateInput(NamedTuple):
@@ -26,17 +25,9 @@ class JointStateInput(NamedTuple):
 
 
 def declare_joint_state_input(node: Node) -> JointStateInput:
-    """Declare the JointState input's parameters on ``node`` and return their values."""
-    topic = declare(node, "joint_state_topic", "joint_states",
-                    "Topic of the robot's sensor_msgs/JointState (relative: in this node's namespace).")
-    names = declare(node, "joint_names", Parameter.Type.STRING_ARRAY,
-                    "The joints, by their names in the JointState (any order there).") or []
-    side = declare(node, "joint_side", "output", "Shaft of the JointState's position and velocity: output (the "
-                   "gear shaft, as a robot's joint) or motor (the worm); the rig file's ratio converts.",
-                   choices=JOINT_SIDES)
-    effort_is = declare(node, "effort_is", "current", "What the JointState's effort is: current (the drive "
-                        "current [A]) or motor_torque (K_t i [N m]; the rig file's K_t converts).",
-                        choices=EFFORT_KINDS)
+    """Declare the JointState input's parameters (rig_data.joint_states.JOINT_STATE_OPTIONS) on ``node`` and return
+    their values."""
+    topic, names, side, effort_is = (declare_option(node, row) for row in JOINT_STATE_OPTIONS)
     return JointStateInput(topic, list(names), side, effort_is)
 
 

@@ -27,18 +27,18 @@ from __future__ import annotations
 import math
 
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from worm_msgs.msg import GearboxForces, RigSamples, TorqueEstimate
 
 from worm_model.live.live_model import ForceFlags, LiveForces, LiveModel
+from worm_model.live.model_node_options import MODEL_NODE_JOINT_STATE_OPTIONS, MODEL_NODE_OPTIONS
 from worm_model.rig_data.joint_states import JointConversion, JointStateReader
 from worm_model.rig_data.samples import batch_problem
 from worm_model.ros.diagnostics import OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.nodes.joint_state_input import declare_joint_state_input
-from worm_model.ros.parameters import declare
+from worm_model.ros.parameters import declare_option
 from worm_model.ros.qos import STREAM
 from worm_model.physics.parameters import load_rig
 
@@ -61,17 +61,8 @@ class _Joint:
 class ModelNode(Node):
     def __init__(self) -> None:
         super().__init__("model_node")
-        self.input = declare(self, "input", "rig_samples", "What the forces are computed from: rig_samples "
-                             "(rig/samples) or joint_state (a robot's sensor_msgs/JointState).",
-                             choices=("rig_samples", "joint_state"))
-        rig_file = declare(self, "rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
-        use_acceleration = declare(self, "use_acceleration", True,
-                                   "Use the worm acceleration (Eqs 19-20); false = quasi-static (a_w = 0).")
-        tau = declare(self, "acceleration_filter", 0.01,
-                      "Time constant [s] of the low-pass on speed and acceleration.", low=0.0, high=1.0)
-        period = declare(self, "publish_period", 0.02,
-                         "Period [s] of the processing of the queued samples and of the forces published for "
-                         "the newest.", low=0.001, high=10.0)
+        self.input, rig_file, use_acceleration, tau, period = (declare_option(self, row)
+                                                                for row in MODEL_NODE_OPTIONS)
         self.received = 0
         self.malformed = 0  # rig/samples messages refused
         self.invalid = 0
@@ -89,10 +80,7 @@ class ModelNode(Node):
 
     def _start_joint_state(self, rig_file: str, use_acceleration: bool, tau: float) -> None:
         topic, names, side, effort_is = declare_joint_state_input(self)
-        rig_files = declare(self, "rig_files", Parameter.Type.STRING_ARRAY,
-                            "Per joint (parallel to joint_names), its rig file ('' for none); empty: rig_file "
-                            "for every joint.") or []
-        rate = declare(self, "sample_rate", 1000.0, "Rate [Hz] of the JointState publisher.", low=1.0, high=100000.0)
+        rig_files, rate = (declare_option(self, row) for row in MODEL_NODE_JOINT_STATE_OPTIONS)
         if not names or (rig_files and len(rig_files) != len(names)):
             raise ValueError(f"parameters joint_names {list(names)} and rig_files {list(rig_files)}: name the joints, "
                              "and one rig file per joint or none")

@@ -35,12 +35,25 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
+from worm_model.cli.node_options import STRING_ARRAY, Option
 from worm_model.physics.parameters import Rig
 
 #: Which shaft a joint's position and velocity belong to.
 JOINT_SIDES: tuple[str, ...] = ("motor", "output")
 #: What a joint's effort is: the drive current [A], or the motor's torque K_t·i [N m].
 EFFORT_KINDS: tuple[str, ...] = ("current", "motor_torque")
+
+#: A node's JointState input, the parameters model_node and estimator_node declare for it
+#: (worm_model.nodes.joint_state_input) and replay reads.
+JOINT_STATE_OPTIONS: tuple[Option, ...] = (
+    Option("joint_state_topic", "joint_states",
+           "Topic of the robot's sensor_msgs/JointState (relative: in this node's namespace)."),
+    Option("joint_names", STRING_ARRAY, "The joints, by their names in the JointState (any order there)."),
+    Option("joint_side", "output", "Shaft of the JointState's position and velocity: output (the gear shaft, as a "
+           "robot's joint) or motor (the worm); the rig file's ratio converts.", choices=JOINT_SIDES),
+    Option("effort_is", "current", "What the JointState's effort is: current (the drive current [A]) or "
+           "motor_torque (K_t i [N m]; the rig file's K_t converts).", choices=EFFORT_KINDS),
+)
 #: Per-joint counts of what was refused (module docstring), in report order.
 REFUSALS: tuple[str, ...] = ("absent", "missing_field", "not_finite", "repeated", "out_of_order", "early")
 
@@ -208,4 +221,5 @@ class JointStateReader:
         return self.malformed_messages + sum(sum(s.refused.values()) for s in self._state.values())
 
 
-__all__ = ["EFFORT_KINDS", "JOINT_SIDES", "REFUSALS", "JointConversion", "JointSample", "JointStateReader"]
+__all__ = ["EFFORT_KINDS", "JOINT_SIDES", "JOINT_STATE_OPTIONS", "REFUSALS", "JointConversion", "JointSample",
+           "JointStateReader"]

@@ -25,6 +25,7 @@ from rclpy.parameter import Parameter
 from rclpy.validate_full_topic_name import validate_full_topic_name
 
 from worm_model.errors import InputError
+from worm_model.cli.node_options import STRING_ARRAY, Option
 from worm_model.cli.options import article, nearest
 from worm_model.files.reading import load_parameter_file, parameter_kind, parse_yaml, ros_arguments
 
@@ -59,6 +60,15 @@ def declare(node: Node, name: str, default: Any, description: str, *,
     if choices and value not in choices:
         raise ValueError(f"parameter {node.get_name()}.{name}={value!r} is not one of {choices}")
     return value
+
+
+def declare_option(node: Node, option: Option, default: Any = None) -> Any:
+    """Declare one Option row (worm_model.cli.node_options) on ``node`` and return its value; ``default``
+    replaces the row's (a node whose default depends on another parameter). An unset string array: []."""
+    value = option.default if default is None else default
+    declared = declare(node, option.name, Parameter.Type.STRING_ARRAY if value == STRING_ARRAY else value,
+                       option.description, low=option.low, high=option.high, choices=option.choices)
+    return [] if declared is None and value == STRING_ARRAY else declared
 
 
 @dataclass(frozen=True)
