@@ -65,7 +65,8 @@ from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simula
 from torque_estimator.control.rig_feedforward import feedforward_estimator
 from torque_estimator.evaluation.closed_loop import run_scenario
 from torque_estimator.graph.runner import default_graph_file
-from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
+from torque_estimator.estimation.registry import ESTIMATORS
+from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.demo.run_analysis import load_step_responses
 from torque_estimator.evaluation.scenario import DEMO_SCENARIO, segment_starts
 from worm_rig_driver.drive.speed_loop import PiGains
@@ -114,15 +115,6 @@ GRAPH_LATENCY = 1
 #: 200 Hz (the shipped graph feeds forward at the rig and batches 10: through it, later still)
 GRAPH_BATCH = 5
 SETTLE = 0.8  # [s] after a change before the live estimate counts as steady (run_analysis.analyse_run)
-
-
-def live_options(est_p: dict) -> dict:
-    """LiveEstimator keyword arguments from estimator_node's parameters (defaults where the file has none)."""
-    names = ("input_filter", "estimate_filter", "change_threshold", "transient_acceleration")
-    options = {name: float(est_p[name]) for name in names if name in est_p}
-    if "inertia_compensation" in est_p:
-        options["inertia_compensation"] = bool(est_p["inertia_compensation"])
-    return options
 
 
 def steady_estimate_error_pct(run, torque_range: float) -> float:
@@ -191,14 +183,13 @@ def main(argv: list[str] | None = None) -> int:
     start = time.perf_counter()
     db = calibrate_simulated(rig, CalibrationGrid.paper(rig), seed=args.seed)
     method = args.method or est_p.get("method", "knn")
-    options = ({"k": int(est_p.get("k", 4)), "weighting": est_p.get("weighting", "inverse_distance")}
-               if method == "knn" else {})
-    estimator = make_estimator(method, db, **options)
+    # estimator_node's method and options as the node reads them, on this bench's rig and calibration
+    settings = EstimatorSettings(method, options=EstimatorSettings.from_parameters(est_p, method).options)
+    estimator = build_estimator(settings, rig=rig, database=db)
     LABELS["estimate"] = f"on ({method})"
     info(f"[controller_bench] feedforward estimator: {method}")
     info(f"[controller_bench] calibration: {len(db)} points in {time.perf_counter() - start:.1f} s")
-    options = live_options(est_p)
-    info(f"[controller_bench] LiveEstimator options: {options}")
+    info(f"[controller_bench] estimator options: {settings.options}")
 
     metrics = []
     # (batch, latency, metric suffix, the estimator fed forward): at the rig, the estimator as a rig runs it
@@ -212,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
                 runs = run_scenario(rig, DEMO_SCENARIO, tuple(MODES), estimator=fed, seed=seed,
                                     gains=PiGains(float(ctl_p["kp"]), float(ctl_p["ki"])),
                                     estimate_timeout=float(ctl_p.get("estimate_timeout", 0.05)),
-                                    live_options=options, ff_batch=batch, ff_latency=latency, ff_phase=phase)
+                                    ff_batch=batch, ff_latency=latency, ff_phase=phase)
                 where = f", batch position {phase}" if batch > 1 else ""
                 summaries.append(report(f"{timing}, run seed {seed}{where}", runs, db.torque_range))
         duration = sum(s.duration for s in DEMO_SCENARIO)

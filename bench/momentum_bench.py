@@ -22,15 +22,19 @@ from __future__ import annotations
 
 import argparse
 
+from dataclasses import replace
+
 import numpy as np
 from observer_bench import update_cpu_us  # bench/, beside this script
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
+from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.momentum import MomentumEstimator, linear_noise_bound, predicted_noise
+from torque_estimator.estimation.settings import BuiltEstimator, EstimatorSettings, build_estimator
 from torque_estimator.evaluation.held_out import held_out_setpoints
 from torque_estimator.evaluation.observer_study import held_out_streaming, perturbed_rig
 from torque_estimator.evaluation.transient import STEP_SPEED, ensemble_noise, transient_figures
-from worm_model.physics.parameters import load_rig
+from worm_model.physics.parameters import Rig, load_rig
 
 RANGE = 0.495  # [N m] the paper grid's calibrated range
 
@@ -47,19 +51,25 @@ class _WithoutEncoder:
                                    "skip": lambda _s, n: inner.skip(n)})()
 
 
+def momentum(model: Rig, database: CalibrationDatabase | None = None) -> BuiltEstimator:
+    """The momentum observer as estimator_node builds it, on the model ``model`` (the bench's rig, or perturbed)."""
+    return build_estimator(EstimatorSettings("momentum"), rig=model, database=database)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--metrics-only", action="store_true", help="only the metric lines (make bench)")
     args = parser.parse_args()
     rig = load_rig(None)
-    estimator = MomentumEstimator(None, rig=rig)
+    built = momentum(rig)
+    estimator = built.estimator
     print(f"momentum_update_cpu: {update_cpu_us(rig, estimator=estimator, voltage=False):.1f} us", flush=True)
-    f = transient_figures(rig, "momentum", estimator, RANGE)
+    f = transient_figures(rig, built, RANGE)
     print(f"momentum_step90: {f.step90_ms:g} ms\nmomentum_overshoot: {f.overshoot_pct:.1f} %\n"
           f"momentum_ramp_err: {f.ramp_err_pct:.2f} %\nmomentum_reversal_err: {f.reversal_err_pct:.2f} %", flush=True)
-    blind = transient_figures(rig, "momentum", _WithoutEncoder(estimator), RANGE)
+    blind = transient_figures(rig, replace(built, estimator=_WithoutEncoder(estimator)), RANGE)
     print(f"momentum_step90_no_encoder: {blind.step90_ms:g} ms", flush=True)
-    print(f"momentum_noise: {ensemble_noise(rig, 'momentum', estimator):.2e} N m\n"
+    print(f"momentum_noise: {ensemble_noise(rig, built):.2e} N m\n"
           f"momentum_noise_predicted: {predicted_noise(rig, STEP_SPEED, 0.0, estimator.bandwidth):.2e} N m\n"
           f"momentum_linear_floor: {linear_noise_bound(rig, STEP_SPEED, 0.0, 5):.2e} N m", flush=True)
     grid = CalibrationGrid.paper(rig)
@@ -75,10 +85,10 @@ def main() -> int:
     for case in (dict(), dict(mu=1.3), dict(mu=0.7), dict(kt=1.05), dict(kt=0.95), dict(inertia=1.2),
                  dict(inertia=0.8)):
         model = perturbed_rig(rig, **case)
-        r = transient_figures(rig, "momentum", MomentumEstimator(None, rig=model), RANGE)
+        r = transient_figures(rig, momentum(model), RANGE)
         held = []
         for db in (None, database):
-            est, truth = held_out_streaming(rig, speeds, torques, estimator=MomentumEstimator(db, rig=model))
+            est, truth = held_out_streaming(rig, speeds, torques, estimator=momentum(model, db).estimator)
             error = 100 * np.abs(est - truth) / RANGE
             held.append(f"{error.mean():.2f}/{error.max():.2f}")
         name = ",".join(f"{k} x{v}" for k, v in case.items()) or "nominal"

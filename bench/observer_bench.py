@@ -32,6 +32,7 @@ from torque_estimator.estimation.observer import ObserverEstimator, equivalent_w
 from torque_estimator.evaluation.observer_study import held_out_streaming, perturbed_rig, profile_error, step_response
 from torque_estimator.demo.run_analysis import load_step_responses
 from torque_estimator.evaluation.scenario import DEMO_SCENARIO
+from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from worm_model.physics.parameters import Rig, load_rig
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
@@ -112,7 +113,8 @@ def main() -> int:
         print(f"  {name:14s} {r.step90_ms:5g} {r.overshoot_pct:6.1f} {r.steady_bias:+.4f} {r.steady_std:.5f}  "
               f"per-seed median {np.median(r.per_seed90_ms):g} max {np.max(r.per_seed90_ms):g}  "
               f"held-out {held[0]} -> {held[1]} %")
-    runs = run_scenario(rig, DEMO_SCENARIO, ("off", "estimate", "truth"), estimator=ObserverEstimator(None), seed=1)
+    runs = run_scenario(rig, DEMO_SCENARIO, ("off", "estimate", "truth"),
+                        estimator=build_estimator(EstimatorSettings("observer")), seed=1)
     for mode, run in runs.items():
         steps = load_step_responses(DEMO_SCENARIO, run.t, run.omega_true, run.setpoint)
         print(f"closed loop firmware timing, ff {mode}: worst dip {max(s.peak_dip for s in steps):.2f} rad/s "

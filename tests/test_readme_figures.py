@@ -16,6 +16,7 @@ the page prints. Figures pinned elsewhere: the demo's summary (tests/test_demo.p
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,7 @@ from torque_estimator.demo.run_analysis import load_step_responses
 from torque_estimator.estimation.observer import ObserverEstimator, jump_bound, steady_state_bound
 from torque_estimator.estimation.momentum import DEFAULT_BANDWIDTH as MOMENTUM_DEFAULT_BANDWIDTH
 from torque_estimator.estimation.momentum import linear_noise_bound
-from torque_estimator.estimation.registry import make_estimator
+from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.evaluation.closed_loop import run_scenario
 from torque_estimator.evaluation.evaluate import momentum_noise_line
 from torque_estimator.evaluation.held_out import held_out_setpoints, measure_held_out, score
@@ -91,12 +92,13 @@ def test_transient_table_and_noise(database) -> None:
     for method, *cells in rows:
         step90, overshoot, ramp, reversal = (figures(cell)[0] for cell in cells[:4])
         held_mean, held_max = figures(cells[4])
-        estimator = make_estimator(method, database, **({"k": 4} if method == "knn" else {}))
-        f = transient_figures(RIG, method, estimator, database.torque_range, seeds=12, seed=0)
+        built = build_estimator(EstimatorSettings(method, options={"k": 4} if method == "knn" else {}), rig=RIG,
+                                database=database)
+        f = transient_figures(RIG, built, database.torque_range, seeds=12, seed=0)
         assert f.step90_ms == int(step90), (method, f)
         assert same(f.overshoot_pct, overshoot) and same(f.ramp_err_pct, ramp), (method, f)
         assert same(f.reversal_err_pct, reversal), (method, f)
-        ev = score(estimator, measured, database.torque_range)
+        ev = score(built.estimator, measured, database.torque_range)
         assert same(ev.mae_pct, held_mean) and same(ev.max_pct, held_max), (method, ev.mae_pct, ev.max_pct)
         if method == "knn":
             knn_ms = f.step90_ms
@@ -121,15 +123,15 @@ def test_the_momentum_observer(database) -> None:
     assert same(100 * linear_noise_bound(RIG, STEP_SPEED, 0.0, 5) / database.torque_range, floor_pct)
     assert same(linear_noise_bound(RIG, STEP_SPEED, 0.0, 5, with_encoder=False), blind)
     assert float(stated(text, r"`bandwidth`, default ([\d.]+) Hz")[0]) == MOMENTUM_DEFAULT_BANDWIDTH
-    estimator = make_estimator("momentum", database)
-    line = momentum_noise_line(RIG, estimator, 0)
+    line = momentum_noise_line(RIG, build_estimator(EstimatorSettings("momentum"), rig=RIG, database=database), 0)
     std, predicted = (float(v) for v in re.search(r"std=(\S+) predicted=(\S+)", line).groups())
     written_std, written_predicted = stated(text, r"constant load is ([\d.e-]+) N·m against the ([\d.e-]+) its")
     assert same(std, written_std) and same(predicted, written_predicted)
     assert std < linear_noise_bound(RIG, STEP_SPEED, 0.0, 5) / 20  # "a twentieth of that floor"
     with_encoder, without = stated(text, r"0.2 N·m step after (\d+) ms \((\d+) ms without the encoder angle\)")
-    plain = make_estimator("momentum", None)
-    assert transient_figures(RIG, "momentum", plain, database.torque_range).step90_ms == int(with_encoder)
+    built = build_estimator(EstimatorSettings("momentum"))
+    plain = built.estimator
+    assert transient_figures(RIG, built, database.torque_range).step90_ms == int(with_encoder)
 
     class Blind:  # the same streams fed no encoder angle
         def stream(self, period):
@@ -137,7 +139,7 @@ def test_the_momentum_observer(database) -> None:
             return type("S", (), {"update": lambda _s, v, i, w, th=None: inner.update(v, i, w, None),
                                   "skip": lambda _s, n: inner.skip(n)})()
 
-    assert transient_figures(RIG, "momentum", Blind(), database.torque_range).step90_ms == int(without)
+    assert transient_figures(RIG, replace(built, estimator=Blind()), database.torque_range).step90_ms == int(without)
     mean, worst = stated(text, r"stream is off by ([\d.]+) % on average and ([\d.]+) % at most without a calibration")
     speeds, torques = held_out_setpoints(GRID, 17, 1)
     est, truth = held_out_streaming(RIG, speeds, torques, estimator=plain)
@@ -179,7 +181,7 @@ def feedforward(database) -> dict:
             if timing == "rig" and name == "knn":
                 continue
             estimator = (feedforward_estimator(name, database, RIG) if timing == "rig"
-                         else make_estimator(name, database))
+                         else build_estimator(EstimatorSettings(name), rig=RIG, database=database))
             runs = [worst(run_scenario(RIG, DEMO_SCENARIO, ("off", "estimate", "truth"), estimator=estimator,
                                        seed=seed, ff_phase=phase, **options))
                     for seed in SEEDS for phase in range(options.get("ff_batch", 1))]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import inspect
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -29,6 +30,8 @@ from torque_estimator.evaluation.transient import ensemble_noise, transient_figu
 
 RIG = load_rig()
 RANGE = 0.495  # [N m] the paper grid's calibrated range
+#: the momentum observer as estimator_node builds it (no calibration)
+MOMENTUM = build_estimator(EstimatorSettings("momentum"))
 GRID = CalibrationGrid.paper(RIG)
 
 
@@ -113,11 +116,11 @@ def test_the_targets_from_current_and_velocity_only() -> None:
     step in <= 5 ms (measured 4 ms, overshoot 21.7 %: the step detector's estimate from 3-4 samples), the
     reversal and the ramp within 1 % of the range (measured 0.33 % and 0.20 %); without the encoder angle,
     5 ms (overshoot 11.5 %, reversal 0.41 %). The steady noise (0.2 s windows) 4.9e-4 N m."""
-    f = transient_figures(RIG, "momentum", make_estimator("momentum", None), RANGE, seeds=12, seed=0)
+    f = transient_figures(RIG, MOMENTUM, RANGE, seeds=12, seed=0)
     assert f.step90_ms <= 5 and f.step90_ms == 4, f
     assert 10 < f.overshoot_pct < 35 and f.reversal_err_pct < 1.0 and f.ramp_err_pct < 0.5, f
     assert f.steady_std < 1e-3, f
-    blind = transient_figures(RIG, "momentum", WithoutEncoder(make_estimator("momentum", None)), RANGE, seeds=12)
+    blind = transient_figures(RIG, replace(MOMENTUM, estimator=WithoutEncoder(MOMENTUM.estimator)), RANGE, seeds=12)
     assert blind.step90_ms <= 5 and blind.reversal_err_pct < 1.0 and blind.overshoot_pct < 35, blind
 
 
@@ -125,7 +128,7 @@ def test_the_reversal_needs_the_hold_off(monkeypatch) -> None:
     """Without resting the step detector where the model does not hold, the reversal is read as load steps: the
     reversal error of the transient table goes from 0.33 % to 4.43 % of the range (momentum.observer's docstring)."""
     monkeypatch.setattr(MomentumObserver, "_model_holds", lambda self, *args: True)
-    f = transient_figures(RIG, "momentum", make_estimator("momentum", None), RANGE, seeds=12, seed=0)
+    f = transient_figures(RIG, MOMENTUM, RANGE, seeds=12, seed=0)
     assert f.reversal_err_pct == pytest.approx(4.43, abs=0.01), f
 
 
@@ -164,7 +167,7 @@ def test_a_fast_linear_observer_is_a_noisy_one() -> None:
         if covered[4] >= 0.9:
             break
     assert covered[4] >= 0.9 and predicted_noise(RIG, 150.0, 0.0, bandwidth) >= floor, bandwidth
-    detecting = ensemble_noise(RIG, "momentum", make_estimator("momentum", None), seeds=6)
+    detecting = ensemble_noise(RIG, MOMENTUM, seeds=6)
     assert detecting < floor / 20
 
 
@@ -184,7 +187,7 @@ def test_noise_as_predicted() -> None:
     """On a constant load the estimate's spread across seeds is the steady filter's predicted noise (measured
     1.00e-3 against 0.97e-3 N m at the default 0.5 Hz; the filter's ripple states and the encoder's
     quantisation, white in the prediction, account for the rest)."""
-    measured = ensemble_noise(RIG, "momentum", make_estimator("momentum", None), seeds=12)
+    measured = ensemble_noise(RIG, MOMENTUM, seeds=12)
     assert measured / predicted_noise(RIG, 150.0, 0.0, DEFAULT_BANDWIDTH) == pytest.approx(1.0, abs=0.2)
 
 

@@ -11,8 +11,7 @@ from worm_model.physics.parameters import load_rig
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.evaluation.closed_loop import run_scenario
 from torque_estimator.estimation.base import EstimateFlags
-from torque_estimator.estimation.knn import KnnEstimator
-from torque_estimator.estimation.live import LiveEstimator
+from torque_estimator.estimation.settings import BuiltEstimator, EstimatorSettings, build_estimator
 from torque_estimator.demo.run_analysis import load_step_responses, load_steps, recorded_load_steps
 from torque_estimator.evaluation.scenario import Segment
 
@@ -22,8 +21,10 @@ STEP = (Segment(0.8, 150.0, 0.0, "no load"), Segment(0.7, 150.0, 0.2, "resistive
 
 
 @pytest.fixture(scope="module")
-def estimator() -> KnnEstimator:
-    return KnnEstimator(calibrate_simulated(RIG, CalibrationGrid.paper(RIG), seed=0), k=4)
+def estimator() -> BuiltEstimator:
+    """The k-NN estimator as estimator_node builds it, on a simulated calibration."""
+    return build_estimator(EstimatorSettings("knn", options={"k": 4}),
+                           database=calibrate_simulated(RIG, CalibrationGrid.paper(RIG), seed=0))
 
 
 def test_load_step_figures_of_a_known_response() -> None:
@@ -138,8 +139,8 @@ def test_each_period_of_latency_moves_the_feedforward_one_sample_later() -> None
 
 
 def test_live_estimator_flags_and_skips_bad_samples(estimator) -> None:
-    a = LiveEstimator(RIG, estimator, 1e-3)
-    b = LiveEstimator(RIG, estimator, 1e-3)
+    a = estimator.live(1e-3)
+    b = estimator.live(1e-3)
     for _ in range(300):
         a.update(150.0, 0.2)
         b.update(150.0, 0.2)

@@ -73,8 +73,7 @@ def test_the_transient_tables_scenarios_carry_no_load_beyond_the_true_one(method
     built = build_estimator(EstimatorSettings(method), database=database if METHODS[method].needs_calibration
                             else None)
     for name, speed, load, duration, true_step in scenarios():
-        run = transient.stream(RIG, built.estimator, speed, load, duration, seeds=2, seed=5, true_step=true_step,
-                               live_options=built.settings.live_options)
+        run = transient.stream(RIG, built, speed, load, duration, seeds=2, seed=5, true_step=true_step)
         largest = float(np.max(np.abs(run["tau_true"])))
         for seed in range(2):
             out = carried(run["tau_est"][:, seed], run["flags"][:, seed])

@@ -37,7 +37,6 @@ from worm_model.physics.parameters import Rig
 from worm_model.physics.steady_state import make_balancing_torque_float
 
 from torque_estimator.control.feedforward import FeedforwardGate
-from torque_estimator.estimation.base import TorqueEstimator
 from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.live import LiveEstimate, LiveEstimator
 from torque_estimator.estimation.observer import LoadProcess
@@ -95,10 +94,10 @@ def build(method: str, calibration_file: str, rig: Rig, sample_period: float) ->
     return EstimatorFeedforward(rig, built.live(sample_period), sample_period, method)
 
 
-def feedforward_estimator(method: str, database: CalibrationDatabase | None, rig: Rig) -> TorqueEstimator:
-    """Registry estimator ``method`` as a rig feedforward runs it: on ``rig``, the observer's step detector
-    at FEEDFORWARD_FALSE_ALARM (the benchmark's rig timing uses this too)."""
-    return _build(EstimatorSettings(method), rig, database).estimator
+def feedforward_estimator(method: str, database: CalibrationDatabase | None, rig: Rig) -> BuiltEstimator:
+    """Registry estimator ``method`` as a rig feedforward builds it: on ``rig``, the observer's step detector
+    at FEEDFORWARD_FALSE_ALARM (the benchmark's rig timing and the closed-loop studies use this too)."""
+    return _build(EstimatorSettings(method), rig, database)
 
 
 def _build(settings: EstimatorSettings, rig: Rig, database: CalibrationDatabase | None) -> BuiltEstimator:

@@ -30,17 +30,14 @@ side by side, one rig each. Deterministic for a seed. Plain numpy; no ROS.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
 from worm_model.physics.parameters import Rig
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
-from torque_estimator.estimation.base import TorqueEstimator
-from torque_estimator.estimation.live import LiveEstimator
+from torque_estimator.estimation.settings import BuiltEstimator
 from torque_estimator.evaluation.scenario import Segment, segment_at
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, PiGains, SpeedController
 from worm_model.physics.steady_state import balancing_torque
@@ -64,9 +61,9 @@ class LoopRun:
 
 
 def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...] = ("off",), *,
-                 estimator: TorqueEstimator | None = None, seed: int = 0, gains: PiGains = DEFAULT_GAINS,
-                 estimate_timeout: float = 0.05, live_options: Mapping[str, Any] | None = None,
-                 ff_batch: int = 1, ff_latency: int = 1, ff_phase: int = 0) -> dict[str, LoopRun]:
+                 estimator: BuiltEstimator | None = None, seed: int = 0, gains: PiGains = DEFAULT_GAINS,
+                 estimate_timeout: float = 0.05, ff_batch: int = 1, ff_latency: int = 1,
+                 ff_phase: int = 0) -> dict[str, LoopRun]:
     """Play a scenario (speed set-points and load torques over time) on the closed loop.
 
     One rig per feedforward mode, all side by side in one vectorised
@@ -74,10 +71,10 @@ def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...]
 
     Args:
         modes: feedforward modes, each one of FEEDFORWARD_MODES.
-        estimator: the τ_d estimator, needed for mode "estimate" (only that rig runs it).
+        estimator: the τ_d estimator as estimation.settings.build_estimator builds it for estimator_node or a
+            rig's feedforward (its LiveEstimator, filters and all: BuiltEstimator.live), needed for mode
+            "estimate" (only that rig runs it).
         estimate_timeout: as the controller_node parameter [s].
-        live_options: keyword arguments of LiveEstimator (the estimator_node parameters
-            input_filter, estimate_filter, change_threshold, ...); None: its defaults.
         ff_batch: samples per estimate the controller gets (>= 1; the rig's batch_size).
         ff_latency: sample periods between the period right after an estimate's sample
             and the first period its feedforward drives (>= 0).
@@ -105,7 +102,7 @@ def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...]
     controller = SpeedController(rig, gains, n=n)
     gates = [FeedforwardGate(estimate_timeout, enabled=mode != "off", max_load=1.5 * rig.max_load_torque)
              for mode in modes]
-    live = {i: LiveEstimator(rig, estimator, dt, **(live_options or {}))
+    live = {i: estimator.live(dt)
             for i, mode in enumerate(modes) if mode == "estimate"}
     pending: deque = deque()  # (first period driven, feedforward torque per rig) on their way to the rig
 

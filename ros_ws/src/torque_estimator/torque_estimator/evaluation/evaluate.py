@@ -74,6 +74,7 @@ from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simula
 from torque_estimator.estimation.database import load_database
 from torque_estimator.errors import CalibrationError
 from torque_estimator.estimation.registry import ESTIMATORS, make_estimator
+from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.evaluation.held_out import (format_table, measure_held_out, score, sweep_grid_density, sweep_k,
                                                   sweep_noise)
 from torque_estimator.estimation.knn import WEIGHTINGS
@@ -279,10 +280,9 @@ def side_by_side(args, rig, grid, db) -> None:
     with ProgressBar(len(ESTIMATORS), "estimators", enabled=not args.quiet) as bar:
         for i, method in enumerate(ESTIMATORS):
             options = {"k": args.k, "weighting": args.weighting} if method == "knn" else {}
-            estimator = make_estimator(method, db, **options)
-            ev = score(estimator, measured, db.torque_range)
-            figures = transient_figures(rig, method, estimator, db.torque_range, seeds=TRANSIENT_SEEDS,
-                                        seed=args.seed)
+            built = build_estimator(EstimatorSettings(method, options=options), rig=rig, database=db)
+            ev = score(built.estimator, measured, db.torque_range)
+            figures = transient_figures(rig, built, db.torque_range, seeds=TRANSIENT_SEEDS, seed=args.seed)
             print(f"  {method:15s} held-out mean {ev.mae_pct:.2f} % max {ev.max_pct:.2f} %; steady noise "
                   f"{figures.steady_std:.2e} N m")
             lines.append(figures.line())
@@ -291,17 +291,17 @@ def side_by_side(args, rig, grid, db) -> None:
                 lines.append(f"noise: method=observer std={figures.steady_std:.2e} bound={bound:.2e} N m "
                              f"ratio={figures.steady_std / bound:.2f}")
             if method == "momentum":
-                lines.append(momentum_noise_line(rig, estimator, args.seed))
+                lines.append(momentum_noise_line(rig, built, args.seed))
             bar.update_to(i + 1)
     print("\n".join(lines))
 
 
-def momentum_noise_line(rig, estimator, seed: int) -> str:
+def momentum_noise_line(rig, built, seed: int) -> str:
     """The momentum observer's noise on a constant load (across seeds) against its predicted steady noise at its
     bandwidth, and the noise floor of any linear estimator that follows a step in MOMENTUM_STEP_SAMPLES samples
     (momentum.linear_noise_bound: why it detects steps instead)."""
-    std = ensemble_noise(rig, "momentum", estimator, seeds=TRANSIENT_SEEDS, seed=seed)
-    predicted = momentum_noise(rig, STEP_SPEED, 0.0, estimator.bandwidth)
+    std = ensemble_noise(rig, built, seeds=TRANSIENT_SEEDS, seed=seed)
+    predicted = momentum_noise(rig, STEP_SPEED, 0.0, built.estimator.bandwidth)
     floor = linear_noise_bound(rig, STEP_SPEED, 0.0, MOMENTUM_STEP_SAMPLES)
     return (f"noise: method=momentum std={std:.2e} predicted={predicted:.2e} N m ratio={std / predicted:.2f} "
             f"linear_{MOMENTUM_STEP_SAMPLES}_sample_floor={floor:.2e} N m")

@@ -26,7 +26,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -34,9 +33,8 @@ from worm_model.physics.parameters import Rig
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, SpeedController
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
-from torque_estimator.estimation.base import TorqueEstimator
-from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.estimation.registry import METHODS
+from torque_estimator.estimation.settings import BuiltEstimator
 
 #: the simulator's load-loop time constant [s] that makes its load a true step
 TRUE_STEP = 1e-7
@@ -62,21 +60,22 @@ class TransientFigures:
                 f"ramp_err_pct={self.ramp_err_pct:.2f} reversal_err_pct={self.reversal_err_pct:.2f}")
 
 
-def stream(rig: Rig, estimator: TorqueEstimator, speed: Callable[[float], float], load: Callable[[float], float],
-           duration: float, *, seeds: int = 4, seed: int = 0, live_options: Mapping[str, Any] | None = None,
-           true_step: bool = False, voltage: bool = True) -> dict[str, np.ndarray]:
-    """Run ``seeds`` rigs under speed(t) [rad/s] and load(t) [N m] set-points, one LiveEstimator each
-    (``voltage`` False: fed NaN for the drive voltage, as from a drive that reports none).
+def stream(rig: Rig, estimator: BuiltEstimator, speed: Callable[[float], float], load: Callable[[float], float],
+           duration: float, *, seeds: int = 4, seed: int = 0, true_step: bool = False) -> dict[str, np.ndarray]:
+    """Run ``seeds`` rigs under speed(t) [rad/s] and load(t) [N m] set-points, one LiveEstimator each as
+    ``estimator`` (estimation.settings.build_estimator's) makes it; fed the drive voltage only when its method reads
+    it, NaN otherwise, as from a drive that reports none.
 
     Returns arrays (samples, seeds): ``t`` [s], ``tau_true`` (the load applied in the sample's
     period) and ``tau_est`` [N m], and ``flags``.
     """
+    voltage = METHODS[estimator.settings.method].reads_voltage
     sim = SimulatedRig(rig, n=seeds, seed=seed)
     if true_step:
         sim.plant.load_current_time_constant = TRUE_STEP
     dt = sim.sample_period
     controller = SpeedController(rig, DEFAULT_GAINS, n=seeds)
-    live = [LiveEstimator(rig, estimator, dt, **(live_options or {})) for _ in range(seeds)]
+    live = [estimator.live(dt) for _ in range(seeds)]
     steps = int(round(duration / dt))
     out = {name: np.empty((steps, seeds)) for name in ("t", "tau_true", "tau_est", "flags")}
     for k in range(steps):
@@ -107,39 +106,32 @@ def step_figures(run: Mapping[str, np.ndarray]) -> tuple[float, float, float]:
     return round(step90, 3), overshoot, float(np.mean(np.nanstd(steady, axis=0)))
 
 
-def transient_figures(rig: Rig, method: str, estimator: TorqueEstimator, torque_range: float, *,
-                      seeds: int = 12, seed: int = 0,
-                      live_options: Mapping[str, Any] | None = None) -> TransientFigures:
-    """The three experiments of the module docstring for one estimator (fed the voltage only if the registry's
-    ``method`` reads it; a name not in the registry gets it)."""
-    row = METHODS.get(method)
-    voltage = row is None or row.reads_voltage
+def transient_figures(rig: Rig, estimator: BuiltEstimator, torque_range: float, *, seeds: int = 12,
+                      seed: int = 0) -> TransientFigures:
+    """The three experiments of the module docstring for one estimator as build_estimator builds it."""
     step = stream(rig, estimator, lambda t: STEP_SPEED, lambda t: STEP_SIZE if t >= STEP_AT else 0.0, STEP_AT + 0.3,
-                  seeds=seeds, seed=seed, live_options=live_options, true_step=True, voltage=voltage)
+                  seeds=seeds, seed=seed, true_step=True)
     step90, overshoot, steady_std = step_figures(step)
     start, length, low, high, ramp_load = RAMP
     ramp = stream(rig, estimator, lambda t: low + (high - low) * min(max(t - start, 0.0), length) / length,
-                  lambda t: ramp_load, start + length, seeds=max(seeds // 3, 1), seed=seed + 1,
-                  live_options=live_options, voltage=voltage)
+                  lambda t: ramp_load, start + length, seeds=max(seeds // 3, 1), seed=seed + 1)
     on_ramp = ramp["t"][:, 0] >= start
     ramp_err = float(np.nanmean(np.abs(ramp["tau_est"] - ramp["tau_true"])[on_ramp]))
     at, judged, speed, rev_load = REVERSAL
     rev = stream(rig, estimator, lambda t: speed if t < at else -speed, lambda t: rev_load, at + judged,
-                 seeds=max(seeds // 3, 1), seed=seed + 2, live_options=live_options, voltage=voltage)
+                 seeds=max(seeds // 3, 1), seed=seed + 2)
     after = rev["t"][:, 0] >= at
     rev_err = float(np.nanmean(np.abs(rev["tau_est"] - rev["tau_true"])[after]))
-    return TransientFigures(method, step90, overshoot, 100 * ramp_err / torque_range, 100 * rev_err / torque_range,
-                            steady_std)
+    return TransientFigures(estimator.settings.method, step90, overshoot, 100 * ramp_err / torque_range,
+                            100 * rev_err / torque_range, steady_std)
 
 
-def ensemble_noise(rig: Rig, method: str, estimator: TorqueEstimator, *, seeds: int = 12, seed: int = 0,
+def ensemble_noise(rig: Rig, estimator: BuiltEstimator, *, seeds: int = 12, seed: int = 0,
                    settle: float = 1.0, duration: float = 1.0) -> float:
     """Std [N m] of the estimate on a constant load (0 N m at STEP_SPEED) across ``seeds`` rigs, averaged over
     ``duration`` after ``settle``: the noise of an estimator slower than step_figures' 0.2 s window
     (the momentum observer between steps), to compare with its predicted steady noise."""
-    row = METHODS.get(method)
-    run = stream(rig, estimator, lambda t: STEP_SPEED, lambda t: 0.0, settle + duration, seeds=seeds, seed=seed,
-                 voltage=row is None or row.reads_voltage)
+    run = stream(rig, estimator, lambda t: STEP_SPEED, lambda t: 0.0, settle + duration, seeds=seeds, seed=seed)
     return float(np.mean(np.std(run["tau_est"][run["t"][:, 0] >= settle], axis=1)))
 
 
