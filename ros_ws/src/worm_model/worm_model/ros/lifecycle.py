@@ -25,7 +25,7 @@ from collections.abc import Callable, Sequence
 
 import rclpy
 from rclpy.exceptions import NameValidationException, ParameterException
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
@@ -40,6 +40,16 @@ try:  # rclpy >= Jazzy: callbacks dispatched from C++, several times less CPU pe
     from rclpy.experimental import EventsExecutor as _Executor
 except ImportError:  # Humble
     from rclpy.executors import SingleThreadedExecutor as _Executor
+
+
+def executor_for(nodes: Sequence[Node]) -> Executor:
+    """The executor of a process's nodes: the EventsExecutor where rclpy has one (callbacks dispatched from C++,
+    several times less CPU per message at 1 kHz), unless a node takes its messages' MessageInfo (a node whose
+    ``takes_message_info`` is true: the rig's command gate reads the publisher's GID), which this rclpy's
+    EventsExecutor cannot hand a callback (it raises SystemError): then rclpy's SingleThreadedExecutor."""
+    if any(getattr(node, "takes_message_info", False) for node in nodes):
+        return SingleThreadedExecutor()
+    return _Executor()
 
 
 def parameter_problem(err: ParameterException) -> str:
@@ -154,13 +164,15 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
     refused = init_rclpy(program, args)
     if refused is not None:
         return refused
-    executor = _Executor()
+    executor = None
     nodes: list[Node] = []
     code = 0
     try:
         for make_node in makers:
             nodes.append(make_node())
-            executor.add_node(nodes[-1])
+        executor = executor_for(nodes)
+        for node in nodes:
+            executor.add_node(node)
         check_undeclared(nodes, wildcard_names(argv))
         for signum in (signal.SIGINT, signal.SIGTERM):  # running: a signal only sets the flag (module docstring)
             signal.signal(signum, lambda *_: stop.set())
@@ -186,7 +198,8 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
             signal.signal(signum, lambda *_: stop.set())
         # bounded: a middleware hang in the teardown must not keep a stopped node alive (ros.teardown)
         with deadline(code):
-            executor.shutdown()
+            if executor is not None:
+                executor.shutdown()
             for node in nodes:
                 node.destroy_node()
             rclpy.try_shutdown()

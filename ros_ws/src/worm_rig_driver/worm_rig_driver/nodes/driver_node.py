@@ -49,6 +49,9 @@ from worm_rig_driver.nodes.rig_topics import (FIELDS, RigEstimate, RigTopics, de
 
 
 class DriverNode(Node):
+    #: the command gate reads each command's publisher GID (rig_topics.CommandGate; ros.lifecycle.executor_for)
+    takes_message_info = True
+
     def __init__(self) -> None:
         super().__init__("driver_node")
         port = declare(self, "port", "/dev/ttyACM0", "Serial device of the rig (a /dev/serial/by-id/... link "
@@ -110,7 +113,8 @@ class DriverNode(Node):
         self._sent_voltage = 0.0  # [V] the last drive voltage sent to the rig
         self._sent_at = 0.0  # [s] time.monotonic() it was sent
         self.command_timeout = command_timeout
-        subscribe_commands(self, self.on_speed_command, self.on_drive_command, self.on_load_command)
+        self.commands = subscribe_commands(self, self.on_speed_command, self.on_drive_command, self.on_load_command,
+                                           command_timeout)
 
         self.link = SerialLink(port, core, self.publish_samples, self.log_line, baud=baud,
                                reconnect_period=reconnect,
@@ -192,7 +196,7 @@ class DriverNode(Node):
 
     def report(self) -> tuple[bytes, str, dict]:
         values = {**self.link.report(), "feedforward_at_rig_samples": self.loop.feedforward_at_rig,
-                  **self.estimate.report()}
+                  **self.commands.report(), **self.estimate.report()}
         state = LinkState(values["state"])
         level, message = OK, "streaming"
         if state is LinkState.INCOMPATIBLE:

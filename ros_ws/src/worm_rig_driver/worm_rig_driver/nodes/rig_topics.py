@@ -23,6 +23,8 @@ of them there, and with none they are /rig/samples, ... Out (sensor-data QoS):
 In:
   rig/speed_command   worm_msgs/SpeedCommand  the rig's own speed loop (drive.rig_loop), sensor-data QoS
   rig/drive_command   worm_msgs/DriveCommand  a voltage to hold, sensor-data QoS
+                      (speed and drive commands from one publisher at a time: CommandGate)
+  rig/release_command std_msgs/Empty          frees the command claim at once
   rig/load_command    worm_msgs/LoadCommand   any publisher reaches it; a latched value reaches a rig
                                               that (re)starts later (worm_model.ros.commands)
 
@@ -38,6 +40,7 @@ rclpy publishers may be used from a thread other than the executor's.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -45,6 +48,7 @@ from typing import Any
 from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Empty
 from worm_msgs.msg import DriveCommand, EncoderCounts, LoadCommand, MotorCurrents, RigSample, RigSamples, SpeedCommand
 
 from worm_model.physics.parameters import Rig
@@ -52,6 +56,7 @@ from worm_model.ros.commands import subscribe_command
 from worm_model.ros.parameters import declare
 from worm_model.ros.qos import STREAM
 
+from worm_rig_driver.drive.command_owner import CommandOwner
 from worm_rig_driver.drive.feedforward_plugin import load_rig_feedforward
 from worm_rig_driver.errors import FeedforwardUnavailable
 from worm_rig_driver.drive.rig_loop import RigFeedforward
@@ -248,12 +253,92 @@ class RigEstimate:
         return self.topics.report() if self.topics is not None else {}
 
 
+class CommandGate:
+    """The rig's speed and drive commands from one node at a time (drive.command_owner: the first one takes
+    the motor, another's commands are refused and counted until the owner has been silent for ``timeout``
+    [s], or the claim is released at once by a std_msgs/Empty on rig/release_command, e.g.
+    ``ros2 topic pub --once rig/release_command std_msgs/msg/Empty``). A command's node is found from the
+    GID rclpy hands with each message (Kilted and newer) in the ROS graph, once per publisher (a node's
+    speed and drive publishers are one claimant; a publisher the graph does not know yet is its GID until
+    it does). Where rclpy hands no GID (Jazzy), every command is taken and the gate says so once."""
+
+    TOPICS = {"speed": "rig/speed_command", "drive": "rig/drive_command"}
+    #: the numbers of each command that must be finite for the rig to take it
+    NUMBERS = {"speed": ("speed_setpoint", "feedforward_torque", "kp", "ki", "voltage_limit"), "drive": ("voltage",)}
+
+    def __init__(self, node: Node, timeout: float, on_speed: Callable[[SpeedCommand], None],
+                 on_drive: Callable[[DriveCommand], None]) -> None:
+        self.node = node
+        self.owner = CommandOwner(timeout)
+        self.nodes: dict[bytes, str] = {}  # publisher GID -> its node's full name
+        self.without_gid = 0  # commands taken with no publisher GID to judge them by
+        node.create_subscription(SpeedCommand, self.TOPICS["speed"],
+                                 lambda msg, info: self._take("speed", msg, info, on_speed), STREAM)
+        node.create_subscription(DriveCommand, self.TOPICS["drive"],
+                                 lambda msg, info: self._take("drive", msg, info, on_drive), STREAM)
+        subscribe_command(node, Empty, "rig/release_command", self._release)
+
+    def _take(self, kind: str, msg: Any, info: Any, handler: Callable[[Any], None]) -> None:
+        gid = info.get("publisher_gid") if isinstance(info, dict) else None
+        if gid is None:
+            if not self.without_gid:
+                self.node.get_logger().warning("this rclpy hands no publisher GID with a message: commands from "
+                                               "every publisher are taken (no one-master rule)")
+            self.without_gid += 1
+            handler(msg)
+            return
+        if not all(math.isfinite(getattr(msg, name)) for name in self.NUMBERS[kind]):
+            handler(msg)  # refused there, with its reason: a command the rig cannot take neither takes nor keeps
+            return        # the claim
+        claimant = self._claimant(kind, bytes(gid["data"]))
+        if self.owner.offer(claimant, time.monotonic()):
+            handler(msg)
+            return
+        log_refusal(self.node, kind, f"the motor is {self.owner.owner}'s; {claimant}'s commands are refused until "
+                                     f"its owner's stop for {self.owner.timeout:g} s or rig/release_command frees it")
+
+    def _release(self, _msg: Any) -> None:
+        if self.owner.owner is not None:
+            self.node.get_logger().info(f"command claim of {self.owner.owner} released")
+        self.owner.release()
+
+    def _claimant(self, kind: str, publisher: bytes) -> str:
+        """The full name of the node whose publisher has this GID (the ROS graph's view), else the GID in hex."""
+        if publisher in self.nodes:
+            return self.nodes[publisher]
+        try:
+            for info in self.node.get_publishers_info_by_topic(self.node.resolve_topic_name(self.TOPICS[kind])):
+                # a participant whose node list has not arrived yet names its endpoints _NODE_NAME_UNKNOWN_
+                if bytes(info.endpoint_gid)[:len(publisher)] == publisher and not info.node_name.startswith("_"):
+                    name = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                    self.nodes[publisher] = name
+                    if self.owner.owner == publisher.hex():  # it claimed before the graph knew it
+                        self.owner.owner = name
+                    return name
+        except Exception:  # noqa: BLE001 - a graph query that fails leaves the GID itself as the claimant
+            pass
+        return publisher.hex()
+
+    def report(self) -> dict[str, Any]:
+        """For /diagnostics: which node holds the motor, and whose commands were refused (how many)."""
+        out: dict[str, Any] = {"command_owner": self.owner.owner or "nobody", "command_claims": self.owner.claims,
+                               "refused_commands": self.owner.refused_total}
+        if self.owner.refused:
+            out["refused_from"] = ", ".join(f"{who} ({n})" for who, n in self.owner.refused.items())
+        if self.without_gid:
+            out["commands_without_publisher_gid"] = self.without_gid
+        return out
+
+
 def subscribe_commands(node: Node, on_speed: Callable[[SpeedCommand], None],
-                       on_drive: Callable[[DriveCommand], None], on_load: Callable[[LoadCommand], None]) -> None:
-    """The rig's command subscriptions, with the QoS every rig uses."""
-    node.create_subscription(SpeedCommand, "rig/speed_command", on_speed, STREAM)
-    node.create_subscription(DriveCommand, "rig/drive_command", on_drive, STREAM)
+                       on_drive: Callable[[DriveCommand], None], on_load: Callable[[LoadCommand], None],
+                       command_timeout: float) -> CommandGate:
+    """The rig's command subscriptions, with the QoS every rig uses: speed and drive commands through one
+    CommandGate (one publisher at a time, its claim passing after ``command_timeout`` [s] of silence), load
+    commands from anyone (the load is the test bench's, not the motor's drive)."""
+    gate = CommandGate(node, command_timeout, on_speed, on_drive)
     subscribe_command(node, LoadCommand, "rig/load_command", on_load)
+    return gate
 
 
 def log_refusal(node: Node, what: str, reason: str) -> None:
@@ -273,5 +358,5 @@ def log_refusal(node: Node, what: str, reason: str) -> None:
         log.warning(text, throttle_duration_sec=1.0)
 
 
-__all__ = ["FIELDS", "RigEstimate", "RigTopics", "declare_rig_feedforward", "log_refusal", "speed_command_from_msg",
-           "subscribe_commands"]
+__all__ = ["FIELDS", "CommandGate", "RigEstimate", "RigTopics", "declare_rig_feedforward", "log_refusal",
+           "speed_command_from_msg", "subscribe_commands"]

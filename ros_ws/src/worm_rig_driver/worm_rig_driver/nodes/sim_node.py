@@ -58,6 +58,9 @@ _LIMIT = RigSample.STATUS_DRIVE_LIMIT
 
 
 class SimNode(Node):
+    #: the command gate reads each command's publisher GID (rig_topics.CommandGate; ros.lifecycle.executor_for)
+    takes_message_info = True
+
     def __init__(self) -> None:
         super().__init__("sim_node")
         rig_file = declare(self, "rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
@@ -106,7 +109,8 @@ class SimNode(Node):
         self.pub_truths = self.create_publisher(SimTruths, SIM_TRUTHS_TOPIC, STREAM) if self.publish_truth else None
         self._truths: dict[str, list] | None = None  # the open /sim/truth_samples batch (None: not collecting)
         self._truths_first = (0, 0)  # its (first_seq, first stamp [ns])
-        subscribe_commands(self, self.on_speed_command, self.on_drive_command, self.on_load_command)
+        self.commands = subscribe_commands(self, self.on_speed_command, self.on_drive_command, self.on_load_command,
+                                           command_timeout)
 
         self.rejected_commands = 0
         self.skipped_samples = 0  # periods never simulated (the rig's time was dilated)
@@ -248,7 +252,8 @@ class SimNode(Node):
             "rejected_commands": self.rejected_commands, "mode": self.loop.mode.name,
             "feedforward_at_rig_samples": self.loop.feedforward_at_rig,
             "command_latency_p50_ms": self.loop.latency_percentile(50) * 1e3,
-            "command_latency_p99_ms": self.loop.latency_percentile(99) * 1e3, **self.estimate.report()}
+            "command_latency_p99_ms": self.loop.latency_percentile(99) * 1e3, **self.commands.report(),
+            **self.estimate.report()}
 
 
 def main(args=None) -> int:
