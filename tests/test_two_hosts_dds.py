@@ -34,7 +34,7 @@ from pathlib import Path
 import pytest
 
 from torque_estimator.graph.runner import Graph, batch_rate, parse_overrides
-from worm_model.bags.reader import BagReadError
+from worm_model.errors import BagReadError
 from worm_model.bags.writer import read_messages
 from worm_model.ros.ament import find_executable
 

@@ -18,7 +18,8 @@ from rclpy.serialization import serialize_message
 from rosbags.rosbag2 import Reader as RosbagsReader
 from sensor_msgs.msg import JointState
 from worm_msgs.msg import RigSample
-from worm_model.bags.reader import BagReader, storage_files
+from worm_model.bags.bag_files import storage_files
+from worm_model.bags.reader import BagReader
 from worm_model.bags.typestore import MessageTypes
 from worm_model.errors import BagReadError
 from fixtures.rosbag2_layouts import (
