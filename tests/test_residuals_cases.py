@@ -2,8 +2,8 @@
 nothing for an effect outside its vocabulary (the case matrix of torque_estimator.evaluation.residual_cases).
 
 Data: the project's simulator (SimulatedRig with effect plug-ins the model is not told about), the analysis given a
-rig file written as a user writes one, its declared numbers off by realistic amounts (cases.PERTURBATIONS, the
-changed numbers with sources), on two rigs under both friction models (cases.RIGS, cases.families).  The full
+rig file written as a user writes one, its declared numbers off by realistic amounts (rig_files.PERTURBATIONS, the
+changed numbers with sources), on two rigs under both friction models (rig_files.RIGS, catalogue.families).  The full
 matrix is the one ``make evaluate`` prints (163 cases: 18 min on a shared 2-core machine, load ~5); its
 ``residuals:`` line is pinned here, as is that of the 22-case subset (``evaluate --residual-cases small``).
 """
@@ -18,29 +18,33 @@ from pathlib import Path
 
 import pytest
 
-import torque_estimator.evaluation.residual_cases as cs
+from torque_estimator.evaluation.residual_cases.case import CaseResult
+from torque_estimator.evaluation.residual_cases.catalogue import case_of, full_matrix, small_matrix
+from torque_estimator.evaluation.residual_cases.report import family_lines, format_results, summary_line
+from torque_estimator.evaluation.residual_cases.runner import run_case, run_matrix
+from torque_estimator.evaluation.residual_cases.simulation import simulate
 from worm_model.rig_data.schema import write_rig_csv
 
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _line(results: list[cs.CaseResult]) -> str:
-    print("\n".join(cs.format_results(results)))
-    print("\n".join(cs.family_lines(results)))
-    line = cs.summary_line(results)
+def _line(results: list[CaseResult]) -> str:
+    print("\n".join(format_results(results)))
+    print("\n".join(family_lines(results)))
+    line = summary_line(results)
     print(line)
     return line
 
 
 def test_small_matrix_names_exactly_the_true_effects_at_the_noise_floor() -> None:
-    results = cs.run_matrix(cs.small_matrix())
+    results = run_matrix(small_matrix())
     n = len(results)
     oov = [r for r in results if r.case.extra]
     assert _line(results) == (f"residuals: cases={n} exact={n} false_names=0 missed=0 at_floor={n - len(oov)}/"
                               f"{n - len(oov)} "
                               f"unexplained_oov={sum(r.unexplained is not None for r in oov)}/{len(oov)} "
                               f"unphysical=0 passed={n}")
-    assert sum(r.unexplained is not None for r in oov) >= 3  # all but the bearing drag mu takes (cases.passed)
+    assert sum(r.unexplained is not None for r in oov) >= 3  # all but the bearing drag mu takes (CaseResult.passed)
 
 
 @pytest.mark.slow
@@ -54,7 +58,7 @@ def test_full_matrix_names_exactly_the_true_effects_at_the_noise_floor() -> None
     outside-the-vocabulary check: cases=163 exact=139 false_names=22 missed=6 at_floor=135/137 unexplained_oov=21/26
     unphysical=20 passed=124 (load_dependent_mu the false name in 14 of the 22; the first matrix's 75 cases all exact
     before and after)."""
-    assert _line(cs.run_matrix(cs.full_matrix())) == FULL_LINE
+    assert _line(run_matrix(full_matrix())) == FULL_LINE
 
 
 FULL_LINE = ("residuals: cases=173 exact=172 false_names=0 missed=1 at_floor=145/145 unexplained_oov=23/28 "
@@ -66,12 +70,12 @@ def test_from_an_unphysical_start_the_look_ahead_names_both_effects_and_fits_the
     physical best and kept both true effects out (found: viscous_drag). The pair that lets the other in is
     taken instead: exactly the two true effects. The screening round at that twisted fit (rotor inertia 0)
     once froze the cogging's shape and half the ripple stayed unfitted (1.96x the floor; now 1.21x)."""
-    case = next(c for c in cs.full_matrix() if c.name == "speed_dependent_mu+motor_cogging/nominal")
-    result = cs.run_case(case)
+    case = next(c for c in full_matrix() if c.name == "speed_dependent_mu+motor_cogging/nominal")
+    result = run_case(case)
     assert result.found == ("motor_cogging", "speed_dependent_mu") and result.passed
     assert result.rms_after / result.floor < 1.3
-    alone = next(c for c in cs.full_matrix() if c.name == "speed_dependent_mu/nominal")
-    result = cs.run_case(alone)
+    alone = next(c for c in full_matrix() if c.name == "speed_dependent_mu/nominal")
+    result = run_case(alone)
     assert result.found == ("speed_dependent_mu",) and result.passed  # the pair's drag is dropped again
 
 
@@ -80,24 +84,24 @@ def test_a_sensor_gain_is_named_when_mu_absorbs_most_of_what_lies_beyond_k_t_tol
     comes out at 0.83x declared, and with K_t clamped to its band (0.9x) the mu scale takes most of the rest
     (held-out RMS 0.02235 against 0.02206 A: 1.3 %, under the 2 % an effect needs). The departure is
     significant over the held-out blocks, so it is named (it was missed)."""
-    case = next(c for c in cs.full_matrix() if c.name == "tooth_pass+sensor_gain/low")
-    result = cs.run_case(case)
+    case = next(c for c in full_matrix() if c.name == "tooth_pass+sensor_gain/low")
+    result = run_case(case)
     assert result.found == ("sensor_gain", "tooth_pass") and result.passed
 
 
 def test_a_declared_value_off_is_a_correction_and_beyond_its_tolerance_an_alias_effect() -> None:
     """K_t declared 5 % high is a correction; a drive-current sensor gain of +30 % on top is named sensor_gain."""
-    clean = cs.run_case(cs.case_of([], "high", seed=11))
+    clean = run_case(case_of([], "high", seed=11))
     assert clean.found == () and clean.corrections["drive_motor.torque_constant"] == pytest.approx(1 / 1.05, rel=0.02)
     assert clean.corrections["friction.scale"] == pytest.approx(1 / 1.3, rel=0.05)
-    gain = cs.run_case(cs.case_of(["sensor_gain"], "high"))
+    gain = run_case(case_of(["sensor_gain"], "high"))
     assert gain.found == ("sensor_gain",)
 
 
 def test_out_of_vocabulary_effect_is_reported_unexplained_by_the_executable(tmp_path: Path) -> None:
     """A torque ripple three times per gear turn: nothing named, `unexplained=` on the found line, the
     report says it goes with the gear angle at order 3, and unexplained.png is written."""
-    data = cs.simulate(cs.case_of([], "nominal", seed=3, extra=["gear_order3_ripple"]))
+    data = simulate(case_of([], "nominal", seed=3, extra=["gear_order3_ripple"]))
     path = tmp_path / "oov.csv"
     write_rig_csv(path, data)
     exe = REPO / "ros_ws" / "install" / "worm_model" / "lib" / "worm_model" / "residuals"

@@ -39,7 +39,8 @@ phase is the same on every sample and the ripple is a bias that depends on the d
 formula against the simulator's, the bias of steady operating points, and the analysis naming it (with
 its phase and amplitude) or not.  At the simulator's default 2 kHz sensor filter the bias peaks at
 7 mA, under the noise: the analysis ranks pwm first but stays within 1.1 x the floor, so the naming
-case uses a 10 kHz filter (residual_cases.ALONE).  Model-only checks: worm_model/test/residuals/test_pwm.py.
+case uses a 10 kHz filter (residual_cases.catalogue.ALONE).  Model-only checks:
+worm_model/test/residuals/test_pwm.py.
 
 A catalogue rig file under the constant friction model (the last section): the simulated rig with mu a constant
 0.05 and no hidden effect, the rig file declaring mu 25 % high (and K_t 3 % high) with sources, as a user copies
@@ -73,7 +74,10 @@ from worm_rig_driver.sim.effects import SenseContext
 from worm_rig_driver.sim.sensors import AdcChain
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
-import torque_estimator.evaluation.residual_cases as rc
+import torque_estimator.evaluation.residual_cases.case as rc_case
+import torque_estimator.evaluation.residual_cases.catalogue as rc_catalogue
+import torque_estimator.evaluation.residual_cases.rig_files as rc_rig_files
+import torque_estimator.evaluation.residual_cases.simulation as rc_simulation
 from torque_estimator.evaluation.scenario import DEMO_SCENARIO
 from torque_estimator.identification.excitation import Ramp, default_excitation
 from torque_estimator.identification.identify import main as identify_main
@@ -84,7 +88,7 @@ REPO = Path(__file__).resolve().parents[1]
 RIG = load_rig()
 FREE = ["friction.scale"]
 
-#: excitation profiles and the oil sump sensor: torque_estimator.evaluation.residual_cases (PROFILES,
+#: excitation profiles and the oil sump sensor: torque_estimator.evaluation.residual_cases.simulation (PROFILES,
 #: OIL_SENSOR), whose simulate() makes every data set here
 
 
@@ -120,8 +124,8 @@ OIL = Case({"mu_per_kelvin": -0.012}, "slow_full_load", MU_FREE, runs=12, oil_st
 #: bearing_coulomb, viscous_drag, sensor_gain and inertia_error are the same function of the data as a
 #: parameter the analysis refits always (Coulomb and viscous drags, K_t, rotor inertia: free.TOLERANCES);
 #: they are named only beyond that parameter's tolerance band (x2.5 for drags), so their sizes here are
-#: those of torque_estimator.evaluation.residual_cases.ALONE: 34 mN m of worm Coulomb drag against the declared 4, a
-#: viscous drag of 59 mN m at 300 rad/s against the declared 9
+#: those of torque_estimator.evaluation.residual_cases.catalogue.ALONE: 34 mN m of worm Coulomb drag against the
+#: declared 4, a viscous drag of 59 mN m at 300 rad/s against the declared 9
 CASES = {
     "bearing_coulomb": Case({"worm_torque": 0.03, "gear_torque": 0.03}),
     "viscous_drag": Case({"worm_torque": 0.05}),
@@ -145,11 +149,11 @@ CASES = {
 def simulate(effects: dict | None, profile: str = "standard", n: int = 10, seconds: float = 4.0,
              seed: int = 1, oil_start: tuple[float, ...] = ()) -> MeasuredData:
     """n runs of `seconds` each (1 s gaps between them in t), sampled like the rig at 1 kHz
-    (residual_cases.simulate: drive and load profiles, and with oil_start the oil temperature in the
+    (residual_cases.simulation.simulate: drive and load profiles, and with oil_start the oil temperature in the
     ``temperature`` column through its sump sensor)."""
-    case = rc.Case(profile, dict(effects or {}), profile, oil_start=tuple(oil_start), runs=n, seconds=seconds,
-                   seed=seed)
-    return rc.simulate(case, RIG)
+    case = rc_case.Case(profile, dict(effects or {}), profile, oil_start=tuple(oil_start), runs=n, seconds=seconds,
+                        seed=seed)
+    return rc_simulation.simulate(case, RIG)
 
 
 def simulate_case(name: str) -> MeasuredData:
@@ -409,9 +413,9 @@ def test_steady_operating_points_carry_the_bias_the_model_predicts() -> None:
 def test_residual_analysis_names_pwm_with_its_phase_and_amplitude(tmp_path: Path) -> None:
     """The case matrix's pwm case (10 kHz sensor filter: amplitude 0.36 A, bias up to 33 mA); measured: phase 0.24,
     amplitude 0.360 +- 0.012 A, held-out RMS 0.0276 -> 0.0227 A (floor 0.0216)."""
-    case = rc.case_of(["pwm"])
-    result = analyse(rc.simulate(case, RIG), free=())  # the case matrix's: nothing declared free
-    truth, truth_grid = PWM.from_simulator_entry(rc.ALONE["pwm"][1], RIG)
+    case = rc_catalogue.case_of(["pwm"])
+    result = analyse(rc_simulation.simulate(case, RIG), free=())  # the case matrix's: nothing declared free
+    truth, truth_grid = PWM.from_simulator_entry(rc_catalogue.ALONE["pwm"][1], RIG)
     fitted = result.final.effects[0] if result.final.effects else None
     print(f"pwm: found {result.found}, held-out RMS {result.rms_before:.4f} -> {result.final.rms_held_out:.4f} A; "
           + (f"phase {fitted.grid['phase']:.2f} (true {truth_grid['phase']:.2f}), amplitude "
@@ -447,15 +451,15 @@ def constant_rig_logs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Pat
     record, a second log of the same plant (the demo's six segments), the rig file right, and as a user copies
     it from a catalogue: mu 25 % high and K_t 3 % high, each with a source:."""
     folder = tmp_path_factory.mktemp("constant")
-    plant = rc.plant_rig("nmrv030_constant")
+    plant = rc_rig_files.plant_rig("nmrv030_constant")
     write_rig_csv(folder / "record.csv", record_on_simulator(plant, default_excitation(plant), seed=4))
     timeline = [Ramp(s.duration, s.speed, s.speed, s.load, s.load, s.label) for s in DEMO_SCENARIO]
     write_rig_csv(folder / "log.csv", record_on_simulator(plant, timeline, seed=2))
     return {"record": folder / "record.csv", "log": folder / "log.csv",
-            "right": rc.write_rig_file(folder / "right.yaml", "nmrv030_constant", {}),
-            "catalogue": rc.write_rig_file(folder / "catalogue.yaml", "nmrv030_constant",
-                                           rc.PERTURBATIONS["catalogue"]),
-            "mu_high": rc.write_rig_file(folder / "mu_high.yaml", "nmrv030_constant", {"mu": 1.25})}
+            "right": rc_rig_files.write_rig_file(folder / "right.yaml", "nmrv030_constant", {}),
+            "catalogue": rc_rig_files.write_rig_file(folder / "catalogue.yaml", "nmrv030_constant",
+                                                     rc_rig_files.PERTURBATIONS["catalogue"]),
+            "mu_high": rc_rig_files.write_rig_file(folder / "mu_high.yaml", "nmrv030_constant", {"mu": 1.25})}
 
 
 @pytest.mark.parametrize("perturbation", ["mu_high", "catalogue"])
@@ -464,10 +468,10 @@ def test_constant_friction_with_mu_declared_high_names_nothing_at_the_floor(pert
     (and K_t 3 % high) with sources: nothing named, at the floor, mu corrected (measured: found none, 1.00-1.02x the
     floor, mu_constant within 1 % of the plant's 0.05; the correction was dead: 'friction.scale: declared 1 -> 1
     +- 0')."""
-    off = {"mu": 1.25} if perturbation == "mu_high" else rc.PERTURBATIONS["catalogue"]
-    case = rc.Case(f"constant/{perturbation}", seed=11, rig="nmrv030_constant")
-    data = rc.simulate(case)
-    declared = load_rig(rc.write_rig_file(tmp_path / "rig.yaml", "nmrv030_constant", off))
+    off = {"mu": 1.25} if perturbation == "mu_high" else rc_rig_files.PERTURBATIONS["catalogue"]
+    case = rc_case.Case(f"constant/{perturbation}", seed=11, rig="nmrv030_constant")
+    data = rc_simulation.simulate(case)
+    declared = load_rig(rc_rig_files.write_rig_file(tmp_path / "rig.yaml", "nmrv030_constant", off))
     settings = an.Settings()
     signals = prepare_signals(declared, data, settings.alpha_time_constant)
     split = an.make_split(signals, settings, rig=declared)

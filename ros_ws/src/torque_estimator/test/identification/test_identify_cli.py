@@ -16,7 +16,7 @@ from worm_model.ros.ament import find_executable
 
 from torque_estimator.estimation.extended_model import ExtendedModelEstimator, identification_ranges
 from torque_estimator.estimation.observer import ObserverEstimator
-from torque_estimator.evaluation.residual_cases import write_rig_file
+from torque_estimator.evaluation.residual_cases.rig_files import write_rig_file
 from torque_estimator.identification.excitation import default_excitation
 from torque_estimator.identification.fit import default_refit
 from worm_model.residuals.free import STANDARD_REFIT

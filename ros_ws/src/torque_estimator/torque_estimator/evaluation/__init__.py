@@ -4,7 +4,7 @@
 Table 3: an estimator on held-out operating points), ``transient`` (a load step, a speed ramp and a
 reversal streamed as estimator_node runs them), ``identified`` (one ``identify`` run against the
 k-NN grid), ``observer_study`` (the observer's steady noise and its model errors),
-``residual_cases`` (the residuals tool's case matrix), ``real_drive`` (a real worm drive's
+``residual_cases`` (a folder: the residuals tool's case matrix), ``real_drive`` (a real worm drive's
 measurements, the T-RO 2021 data, through ``identify`` and ``estimate``: their published fit beside
 identify's, the load estimated cross-fitted, the start-stop runs), ``tro2021_model`` (the T-RO paper's
 model with their parameters, the reference), ``foreign`` (drives the project did

@@ -68,7 +68,8 @@ from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser, existing_file, integer, output_path
 from worm_model.files.writing import Output, atomic_dir, check_output
 from worm_model.physics.parameters import load_rig
-from torque_estimator.evaluation.residual_cases import evaluate_lines, full_matrix, small_matrix
+from torque_estimator.evaluation.residual_cases.catalogue import full_matrix, small_matrix
+from torque_estimator.evaluation.residual_cases.report import evaluate_lines
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import load_database

@@ -3,7 +3,7 @@
 The simulated rig runs with every default effect on (worm_rig_driver ``config/effects_all.yaml``)
 and its true, bundled parameters; the rig file the user gives ``identify`` is the bundled one
 off by realistic amounts (:data:`DECLARED_OFF`: mu x1.3, K_t x1.05, drags x2, each then carrying
-a ``source:``; evaluation.residual_cases.write_rig_file).  One excitation (identification.excitation,
+a ``source:``; evaluation.residual_cases.rig_files.write_rig_file).  One excitation (identification.excitation,
 <= 90 s of rig time) is recorded, identified, and written as an extended rig file; then, on the same
 held-out points
 (evaluation.held_out, 17 by default, measured on the same simulated rig):
@@ -37,7 +37,7 @@ from torque_estimator.estimation.extended_model import ExtendedModelEstimator
 from torque_estimator.estimation.knn import KnnEstimator
 from torque_estimator.estimation.observer import ObserverEstimator
 from torque_estimator.evaluation.held_out import Evaluation, measure_held_out, score
-from torque_estimator.evaluation.residual_cases import write_rig_file
+from torque_estimator.evaluation.residual_cases.rig_files import write_rig_file
 from torque_estimator.identification.excitation import DEFAULT_DURATION, default_excitation, total_duration
 from torque_estimator.identification.fit import identify
 from torque_estimator.identification.writing import write_identified

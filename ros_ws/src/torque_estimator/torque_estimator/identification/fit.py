@@ -70,7 +70,7 @@ import numpy as np
 from worm_model.physics.parameters import Rig, default_rig_path, load_rig
 from worm_model.residuals import analysis as an
 from worm_model.residuals.extended import ExtendedModel
-from worm_model.residuals.fitting import Fit
+from worm_model.residuals.fitting.fitting import Fit
 from worm_model.residuals.free import (LOWER_BOUNDS, STANDARD_REFIT, check_free, get_value, read_free,
                                        resolve_parameters)
 from worm_model.residuals.model import prepare_signals

@@ -23,7 +23,7 @@ from worm_model.errors import ParameterError, RigDataError
 import worm_model.residuals.analysis as an
 import worm_model.residuals.cli as cli
 from worm_model.residuals.data import load_data
-from worm_model.residuals.descriptors import time_in_run
+from worm_model.residuals.description.descriptors import time_in_run
 from worm_model.residuals.effects import EFFECTS, Backlash, channels_of, gap_crossing
 from worm_model.residuals.extended import ExtendedModel, write_parameter_file
 from worm_model.residuals.free import (READ_BY_MODEL, LOWER_BOUNDS, MU_PARAMETERS, STANDARD_REFIT, TOLERANCES,

@@ -9,19 +9,16 @@ Modules (plain Python, no ROS), in the order the analysis uses them:
                      each friction model's mu parameter), their tolerance bands and physical bounds
   ``effects``        candidate effects as plug-ins (Protocol + registry EFFECTS)
   ``settings``       the options of an analysis
-  ``split``          the held-out split: interleaved time blocks with guards
-  ``fitting``        fits of the model to the training samples (current; transmission error), Problem and Fit
-  ``screening``      every candidate ranked by the held-out error it would leave
-  ``acceptance``     when a fit earns its keep: held-out improvement, block bootstrap, BIC, physical range
-  ``selection``      forward selection and backward elimination
-  ``descriptors``    generic descriptions of a residual (binned means, angle orders) and the pseudo-effect of one
-  ``aliases``        effects named from a refitted parameter beyond its tolerance band
-  ``contributions``  what each named effect buys on held-out data
-  ``unexplained``    the noise floor, and the description of a residual left above it
+  ``fitting``        the fits and their judges: held-out split, fits to the training samples (Problem and Fit),
+                     screening of candidates, acceptance (a folder: its own map)
+  ``description``    what is left, described: residual descriptors, the noise floor and the unexplained residual,
+                     aliases of refitted parameters, unique contributions (a folder: its own map)
+  ``selection``      forward selection and backward elimination (on ``fitting`` and ``description``)
   ``analysis``       the procedure, step by step (``analyse``), and the names callers need
   ``extended``       the extended model: parameter file with ``effects:``, current and tau_d for estimators
   ``report``         report.json, PNG plots, console summary
   ``cli``            the ``residuals`` executable
 
-Read first: ``analysis`` (the steps), then ``free`` (what is corrected, and why).
+Read first: ``analysis`` (the steps), then ``free`` (what is corrected, and why).  The folders depend one
+way: ``description`` on ``fitting``, never back; ``selection`` and ``analysis`` on both.
 """

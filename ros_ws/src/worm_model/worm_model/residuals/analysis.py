@@ -55,16 +55,16 @@ from dataclasses import dataclass, field, replace
 
 from worm_model.physics.parameters import Rig
 
-from worm_model.residuals.acceptance import accepts
-from worm_model.residuals.aliases import AliasFinding, resolve_aliases, with_aliases_as_effects
-from worm_model.residuals.contributions import Contribution, contributions
-from worm_model.residuals.descriptors import describe_residual
+from worm_model.residuals.description.aliases import AliasFinding, resolve_aliases, with_aliases_as_effects
+from worm_model.residuals.description.contributions import Contribution, contributions
+from worm_model.residuals.description.descriptors import describe_residual
+from worm_model.residuals.description.unexplained import NoiseFloor, Unexplained, describe_unexplained, noise_floor
 from worm_model.residuals.effects import Effect
-from worm_model.residuals.fitting import Fit, Problem, fit
+from worm_model.residuals.fitting.acceptance import accepts
+from worm_model.residuals.fitting.fitting import Fit, Problem, fit
+from worm_model.residuals.fitting.split import Split, make_split
 from worm_model.residuals.selection import Round, backward_elimination, forward_selection
 from worm_model.residuals.settings import Settings
-from worm_model.residuals.split import Split, make_split
-from worm_model.residuals.unexplained import NoiseFloor, Unexplained, describe_unexplained, noise_floor
 
 __all__ = ["Analysis", "Problem", "Settings", "analyse", "extended_effects", "fit", "make_split"]
 

@@ -19,8 +19,8 @@ from worm_model.physics.friction import friction_coefficient, sliding_velocity
 from worm_model.physics.units import FloatArray
 
 from worm_model.residuals.analysis import Analysis
-from worm_model.residuals.descriptors import time_in_run
-from worm_model.residuals.fitting import Problem, fit
+from worm_model.residuals.description.descriptors import time_in_run
+from worm_model.residuals.fitting.fitting import Problem, fit
 from worm_model.residuals.free import FREE_PARAMETERS, LOWER_BOUNDS, TOLERANCES, get_value, mu_parameter
 
 UNIT = "A"

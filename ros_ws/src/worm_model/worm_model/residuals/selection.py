@@ -19,11 +19,11 @@ import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
-from worm_model.residuals.acceptance import accepts, physical
+from worm_model.residuals.description.unexplained import noise_floor
 from worm_model.residuals.effects import EFFECTS
-from worm_model.residuals.fitting import Fit, Problem, fit
-from worm_model.residuals.screening import Candidate, grid_interval, screen
-from worm_model.residuals.unexplained import noise_floor
+from worm_model.residuals.fitting.acceptance import accepts, physical
+from worm_model.residuals.fitting.fitting import Fit, Problem, fit
+from worm_model.residuals.fitting.screening import Candidate, grid_interval, screen
 
 
 @dataclass

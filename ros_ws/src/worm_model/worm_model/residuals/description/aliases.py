@@ -16,9 +16,9 @@ from dataclasses import dataclass, replace
 
 from worm_model.physics.parameters import Rig
 
-from worm_model.residuals.acceptance import accepts
 from worm_model.residuals.effects import EFFECTS, Effect
-from worm_model.residuals.fitting import Fit, Problem, fit
+from worm_model.residuals.fitting.acceptance import accepts
+from worm_model.residuals.fitting.fitting import Fit, Problem, fit
 from worm_model.residuals.free import TOLERANCES, get_value, set_values
 
 

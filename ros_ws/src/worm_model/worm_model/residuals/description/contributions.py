@@ -6,10 +6,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from worm_model.residuals.acceptance import paired_interval
-from worm_model.residuals.aliases import AliasFinding
+from worm_model.residuals.description.aliases import AliasFinding
 from worm_model.residuals.effects import EFFECTS
-from worm_model.residuals.fitting import SIGNAL_UNITS, Fit, Problem, fit
+from worm_model.residuals.fitting.acceptance import paired_interval
+from worm_model.residuals.fitting.fitting import SIGNAL_UNITS, Fit, Problem, fit
 
 
 @dataclass

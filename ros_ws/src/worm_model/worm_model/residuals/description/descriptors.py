@@ -26,7 +26,7 @@ from worm_model.physics.parameters import Rig
 from worm_model.physics.units import FloatArray
 
 from worm_model.residuals.effects import GridParameter, Parameter, Shapes
-from worm_model.residuals.fitting import Fit, Problem
+from worm_model.residuals.fitting.fitting import Fit, Problem
 from worm_model.residuals.model import ModelState, Signals
 
 #: orders per turn tried for the worm and gear angles: whole orders and the half orders between the first ones

@@ -9,8 +9,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from worm_model.residuals.descriptors import angles, direction, explained_by_bins, explained_by_orders, quantities
-from worm_model.residuals.fitting import Fit, Problem
+from worm_model.residuals.description.descriptors import (angles, direction, explained_by_bins, explained_by_orders,
+                                                          quantities)
+from worm_model.residuals.fitting.fitting import Fit, Problem
 
 
 @dataclass

@@ -13,7 +13,7 @@ import numpy as np
 
 from worm_model.physics.units import FloatArray
 
-from worm_model.residuals.fitting import SIGNAL_UNITS, Fit, Problem, bic
+from worm_model.residuals.fitting.fitting import SIGNAL_UNITS, Fit, Problem, bic
 from worm_model.residuals.free import TOLERANCES, get_value
 from worm_model.residuals.settings import Settings
 

@@ -32,7 +32,7 @@ from worm_model.residuals.effects import Effect, Shapes, channels_of, mask_shape
 from worm_model.residuals.free import LOWER_BOUNDS, get_value, resolve_parameters, set_values
 from worm_model.residuals.model import ModelState, Signals, evaluate
 from worm_model.residuals.settings import Settings
-from worm_model.residuals.split import Split
+from worm_model.residuals.fitting.split import Split
 
 #: the fitted signals and their units
 SIGNAL_UNITS = {"current_drive": "A", "transmission_error": "rad"}

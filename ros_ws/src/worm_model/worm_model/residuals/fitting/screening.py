@@ -14,8 +14,8 @@ from scipy.stats import chi2
 from worm_model.physics.parameters import Rig
 
 from worm_model.residuals.effects import EFFECTS, Effect, regressors
-from worm_model.residuals.fitting import (SIGNAL_UNITS, Fit, Problem, bic, by_signal, effective_samples, rms_of,
-                                          te_columns, te_solve)
+from worm_model.residuals.fitting.fitting import (SIGNAL_UNITS, Fit, Problem, bic, by_signal, effective_samples,
+                                                  rms_of, te_columns, te_solve)
 from worm_model.residuals.free import PURE_ALIASES
 from worm_model.residuals.model import ModelState, sensitivities
 
