@@ -27,8 +27,9 @@ from worm_model.ros.qos import STREAM
 from worm_model.ros.testing import probe_node, spin_until
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 
-pytestmark = pytest.mark.skipif("publisher_gid" not in rclpy.subscription.MessageInfo.__annotations__,
-                                reason="this rclpy hands no publisher GID with a message (Jazzy)")
+pytestmark = pytest.mark.skipif(
+    "publisher_gid" not in getattr(getattr(rclpy.subscription, "MessageInfo", None), "__annotations__", {}),
+    reason="this rclpy hands no publisher GID with a message (Jazzy)")
 
 PARAMS = """\
 sim_node:
