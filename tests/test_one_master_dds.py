@@ -5,7 +5,8 @@ over after the rig's command_timeout.
 sim_node (command_timeout 0.1 s) and controller_node (holding 100 rad/s) run as their own processes; the probe
 node publishes worm_msgs/SpeedCommand at 50 Hz asking for -80 rad/s, as a stray `ros2 topic pub` would. The
 rig's speed is judged on its own samples, the ownership on sim_node's /diagnostics (command_owner,
-refused_commands, refused_from); a std_msgs/Empty on /rig/release_command frees the claim. Publishers are
+refused_commands, refused_from); a std_msgs/Empty on /rig/release_command frees the claim, and a command the
+rig itself refuses (a negative gain) takes no claim. Publishers are
 told apart by the GID rclpy hands with each message: the test needs an rclpy that hands one (Kilted and newer;
 Jazzy's does not, and the rig then takes every command).
 """
@@ -88,6 +89,12 @@ def test_a_second_commander_is_refused_until_the_controller_is_gone(start_graph:
         assert spin_until(executor, lambda: release.get_subscription_count() > 0, 10.0)
         release.publish(Empty())
         assert spin_until(executor, lambda: status.get("command_owner") == "nobody", 10.0), str(status)
+        # a command the rig refuses (finite, but a negative gain: the speed loop's own check) takes no claim
+        rejected = int(status["rejected_commands"])
+        for _ in range(5):
+            stray.publish(SpeedCommand(speed_setpoint=-80.0, kp=-1.0, ki=DEFAULT_GAINS.ki, voltage_limit=12.0))
+        assert spin_until(executor, lambda: int(status.get("rejected_commands", "0")) >= rejected + 5, 10.0), status
+        assert status["command_owner"] == "nobody", status
     graph.processes.pop("controller_node")  # killed on purpose: not part of the clean-exit check
     assert not graph.failed(), graph.failed()
     assert graph.stop() == {"sim_node": 0}

@@ -20,3 +20,11 @@ def test_the_claim_passes_after_the_owners_silence_and_at_once_on_release() -> N
     assert not owner.offer("controller", 0.15)  # the former owner is now the one refused
     owner.release()
     assert owner.offer("controller", 0.16) and owner.owner == "controller" and owner.claims == 3
+
+
+def test_allows_asks_without_claiming_or_counting() -> None:
+    owner = CommandOwner(timeout=0.1)
+    assert owner.allows("stray", 0.0) and owner.owner is None and owner.claims == 0
+    owner.offer("controller", 0.0)
+    assert not owner.allows("stray", 0.05) and owner.refused == {}
+    assert owner.allows("controller", 0.05) and owner.allows("stray", 0.1) and owner.owner == "controller"

@@ -29,9 +29,13 @@ class CommandOwner:
     refused: dict[Hashable, int] = field(default_factory=dict)  #: per refused claimant, its commands refused
     claims: int = 0  #: times the claim was taken (the first one included)
 
+    def allows(self, publisher: Hashable, now: float) -> bool:
+        """Whether a command from ``publisher`` at ``now`` may drive the motor (claims and counts nothing)."""
+        return publisher == self.owner or self.owner is None or now - self.last >= self.timeout
+
     def offer(self, publisher: Hashable, now: float) -> bool:
         """A command from ``publisher`` arrived at ``now``: True if it is the owner's (or takes the claim)."""
-        if publisher != self.owner and self.owner is not None and now - self.last < self.timeout:
+        if not self.allows(publisher, now):
             self.refused[publisher] = self.refused.get(publisher, 0) + 1
             return False
         if publisher != self.owner:

@@ -85,6 +85,12 @@ class SpeedCommand:
         return ""
 
 
+def voltage_problem(voltage: float) -> str:
+    """Why the rig refuses a drive command of ``voltage`` [V] ('' if it takes it; a finite voltage beyond the
+    supply is clamped, not refused)."""
+    return "" if math.isfinite(voltage) else f"voltage={voltage} is not finite"
+
+
 class RigFeedforward(Protocol):
     """A feedforward the rig computes itself, one sample at a time (module docstring).
 
@@ -152,8 +158,8 @@ class RigLoop:
     # --- commands (any thread) -------------------------------------------------------------
     def command_voltage(self, voltage: float, now: float) -> str:
         """Hold ``voltage`` [V] (clamped to the supply); returns why it was refused, '' if taken."""
-        if not math.isfinite(voltage):
-            return f"voltage={voltage} is not finite"
+        if problem := voltage_problem(voltage):
+            return problem
         self._pending = (DriveMode.VOLTAGE, max(-self.supply, min(self.supply, float(voltage))), now)
         return ""
 
@@ -226,4 +232,4 @@ class RigLoop:
         return max(self.latencies) * self.seq_period
 
 
-__all__ = ["DriveMode", "LoopOutput", "RigFeedforward", "RigLoop", "SpeedCommand"]
+__all__ = ["DriveMode", "LoopOutput", "RigFeedforward", "RigLoop", "SpeedCommand", "voltage_problem"]

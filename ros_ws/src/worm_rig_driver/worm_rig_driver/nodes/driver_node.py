@@ -114,7 +114,7 @@ class DriverNode(Node):
         self._sent_at = 0.0  # [s] time.monotonic() it was sent
         self.command_timeout = command_timeout
         self.commands = subscribe_commands(self, self.on_speed_command, self.on_drive_command, self.on_load_command,
-                                           command_timeout)
+                                           command_timeout, core.limits.drive_problem)
 
         self.link = SerialLink(port, core, self.publish_samples, self.log_line, baud=baud,
                                reconnect_period=reconnect,
@@ -133,25 +133,24 @@ class DriverNode(Node):
         super().destroy_node()
 
     # --- commands ---------------------------------------------------------------------------
-    def _refused(self, what: str, reason: str | None) -> None:
-        if not reason:
-            return
-        log_refusal(self, what, reason)
+    def _refused(self, what: str, reason: str | None) -> str:
+        """Log a refused command; returns ``reason`` ('' when the command was taken)."""
+        if reason:
+            log_refusal(self, what, reason)
+        return reason or ""
 
-    def on_drive_command(self, msg: DriveCommand) -> None:
-        reason = self.link.core.limits.drive_problem(msg.voltage)
-        if reason is None:
-            reason = self.loop.command_voltage(msg.voltage, time.monotonic()) or None
+    def on_drive_command(self, msg: DriveCommand) -> str:
+        reason = self.link.core.limits.drive_problem(msg.voltage) or self.loop.command_voltage(msg.voltage,
+                                                                                               time.monotonic())
         if reason:
             self.link.core.stats.rejected_commands += 1
-        self._refused("drive", reason)
+        return self._refused("drive", reason)
 
-    def on_speed_command(self, msg: SpeedCommand) -> None:
-        command = speed_command_from_msg(msg)
-        reason = self.loop.command_speed(command, time.monotonic())
+    def on_speed_command(self, msg: SpeedCommand) -> str:
+        reason = self.loop.command_speed(speed_command_from_msg(msg), time.monotonic())
         if reason:
             self.link.core.stats.rejected_commands += 1
-        self._refused("speed", reason)
+        return self._refused("speed", reason)
 
     def on_load_command(self, msg: LoadCommand) -> None:
         self._refused("load", self.link.command(lambda core, now: core.load(msg.torque, now)))

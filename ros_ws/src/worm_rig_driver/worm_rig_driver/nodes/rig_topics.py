@@ -59,7 +59,7 @@ from worm_model.ros.qos import STREAM
 from worm_rig_driver.drive.command_owner import CommandOwner
 from worm_rig_driver.drive.feedforward_plugin import load_rig_feedforward
 from worm_rig_driver.errors import FeedforwardUnavailable
-from worm_rig_driver.drive.rig_loop import RigFeedforward
+from worm_rig_driver.drive.rig_loop import RigFeedforward, voltage_problem
 from worm_rig_driver.drive.rig_loop import SpeedCommand as LoopCommand
 from worm_rig_driver.nodes.estimate_topics import EstimateTopics
 
@@ -263,12 +263,15 @@ class CommandGate:
     it does). Where rclpy hands no GID (Jazzy), every command is taken and the gate says so once."""
 
     TOPICS = {"speed": "rig/speed_command", "drive": "rig/drive_command"}
-    #: the numbers of each command that must be finite for the rig to take it
-    NUMBERS = {"speed": ("speed_setpoint", "feedforward_torque", "kp", "ki", "voltage_limit"), "drive": ("voltage",)}
 
-    def __init__(self, node: Node, timeout: float, on_speed: Callable[[SpeedCommand], None],
-                 on_drive: Callable[[DriveCommand], None]) -> None:
+    def __init__(self, node: Node, timeout: float, on_speed: Callable[[SpeedCommand], str],
+                 on_drive: Callable[[DriveCommand], str], drive_problem: Callable[[float], str | None]) -> None:
         self.node = node
+        #: why the rig would refuse a command, without acting on it: a bad command from a node that does not hold
+        #: the motor is refused with that reason (the more useful one to its sender), not for the claim
+        self.problems: dict[str, Callable[[Any], str | None]] = {
+            "speed": lambda msg: speed_command_from_msg(msg).problem(),
+            "drive": lambda msg: drive_problem(msg.voltage)}
         self.owner = CommandOwner(timeout)
         self.nodes: dict[bytes, str] = {}  # publisher GID -> its node's full name
         self.without_gid = 0  # commands taken with no publisher GID to judge them by
@@ -278,7 +281,10 @@ class CommandGate:
                                  lambda msg, info: self._take("drive", msg, info, on_drive), STREAM)
         subscribe_command(node, Empty, "rig/release_command", self._release)
 
-    def _take(self, kind: str, msg: Any, info: Any, handler: Callable[[Any], None]) -> None:
+    def _take(self, kind: str, msg: Any, info: Any, handler: Callable[[Any], str]) -> None:
+        """Hand ``msg`` to the rig's ``handler`` (which acts on it, or refuses it and returns why) if its
+        publisher may drive the motor; a command the rig refuses (non-finite, beyond a limit) neither takes
+        nor keeps the claim."""
         gid = info.get("publisher_gid") if isinstance(info, dict) else None
         if gid is None:
             if not self.without_gid:
@@ -287,13 +293,15 @@ class CommandGate:
             self.without_gid += 1
             handler(msg)
             return
-        if not all(math.isfinite(getattr(msg, name)) for name in self.NUMBERS[kind]):
-            handler(msg)  # refused there, with its reason: a command the rig cannot take neither takes nor keeps
-            return        # the claim
-        claimant = self._claimant(kind, bytes(gid["data"]))
-        if self.owner.offer(claimant, time.monotonic()):
-            handler(msg)
+        claimant, now = self._claimant(kind, bytes(gid["data"])), time.monotonic()
+        if self.owner.allows(claimant, now):
+            if not handler(msg):
+                self.owner.offer(claimant, now)
             return
+        if self.problems[kind](msg):
+            handler(msg)  # refused there with its own reason, and counted
+            return
+        self.owner.offer(claimant, now)  # refused and counted
         log_refusal(self.node, kind, f"the motor is {self.owner.owner}'s; {claimant}'s commands are refused until "
                                      f"its owner's stop for {self.owner.timeout:g} s or rig/release_command frees it")
 
@@ -330,13 +338,16 @@ class CommandGate:
         return out
 
 
-def subscribe_commands(node: Node, on_speed: Callable[[SpeedCommand], None],
-                       on_drive: Callable[[DriveCommand], None], on_load: Callable[[LoadCommand], None],
-                       command_timeout: float) -> CommandGate:
+def subscribe_commands(node: Node, on_speed: Callable[[SpeedCommand], str],
+                       on_drive: Callable[[DriveCommand], str], on_load: Callable[[LoadCommand], None],
+                       command_timeout: float, drive_problem: Callable[[float], str | None] = voltage_problem
+                       ) -> CommandGate:
     """The rig's command subscriptions, with the QoS every rig uses: speed and drive commands through one
-    CommandGate (one publisher at a time, its claim passing after ``command_timeout`` [s] of silence), load
-    commands from anyone (the load is the test bench's, not the motor's drive)."""
-    gate = CommandGate(node, command_timeout, on_speed, on_drive)
+    CommandGate (one publisher at a time, its claim passing after ``command_timeout`` [s] of silence; each
+    handler returns why it refused the command, '' if it took it; ``drive_problem`` says why the rig refuses a
+    drive voltage [V], as on_drive would), load commands from anyone (the load is the test bench's, not the
+    motor's drive)."""
+    gate = CommandGate(node, command_timeout, on_speed, on_drive, drive_problem)
     subscribe_command(node, LoadCommand, "rig/load_command", on_load)
     return gate
 

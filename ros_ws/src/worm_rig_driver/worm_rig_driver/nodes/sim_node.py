@@ -137,17 +137,18 @@ class SimNode(Node):
         """The rig's clock [s since start], the time base of RigLoop."""
         return time.monotonic() - self._start_mono
 
-    def _refused(self, what: str, reason: str | None) -> None:
-        if not reason:
-            return
-        self.rejected_commands += 1
-        log_refusal(self, what, reason)
+    def _refused(self, what: str, reason: str | None) -> str:
+        """Count and log a refused command; returns ``reason`` ('' when the command was taken)."""
+        if reason:
+            self.rejected_commands += 1
+            log_refusal(self, what, reason)
+        return reason or ""
 
-    def on_speed_command(self, msg: SpeedCommand) -> None:
-        self._refused("speed", self.loop.command_speed(speed_command_from_msg(msg), self._now()))
+    def on_speed_command(self, msg: SpeedCommand) -> str:
+        return self._refused("speed", self.loop.command_speed(speed_command_from_msg(msg), self._now()))
 
-    def on_drive_command(self, msg: DriveCommand) -> None:
-        self._refused("drive", self.loop.command_voltage(msg.voltage, self._now()))
+    def on_drive_command(self, msg: DriveCommand) -> str:
+        return self._refused("drive", self.loop.command_voltage(msg.voltage, self._now()))
 
     def on_load_command(self, msg: LoadCommand) -> None:
         if not math.isfinite(msg.torque):
