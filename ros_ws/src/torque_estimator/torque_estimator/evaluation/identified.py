@@ -28,14 +28,11 @@ from pathlib import Path
 import numpy as np
 
 from worm_model.physics.parameters import Rig
-from worm_model.residuals.extended import ExtendedModel
 from worm_rig_driver.sim.effects import EFFECTS, EffectsConfig
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.calibration.operating_points import SteadyStateCriterion, SteadyStateDetector
-from torque_estimator.estimation.extended_model import ExtendedModelEstimator
-from torque_estimator.estimation.knn import KnnEstimator
-from torque_estimator.estimation.observer import ObserverEstimator
+from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.evaluation.held_out import Evaluation, measure_held_out, score
 from torque_estimator.evaluation.residual_cases.rig_files import write_rig_file
 from torque_estimator.identification.excitation import DEFAULT_DURATION, default_excitation, total_duration
@@ -81,14 +78,13 @@ def run_roads(rig: Rig, db, grid: CalibrationGrid, *, points: int = 17, seed: in
     write_identified(model_file, declared_file, ident, "simulated rig, effects_all.yaml")
     wall = time.monotonic() - start
     measured = measure_held_out(rig, grid, points, seed, effects=effects)
-    estimators = {
-        "knn": KnnEstimator(db),
-        "declared": ExtendedModelEstimator(model=ExtendedModel.load(declared_file),
-                                           ranges=(ident.speed_max, *ident.torque_range)),
-        "identified": ExtendedModelEstimator(model_file=str(model_file)),
-        "observer": ObserverEstimator(model_file=str(model_file)),
-    }
-    evaluations = {name: score(est, measured, db.torque_range) for name, est in estimators.items()}
+    # each road's estimator as estimator_node and `estimate` build it from the files a user has at that point
+    settings = {"knn": EstimatorSettings("knn"),
+                "declared": EstimatorSettings("extended_model", rig_file=str(declared_file)),
+                "identified": EstimatorSettings("extended_model", model_file=str(model_file)),
+                "observer": EstimatorSettings("observer", model_file=str(model_file))}
+    evaluations = {name: score(build_estimator(s, database=db if name == "knn" else None).estimator, measured,
+                               db.torque_range) for name, s in settings.items()}
     return RoadResult(evaluations, total_duration(timeline), wall, list(ident.analysis.found), ident.corrections,
                       model_file)
 
@@ -146,8 +142,9 @@ def evaluate_lines(rig: Rig, points: int = 17, seed: int = 1, k: int = 4, weight
     grid = CalibrationGrid.paper(rig)
     db = calibrate_simulated(rig, grid, seed=seed - 1, effects=effects, batch_size=len(grid.speeds) * len(grid.torques))
     result = run_roads(rig, db, grid, points=points, seed=seed, effects=effects)
-    result.evaluations["knn"] = score(KnnEstimator(db, k=k, weighting=weighting),
-                                      measure_held_out(rig, grid, points, seed, effects=effects), db.torque_range)
+    knn = build_estimator(EstimatorSettings("knn", options={"k": k, "weighting": weighting}), database=db)
+    measured = measure_held_out(rig, grid, points, seed, effects=effects)
+    result.evaluations["knn"] = score(knn.estimator, measured, db.torque_range)
     grid_time = live_grid_rig_time(rig, grid, effects=effects) if with_grid_time else None
     return table_lines(result, len(db), grid_time)
 
