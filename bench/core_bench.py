@@ -12,7 +12,8 @@ Prints to stdout, in this order:
   sim_effects_realtime_factor: <x>       sim_realtime_factor with every effect plug-in on (config/effects_all.yaml;
                                          every effect has float hooks, so also the scalar path)
   sim_ensemble_realtime_factor: <x>      rig-seconds per wall s, 544 rigs stepped together
-  knn_estimate_latency_p50: <x> us       one KnnEstimator.estimate(omega, i) call on the calibration database
+  knn_estimate_latency_p50: <x> us       one k-NN estimate(omega, i) call on the calibration database
+                                         (built as estimator_node builds it)
   model_forces_throughput: <x> samples/s internal_forces on 10^6 samples
 Progress goes to stderr. Never asserts.
 """
@@ -24,7 +25,7 @@ import time
 import numpy as np
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
-from torque_estimator.estimation.knn import KnnEstimator
+from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from worm_model.physics.internal_forces import internal_forces
 from worm_model.physics.parameters import load_rig
 from worm_rig_driver.sim.effects import EFFECTS, EffectsConfig
@@ -75,7 +76,7 @@ def step_rate(rig, n: int, sim_seconds: float, effects=None, scalar: bool | None
 
 
 def bench_knn(db) -> float:
-    est = KnnEstimator(db)
+    est = build_estimator(EstimatorSettings("knn"), database=db).estimator
     rng = np.random.default_rng(1)
     idx = rng.integers(0, len(db), 20000)
     omegas = (db.omega_worm[idx] * rng.uniform(0.9, 1.1, idx.size)).tolist()

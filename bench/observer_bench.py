@@ -27,7 +27,7 @@ from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simula
 from torque_estimator.estimation.base import StreamingEstimator
 from torque_estimator.evaluation.closed_loop import run_scenario
 from torque_estimator.evaluation.held_out import held_out_setpoints
-from torque_estimator.estimation.observer import ObserverEstimator, equivalent_window, jump_bound, predicted_noise, \
+from torque_estimator.estimation.observer import equivalent_window, jump_bound, predicted_noise, \
     steady_state_bound
 from torque_estimator.evaluation.observer_study import held_out_streaming, perturbed_rig, profile_error, step_response
 from torque_estimator.demo.run_analysis import load_step_responses
@@ -52,7 +52,7 @@ def update_cpu_us(rig: Rig, samples: int = 3000, repeats: int = 3, estimator: St
         inputs.append((float(m.voltage_drive[0]) if voltage else math.nan, float(m.current_drive[0]),
                        float(m.omega_worm[0]), float(m.theta_worm[0])))
     clock, per_update = time.process_time, []
-    estimator = estimator or ObserverEstimator(None, rig=rig)
+    estimator = estimator or build_estimator(EstimatorSettings("observer"), rig=rig).estimator
     for _ in range(repeats):
         update = estimator.stream(1.0 / rig.sensors.sample_rate_hz).update
         for sample in inputs:
@@ -106,7 +106,8 @@ def main() -> int:
         r = step_response(rig, seeds=args.seeds, observer_rig=model)
         held = []
         for db in (None, database):
-            est, truth = held_out_streaming(rig, speeds, torques, estimator=ObserverEstimator(db, rig=model))
+            est, truth = held_out_streaming(rig, speeds, torques, estimator=build_estimator(
+                EstimatorSettings("observer"), rig=model, database=db).estimator)
             error = 100 * np.abs(est - truth) / RANGE
             held.append(f"{error.mean():.2f}/{error.max():.2f}")
         name = ",".join(f"{k} x{v}" for k, v in case.items()) or "nominal"
