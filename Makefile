@@ -1,7 +1,7 @@
 # Front doors. Each target sets everything up from nothing first (make setup).
 # ROS_DISTRO=kilted (default) or jazzy: which ROS 2 wheels to build and run against (tools/distro.sh);
 # each has its own lock file, venv and colcon folders. TESTS: pytest arguments (default: every test).
-.PHONY: setup demo evaluate test test-system bench clean
+.PHONY: setup demo evaluate test test-system bench soak clean
 RUN := tools/run.sh
 ROS_DISTRO ?= kilted
 export ROS_DISTRO
@@ -38,6 +38,14 @@ test-system: setup
 
 bench: setup
 	@$(RUN) python bench/run_all.py
+
+# The soak (not part of bench: an hour): the shipped graph and the recorder for MINUTES under a seeded command
+# profile, figures per 10-minute window and a verdict per target (bench/soak_bench.py --help). SOAK_ARGS: more
+# options, e.g. "--chaos --seed 3" (faults injected) or "--window 60".
+MINUTES ?= 60
+SOAK_ARGS ?=
+soak: setup
+	@$(RUN) python bench/soak_bench.py --minutes $(MINUTES) $(SOAK_ARGS)
 
 # The rig firmware in the loop (simavr) with driver_node connected; ends with one `fil: ...` line.
 FIRMWARE := ros_ws/src/worm_rig_driver/firmware
