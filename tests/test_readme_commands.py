@@ -83,7 +83,7 @@ def test_every_documented_command(ros_env: dict[str, str], tmp_path: Path) -> No
              "replay": [line for line in lines if " replay " in line]}
     handled = set(nodes) | set(pubs) | set(graphs) | {line for group in known.values() for line in group}
     assert set(lines) == handled, f"documented commands with no test: {sorted(set(lines) - handled)}"
-    assert len(nodes) == 3 and len(pubs) == 2 and len(graphs) == 2 and all(len(v) == 1 for v in known.values())
+    assert len(nodes) == 3 and len(pubs) == 2 and len(graphs) == 3 and all(len(v) == 1 for v in known.values())
 
     done = subprocess.run(command(known["calibrate_out"][0], tmp_path), env=ros_env, capture_output=True, text=True,
                           timeout=120)

@@ -13,6 +13,12 @@ Nodes named in a group (``together``) share one process and executor instead
 (nodes.composed), with the same parameters; a group's nodes share one namespace.
 Executables are found where `ros2 run` finds them: <prefix>/lib/<pkg>/<exe>
 for every prefix of AMENT_PREFIX_PATH.
+
+Respawn, as launch's ``respawn``/``respawn_delay``/``respawn_max_retries``: the
+process of a node named in ``respawn`` is started again when it exits on its own
+(a crash, ``kill -9``), once ``respawn_delay`` has passed, by :meth:`Graph.supervise`,
+which the owner calls periodically; not one that refused its input (exit code 2:
+it would refuse it again), nor after ``respawn_max`` restarts.
 """
 from __future__ import annotations
 
@@ -28,6 +34,7 @@ from typing import Any
 
 import yaml
 
+from worm_model.cli.options import nearest
 from worm_model.errors import InputError
 from worm_model.files.reading import load_parameter_file, load_yaml
 from worm_model.physics.parameters import load_rig
@@ -177,6 +184,10 @@ def parse_overrides(items: list[str]) -> dict[str, list[str]]:
     return overrides
 
 
+#: Exit code of a node that refused its input (worm_model.cli.errors): respawning it would not help.
+REFUSED_INPUT = 2
+
+
 @dataclass
 class Graph:
     """The processes of one graph; a context manager that always stops them."""
@@ -189,6 +200,21 @@ class Graph:
     """Groups of nodes that run in one process each; a group's process is keyed "a+b+..."."""
     priority: int = 0
     """SCHED_FIFO priority (1-99) for every process of the graph (``chrt -f``); 0: normal scheduling."""
+    respawn: list[str] = field(default_factory=list)
+    """Nodes (graph_nodes' names) whose process :meth:`supervise` starts again when it exits on its own; a
+    process of several nodes (``together``) if any of them is named."""
+    respawn_delay: float = 1.0
+    """[s] from a respawnable process's exit to its restart."""
+    respawn_max: int | None = None
+    """Restarts per process at most (None: no limit); an exit after the last one is final (:meth:`failed`)."""
+    restarts: dict[str, int] = field(default_factory=dict, init=False)
+    """Process key -> restarts so far."""
+    last_exit: dict[str, tuple[int, float]] = field(default_factory=dict, init=False)
+    """Process key -> (exit code, [s] from the exit to the restart) of its latest restart."""
+    _commands: dict[str, list[str]] = field(default_factory=dict, init=False, repr=False)
+    _env: dict[str, str] = field(default_factory=dict, init=False, repr=False)
+    _exited_at: dict[str, float] = field(default_factory=dict, init=False, repr=False)
+    _stopping: bool = field(default=False, init=False, repr=False)
 
     def command(self, node: str) -> list[str]:
         namespace, name = split_name(node)
@@ -229,6 +255,9 @@ class Graph:
         unknown = set(self.overrides) - set(nodes)
         if unknown:
             raise GraphError(f"overrides name nodes not in {self.params_file}: {sorted(unknown)}")
+        if stray := sorted(set(self.respawn) - set(nodes)):
+            raise GraphError(f"respawn names nodes not in {self.params_file}: {stray}{nearest(stray[0], nodes)} "
+                             f"(its nodes: {', '.join(nodes)})")
         check_graph(self.params_file, self.overrides, nodes)
         grouped = [n for group in self.together for n in group]
         if stray := sorted(set(grouped) - set(nodes)):
@@ -243,30 +272,70 @@ class Graph:
         # every command first: a node that cannot be found is refused before any other has started
         commands = {"+".join(unit): self.command(unit[0]) if len(unit) == 1 else self.composed_command(unit)
                     for unit in units}
+        prefix = ["chrt", "-f", str(self.priority)] if self.priority else []
+        self._commands = {name: [*prefix, *command] for name, command in commands.items()}
+        # numpy's BLAS with one thread in every node: see torque_estimator/__init__.py
+        self._env = {**os.environ, "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "1")}
         try:
-            for (name, command), unit in zip(commands.items(), units):
-                out = None
-                if self.log_dir is not None:
-                    self.log_dir.mkdir(parents=True, exist_ok=True)
-                    out = open(self.log_dir / f"{process_file_name(unit)}.log", "wb")
-                if self.priority:
-                    command = ["chrt", "-f", str(self.priority), *command]
-                # numpy's BLAS with one thread in every node: see torque_estimator/__init__.py
-                env = {**os.environ, "OPENBLAS_NUM_THREADS": os.environ.get("OPENBLAS_NUM_THREADS", "1")}
-                self.processes[name] = subprocess.Popen(command, stdout=out,
-                                                        stderr=subprocess.STDOUT if out else None, env=env)
+            for name in self._commands:
+                self._spawn(name, "wb")
+                self.restarts[name] = 0
         except BaseException:  # no node left running when the graph could not start whole
             self.stop()
             raise
         return self
 
+    def _spawn(self, name: str, mode: str) -> None:
+        """Start process ``name`` with its command and environment, its output into its log (``mode`` "wb":
+        a new log, "ab": appended to), or this terminal without a log_dir."""
+        out = None
+        if self.log_dir is not None:
+            self.log_dir.mkdir(parents=True, exist_ok=True)
+            out = open(self.log_dir / f"{process_file_name(name.split('+'))}.log", mode)
+        try:
+            self.processes[name] = subprocess.Popen(self._commands[name], stdout=out,
+                                                    stderr=subprocess.STDOUT if out else None, env=self._env)
+        finally:
+            if out is not None:
+                out.close()  # the child has its own descriptor
+
+    def respawnable(self, name: str) -> bool:
+        """Whether process ``name`` is to be started again once it has exited: one of its nodes is in
+        ``respawn``, it has not used up ``respawn_max``, and it did not refuse its input (exit code 2)."""
+        nodes = set(name.split("+"))
+        return (bool(nodes & set(self.respawn)) and self.processes[name].returncode != REFUSED_INPUT
+                and (self.respawn_max is None or self.restarts.get(name, 0) < self.respawn_max))
+
+    def supervise(self) -> list[str]:
+        """Start again every exited respawnable process once respawn_delay has passed since it exited (as
+        first seen here: call this every few tenths of a second), with the same command, environment and
+        priority, its log appended to; never once :meth:`stop` has begun. Returns the keys restarted now."""
+        restarted: list[str] = []
+        now = time.monotonic()
+        for name, proc in list(self.processes.items()):
+            if self._stopping:
+                break
+            if proc.poll() is None or not self.respawnable(name):
+                continue
+            exited = self._exited_at.setdefault(name, now)
+            if now - exited < self.respawn_delay:
+                continue
+            self._spawn(name, "ab")
+            del self._exited_at[name]
+            self.restarts[name] = self.restarts.get(name, 0) + 1
+            self.last_exit[name] = (proc.returncode, now - exited)
+            restarted.append(name)
+        return restarted
+
     def failed(self) -> dict[str, int]:
-        """Nodes that have exited already, with their exit codes."""
-        return {n: p.returncode for n, p in self.processes.items() if p.poll() is not None}
+        """Processes that have exited and are not respawnable (:meth:`respawnable`), with their exit codes."""
+        return {n: p.returncode for n, p in self.processes.items() if p.poll() is not None
+                and not self.respawnable(n)}
 
     def stop(self, grace: float = 10.0) -> dict[str, int]:
         """SIGINT every node, wait up to grace [s], SIGKILL what is left (after SIGUSR1, which makes a
-        node print its threads' stacks to its log); returns exit codes."""
+        node print its threads' stacks to its log); returns exit codes. Nothing is respawned from here on."""
+        self._stopping = True
         for proc in self.processes.values():
             if proc.poll() is None:
                 proc.send_signal(signal.SIGINT)

@@ -9,7 +9,11 @@ parameters (an invalid topic name, an output that exists) are refused before
 the bag is created: one line, exit code 2, nothing left behind.
 
 Parameters:
-    output (string): bag directory to create; must not exist. Empty: a
+    output (string): bag directory to create; must not exist, unless it holds
+        a bag whose recorder was killed (no metadata.yaml): then the recording
+        goes into a new folder beside it, ``<output>.1`` (the first free
+        number), and the cut-off bag is left as it is
+        (:mod:`worm_rig_driver.recording.bag_folder`). Empty: a
         ``rosbag2_YYYY_MM_DD-HH_MM_SS`` directory in the working directory.
     storage (string): ``mcap`` (default) or ``sqlite3``.
     compression (string): ``none`` (default) or ``zstd``: MCAP chunk compression, as
@@ -57,14 +61,13 @@ from __future__ import annotations
 
 import functools
 import importlib
+import os
 import shutil
 import signal
 import sys
 import threading
 import time
 from collections.abc import Iterable, Mapping, Sequence
-from datetime import datetime
-from pathlib import Path
 from types import FrameType
 from typing import Any, Final, TypeVar
 
@@ -105,6 +108,7 @@ from worm_model.bags.writer import (
 from worm_model.bags.seq_check import DeliveryCheck, StreamCheck
 from worm_model.bags.topic_names import topic_name_problem
 from worm_model.rig_data.samples import EVERY_SAMPLE_TYPES
+from worm_rig_driver.recording.bag_folder import bag_folder, hold
 
 DEFAULT_QUEUE_DEPTH: Final[int] = 10000
 SPIN_TIMEOUT_S: Final[float] = 0.1
@@ -402,7 +406,8 @@ class RecorderNode(Node):
         """
         super().__init__('recorder')
         output: str = self._parameter(
-            'output', '', 'Bag directory to create (must not exist); empty: rosbag2_<date-time>'
+            'output', '', 'Bag directory to create (must not exist; a bag left by a killed recorder: beside it, '
+            '<output>.1, .2, ...); empty: rosbag2_<date-time>'
         )
         storage: str = self._parameter(
             'storage', 'mcap', 'Storage plugin of the bag',
@@ -435,12 +440,17 @@ class RecorderNode(Node):
                                                                             list(COMPRESSIONS))):
             if value not in known:
                 raise ValueError(f'parameter {name}: {value!r} is not one of {", ".join(known)}')
-        path = Path(output or datetime.now().strftime('rosbag2_%Y_%m_%d-%H_%M_%S'))
+        path, moved = bag_folder(output)  # beside a bag this recorder was writing when it was killed
         check_output(path, folder=True, option='parameter output')  # a new folder: never over anything
         writer = BagWriter(path, storage, compression=compression)
+        try:
+            self._held: int | None = hold(path)  # while it records: not taken for a cut-off bag
+        except OSError as err:
+            writer.close()
+            raise BagRecordingError(f'Cannot lock bag {path}: {err}') from err
         self.recorder = TopicRecorder(self, writer, queue_depth=depth)
         zstd = ', zstd chunks' if compression == 'zstd' else ''
-        self.get_logger().info(f'Recording into {path} ({storage}{zstd})')
+        self.get_logger().info(f'Recording into {path} ({storage}{zstd})' + (f': {moved}' if moved else ''))
         if topics:
             for topic in topics:
                 self.recorder.subscribe(self.resolve_topic_name(topic))  # a bag holds full names
@@ -464,8 +474,13 @@ class RecorderNode(Node):
         return self.declare_parameter(name, default, descriptor).value
 
     def close(self) -> None:
-        """Close the bag and log what it holds."""
-        self.recorder.close()
+        """Close the bag, let go of its folder and log what the bag holds."""
+        try:
+            self.recorder.close()
+        finally:
+            if self._held is not None:
+                os.close(self._held)
+                self._held = None
         counts = self.recorder.counts
         summary = ', '.join(f'{topic}: {n}' for topic, n in sorted(counts.items())) or 'no topics'
         self.get_logger().info(
