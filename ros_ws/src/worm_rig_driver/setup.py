@@ -26,7 +26,7 @@ setup(
             "sim_node = worm_rig_driver.nodes.sim_node:main",
             "recorder = worm_rig_driver.nodes.recorder_node:main",
             "bag = worm_rig_driver.recording.bag_cli:main",
-            "worm_effects = worm_rig_driver.sim.effects:main",
+            "worm_effects = worm_rig_driver.sim.effects.cli:main",
             "virtual_rig = worm_rig_driver.sim.virtual_rig:main",
             "driver_node = worm_rig_driver.nodes.driver_node:main",
             "joint_state_merger = worm_rig_driver.nodes.joint_state_merger:main",
