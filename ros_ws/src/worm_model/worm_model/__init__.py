@@ -19,6 +19,9 @@ outside ``ros/`` and ``nodes/``):
 ``rig_data``  measured rig data: the ``worm_rig_data`` CSV schema and the one reader
               of CSV files, bags and EPOS Studio exports (``read_rig_data``); the ``bag``
               command
+``effects``   the one vocabulary of the effects the model lacks (name, parameters,
+              units, defaults), the ``worm_rig_effects`` file, the oil law and the
+              mesh heat; the simulator, ``residuals`` and ``health`` read it
 ``residuals`` closing the loop with measured data: fit, residual, effects, report
 ``health``    watching the gearbox's wear: the friction model with mu's temperature law,
               the check's fit, the trend and its baseline, the thermal estimate, the

@@ -8,6 +8,7 @@ InputError for their own inputs (worm_rig_driver.errors, torque_estimator.errors
 ==========================  ===========================================================
 ``InputError``              the base: bad input, one line, exit 2
 ``ParameterError``          a rig (parameter) file: ``file: field: problem`` (physics.parameters)
+``EffectsError``            an effects file or mapping: ``file: key: problem`` (effects.file_format)
 ``RigDataError``            rig data, CSV or bag or EPOS export: ``file: line N, column 'c': problem``
 ``DirtyRowsError``          an EPOS export's dirty rows, refused (rig_data.epos; ``--skip-bad-rows``)
 ``ReportError``             ``report``'s calibration file or options
@@ -50,6 +51,22 @@ class ParameterError(InputError):
         self.field = field_name
         where = f"{self.source}: {field_name}" if field_name else self.source
         super().__init__(where, problem)
+
+
+class EffectsError(ParameterError):
+    """An effects file (or mapping) is unreadable or wrong; the message names file and key.
+
+    A :class:`ParameterError` (same message form, ``source: key: problem``), so number parsing is
+    shared with the rig file's loader.
+
+    Attributes:
+        source: the file (or other origin) that was being read.
+        key: dotted name of the offending key ("" for the whole file).
+    """
+
+    @property
+    def key(self) -> str:
+        return self.field
 
 
 
@@ -136,6 +153,7 @@ class BagReadError(BagRecordingError):
 
 
 
-__all__ = ["BagClosedError", "BagReadError", "BagRecordingError", "CalculatorError", "DirtyRowsError", "FitError",
+__all__ = ["BagClosedError", "BagReadError", "BagRecordingError", "CalculatorError", "DirtyRowsError", "EffectsError",
+           "FitError",
            "InputError", "OutputError", "ParameterError", "ReportError", "RigDataError", "SettingsError", "TrendError",
            "TypeDefinitionNotFoundError"]

@@ -19,9 +19,11 @@ from worm_model.physics.dynamics import reflected_input_torque
 from worm_model.physics.friction import friction_coefficient, sliding_velocity
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.physics.parameters import default_rig_path, load_rig
-from worm_rig_driver.sim.effects import (EFFECTS, UNITS, EffectsConfig, Parameter, SenseContext, load_effects, main,
+from worm_model.effects import VOCABULARY
+from worm_model.effects.parameters import UNITS, Parameter
+from worm_model.errors import EffectsError
+from worm_rig_driver.sim.effects import (EFFECTS, EffectsConfig, EffectStack, SenseContext, load_effects, main,
     template)
-from worm_rig_driver.errors import EffectsError
 from worm_rig_driver.sim.plant import RigPlant
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
@@ -58,13 +60,13 @@ EXPECTED_HOOKS = {
 def test_registry_has_the_issue_vocabulary_and_each_effect_changes_only_its_hooks() -> None:
     assert set(EFFECTS) == set(EXPECTED_HOOKS)
     for name, cls in EFFECTS.items():
-        assert cls.name == name and cls.summary and cls.__doc__
+        assert cls.name == name and VOCABULARY[name].summary and cls.__doc__
         assert cls.hooks() == EXPECTED_HOOKS[name], name
-        for key, p in cls.parameters.items():
+        for key, p in VOCABULARY[name].parameters.items():
             assert isinstance(p, Parameter) and p.doc, f"{name}.{key}"
             assert p.unit in {base for _, base in UNITS.values()}, f"{name}.{key}: {p.unit}"
     # a full configuration builds, with every parameter at its default
-    stack = EffectsConfig.defaults(*EFFECTS).build(3, RIG)
+    stack = EffectStack.build(EffectsConfig.defaults(*EFFECTS), 3, RIG)
     assert stack.names == tuple(EFFECTS)
 
 
@@ -89,8 +91,7 @@ def test_units_enabled_flag_and_plain_numbers(tmp_path) -> None:
     assert config.names == ("backlash", "bearing_coulomb", "oil_temperature")
     assert config.effects["backlash"]["angle"] == pytest.approx(math.radians(0.5))
     assert config.effects["bearing_coulomb"] == {"worm_torque": pytest.approx(5e-3), "gear_torque": 0.02}
-    assert config.effects["oil_temperature"]["time_constant"] == EFFECTS["oil_temperature"].parameters[
-        "time_constant"].default
+    assert config.effects["oil_temperature"]["time_constant"] == VOCABULARY["oil_temperature"].default("time_constant")
 
 
 def test_an_effects_section_of_a_rig_parameter_file_is_read(tmp_path) -> None:
@@ -409,8 +410,10 @@ def test_sensor_effects_change_the_readings_and_not_the_rig(name: str) -> None:
 def test_pwm_quantises_the_duty_and_adds_the_sampled_ripple() -> None:
     import worm_rig_driver.protocol.table as protocol_table
 
-    levels = EFFECTS["pwm"].parameters["duty_levels"].default
+    levels = VOCABULARY["pwm"].default("duty_levels")
     assert levels == protocol_table.PWM_TOP + 1  # the firmware's timer: 800 steps at 20 kHz
+    # the vocabulary's PWM is the firmware's (worm_model does not import the protocol table)
+    assert VOCABULARY["pwm"].default("frequency") == protocol_table.F_CPU_HZ / (protocol_table.PWM_TOP + 1)
     config = EffectsConfig.defaults("pwm")
     sim, base = (SimulatedRig(QUIET, n=2, effects=e) for e in (config, None))
     volts = np.array([10.0, -7.3])
@@ -422,11 +425,11 @@ def test_pwm_quantises_the_duty_and_adds_the_sampled_ripple() -> None:
     np.testing.assert_allclose(applied, np.round(volts / RIG.supply_voltage * levels) / levels * RIG.supply_voltage)
     assert np.all(applied != volts) and np.all(base_readings[-1].voltage_drive == volts)
     # the triangle ripple, peak to peak V_s d (1 - d) / (L f), through the sensor's filter
-    f = EFFECTS["pwm"].parameters["frequency"].default
-    cutoff = EFFECTS["pwm"].parameters["filter_cutoff"].default
+    f = VOCABULARY["pwm"].default("frequency")
+    cutoff = VOCABULARY["pwm"].default("filter_cutoff")
     duty = np.abs(applied) / RIG.supply_voltage
     ripple_pp = RIG.supply_voltage * duty * (1 - duty) / (MOTOR.inductance * f) / np.hypot(1, f / cutoff)
-    stack = config.build(2, RIG)
+    stack = EffectStack.build(config, 2, RIG)
     seen = []
     for t in np.linspace(0.0, 1.0 / f, 400, endpoint=False):
         signals = {"current_drive": np.zeros(2)}

@@ -22,7 +22,7 @@ from worm_model.physics.friction import FLOAT_FRICTION_MODELS, FRICTION_MODELS
 from worm_model.physics.gear_side import no_load_switching_torque
 from worm_model.physics.modes import Flank, Mode
 from worm_model.physics.parameters import load_rig
-from worm_rig_driver.sim import effects as effects_module
+from worm_model.effects import Declaration, register, unregister
 from worm_rig_driver.sim.effects import EFFECTS, EffectBase, EffectsConfig
 from worm_rig_driver.sim.plant import RigPlant
 from worm_rig_driver.sim.scalar_plant import ScalarPlant, float_hooks_missing
@@ -193,14 +193,19 @@ class _VectorisedOnly(EffectBase):
     """An effect written for arrays only (no float hooks)."""
 
     name = "vectorised_only"
-    parameters = {}
 
     def worm_torque(self, s):
         return np.zeros(self.n)
 
 
-def test_an_effect_without_float_hooks_falls_back_to_the_vectorised_path(monkeypatch) -> None:
-    monkeypatch.setitem(effects_module.EFFECTS, _VectorisedOnly.name, _VectorisedOnly)
+@pytest.fixture
+def vectorised_only():
+    register(Declaration(_VectorisedOnly.name, "an effect written for arrays only"), simulator=_VectorisedOnly)
+    yield
+    unregister(_VectorisedOnly.name)
+
+
+def test_an_effect_without_float_hooks_falls_back_to_the_vectorised_path(vectorised_only) -> None:
     config = EffectsConfig.defaults("backlash", "vectorised_only")
     assert float_hooks_missing(config) == ["vectorised_only"]
     sim = SimulatedRig(RIG, effects=config)

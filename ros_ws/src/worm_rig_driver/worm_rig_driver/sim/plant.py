@@ -48,6 +48,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from worm_model.effects.heat import mesh_heat
 from worm_model.physics.friction import FRICTION_MODELS, sliding_velocity
 from worm_model.physics.gear_side import gear_side_load
 from worm_model.physics.motor import exact_current_step, shaft_torque
@@ -188,7 +189,7 @@ class RigPlant:
 
     def __post_init__(self) -> None:
         self.effects = as_config(self.effects)
-        self.fx: EffectStack = self.effects.build(self.n, self.rig)
+        self.fx: EffectStack = EffectStack.build(self.effects, self.n, self.rig)
         self.state = PlantState.at_rest(self.n)
         #: true total inertias of each shaft [kg m^2] (the rig file's unless inertia_error)
         self.worm_inertia, self.gear_inertia = self.fx.inertia(self.rig.total_worm_inertia,
@@ -460,11 +461,11 @@ class RigPlant:
     def _heat(self, omega, omega_g, tau_in, gear_load, alpha_w, alpha_g, engaged) -> np.ndarray:
         """Power [W] made inside the gearbox: mesh friction plus dissipative shaft effects.
 
-        Mesh friction = power into the mesh from the worm minus power out to the gear,
-        (tau_in - J_w a_w) w - (gear_load + J_g a_g) i w, which is F_f V_s (>= 0).
+        Mesh friction = power into the mesh from the worm minus power out to the gear
+        (worm_model.effects.heat): (tau_in - J_w a_w) w - (gear_load + J_g a_g) i w, which is F_f V_s (>= 0).
         """
-        mesh = (tau_in - self.worm_inertia * alpha_w) * omega - (gear_load + self.gear_inertia * alpha_g) * omega_g
+        mesh = mesh_heat(tau_in - self.worm_inertia * alpha_w, omega, gear_load + self.gear_inertia * alpha_g, omega_g)
         s = self.state
         shafts = ShaftState(omega, s.theta_worm, omega_g, s.theta_gear, s.current_drive,
                             np.where(engaged, np.abs(gear_load), 0.0))
-        return np.where(engaged, np.maximum(mesh, 0.0), 0.0) + self.fx.heat(shafts)
+        return np.where(engaged, mesh, 0.0) + self.fx.heat(shafts)

@@ -33,6 +33,7 @@ from functools import partial
 
 import numpy as np
 
+from worm_model.effects.heat import mesh_heat_float
 from worm_model.physics.friction import FLOAT_FRICTION_MODELS
 from worm_model.physics.parameters import Rig
 
@@ -136,7 +137,7 @@ class ScalarPlant:
         self.rig = rig
         self.load_current_time_constant = load_current_time_constant
         self.effects = as_config(effects)
-        self.fx: EffectStack = self.effects.build(1, rig)
+        self.fx: EffectStack = EffectStack.build(self.effects, 1, rig)
         missing = float_hooks_missing(self.effects)
         if missing:
             raise ValueError(f"effects without float hooks, not on the scalar path: {', '.join(missing)}")
@@ -552,10 +553,11 @@ class ScalarPlant:
 
     def _heat(self, omega, omega_g, tau_in, gear_load, alpha_w, alpha_g, engaged: bool) -> float:
         """RigPlant._heat for floats: mesh friction power (while touching) + dissipative shaft effects [W]."""
-        mesh = (tau_in - self.worm_inertia * alpha_w) * omega - (gear_load + self.gear_inertia * alpha_g) * omega_g
+        mesh = mesh_heat_float(tau_in - self.worm_inertia * alpha_w, omega, gear_load + self.gear_inertia * alpha_g,
+                               omega_g)
         shaft = (omega, self.theta_worm, omega_g, self.theta_gear, self.current_drive,
                  abs(gear_load) if engaged else 0.0)
         power = 0.0
         for worm, gear in self._heat_fx:  # EffectStack.heat: power - worm torque w + gear torque w_g
             power = power - (worm(*shaft) if worm else 0.0) * omega + (gear(*shaft) if gear else 0.0) * omega_g
-        return (max(mesh, 0.0) if engaged else 0.0) + power
+        return (mesh if engaged else 0.0) + power

@@ -1,8 +1,11 @@
-"""effects: what the paper's model lacks (physics.md section 9), and the gearbox's aging, as plug-ins of the simulator.
+"""effects: the simulator's face of the effects the model lacks (physics.md section 9), and the gearbox's aging.
 
-Each effect is a small class behind one protocol (``hooks.Effect``) and is found by its name in the
-registry ``EFFECTS`` (the way rosbags finds storage plug-ins in ``STORAGE_PLUGINS``). An effect
-declares its parameters (unit, default, meaning) and implements only the hooks it needs:
+The effects, their parameters (unit, default, meaning) and the ``worm_rig_effects`` file are
+worm_model.effects' (the one vocabulary); here is what the simulator does with them, its forward
+hooks. Each effect is a small class behind one protocol (``hooks.Effect``), attached to its declared
+name (``hooks.simulates``) and found in the registry ``EFFECTS`` (the way rosbags finds storage
+plug-ins in ``STORAGE_PLUGINS``). It reads its parameters in ``self.p`` and implements only the
+hooks it needs:
 
   worm_torque   extra torque on the worm shaft, a function of the shaft state
   gear_torque   extra torque on the gear shaft
@@ -24,9 +27,11 @@ Aging (``wear``, ``lubricant_loss``, ``seal_drag``): effects that evolve over th
 (hours run) or step at a given rig time, so that a health monitor is measured on runs whose truth
 is known. At their defaults they leave the gearbox as new.
 
-The simulator switches effects on from a YAML file (``config.load_effects``); the model
-(worm_model) is not told: the effects are *undeclared*, the test bed for closing the loop between
-model and measurements.
+The simulator switches effects on from a YAML file (worm_model.effects.load_effects); the model
+(the rig file) is not told: the effects are *undeclared*, the test bed for closing the loop between
+model and measurements. The hooks are the simulator's own formulas, stepped sample by sample (the
+oil's law and the mesh heat are the model's, worm_model.effects.oil and .heat); the residual
+analysis's regressors are written apart, so that it is judged on data it did not make.
 
 Conventions (those of plant.py; SI units, angles in rad):
   * worm quantities in the fixed frame, + along + worm rotation;
@@ -40,30 +45,29 @@ Conventions (those of plant.py; SI units, angles in rad):
 Map (dependencies point up this list):
 
 ============  ==============================================================
-``hooks``     how an effect declares its parameters (units, checks), what it sees
-              (``ShaftState``, ``SenseContext``), the protocol, ``EffectBase``
+``hooks``     what an effect sees (``ShaftState``, ``SenseContext``), the protocol,
+              ``EffectBase``, ``simulates``
 ``drags``     bearing and seal Coulomb drag, viscous and churning drag
 ``mesh``      mu's speed, load and oil-temperature laws; backlash; inertia errors
 ``ripples``   worm and gear runout, the tooth pass, motor cogging
 ``sensing``   sensor gain and offset errors, the PWM
 ``aging``     wear, lubricant loss, a dragging seal
-``registry``  ``EFFECTS``: name -> class
-``stack``     ``EffectStack``: one simulator's live effects, composed hook by hook
-``config``    the ``worm_rig_effects`` file: the format, which effects are on
-              (``EffectsConfig``, ``load_effects``)
+``registry``  ``EFFECTS``: name -> hook class (a view of worm_model.effects' registry)
+``stack``     ``EffectStack``: one simulator's live effects, built from an
+              ``EffectsConfig`` and composed hook by hook
 ``cli``       the ``worm_effects`` executable (``__main__``: ``python -m`` runs it)
 ============  ==============================================================
 
 Read first: ``hooks`` (what an effect may change), then ``mesh.OilTemperature`` (an effect with state).
 """
-from worm_rig_driver.sim.effects.config import (FORMAT_NAME, FORMAT_VERSION, RIG_FORMAT_NAME, EffectsConfig, as_config,
-                                                load_effects)
-from worm_rig_driver.sim.effects.hooks import (CHECKS, FLOAT_SHAFT, HOOKS, PLAUSIBLE, SIGNALS, UNITS, Effect,
-                                               EffectBase, Parameter, SenseContext, ShaftState)
+from worm_model.effects import FORMAT_NAME, FORMAT_VERSION, EffectsConfig, as_config, load_effects
+
+from worm_rig_driver.sim.effects.hooks import (FLOAT_SHAFT, HOOKS, SIGNALS, Effect, EffectBase, SenseContext,
+                                               ShaftState, simulates)
 from worm_rig_driver.sim.effects.registry import EFFECTS
 from worm_rig_driver.sim.effects.stack import EffectStack
 from worm_rig_driver.sim.effects.cli import TEMPLATE_MARK, describe, main, template
 
-__all__ = ["CHECKS", "EFFECTS", "FLOAT_SHAFT", "FORMAT_NAME", "FORMAT_VERSION", "HOOKS", "PLAUSIBLE", "RIG_FORMAT_NAME",
-           "SIGNALS", "TEMPLATE_MARK", "UNITS", "Effect", "EffectBase", "EffectStack", "EffectsConfig", "Parameter",
-           "SenseContext", "ShaftState", "as_config", "describe", "load_effects", "main", "template"]
+__all__ = ["EFFECTS", "FLOAT_SHAFT", "FORMAT_NAME", "FORMAT_VERSION", "HOOKS", "SIGNALS", "TEMPLATE_MARK", "Effect",
+           "EffectBase", "EffectStack", "EffectsConfig", "SenseContext", "ShaftState", "as_config", "describe",
+           "load_effects", "main", "simulates", "template"]

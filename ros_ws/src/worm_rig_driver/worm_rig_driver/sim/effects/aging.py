@@ -5,19 +5,19 @@ configuration of "every effect at its default" is a new gearbox; their parameter
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 
 import numpy as np
 
 from worm_model.physics.parameters import Rig
 
-from worm_rig_driver.sim.effects.hooks import Parameter, EffectBase, ShaftState, _sign
+from worm_rig_driver.sim.effects.hooks import simulates, EffectBase, ShaftState, _sign
 
 #: hours per second
 _HOUR = 1.0 / 3600.0
 
 
+@simulates
 class Wear(EffectBase):
     """Wear over the gearbox's life: the mesh mu, the shaft drags and the backlash grow with the hours run.
 
@@ -35,21 +35,7 @@ class Wear(EffectBase):
     """
 
     name = "wear"
-    summary = "wear: mu, shaft drags and backlash rising with the hours run"
     dissipative = True
-    parameters = {
-        "hours": Parameter(0.0, "h", "age at the start of the run (0: new)", "nonnegative"),
-        "time_factor": Parameter(0.0, "1", "hours of wear per hour of rig time (0: the age is fixed over the "
-                                 "run; 3600: an hour per second)", "nonnegative"),
-        "mu_rate": Parameter(0.05, "1", "relative rise of mu per 1000 h (assumption: a bronze wheel running in "
-                             "and wearing, ~5 % per 1000 h)"),
-        "worm_drag_rate": Parameter(1e-3, "N m", "rise of the worm shaft's Coulomb drag per 1000 h (assumption: "
-                                    "a hardening input seal lip)", "nonnegative"),
-        "gear_drag_rate": Parameter(2e-3, "N m", "rise of the gear shaft's Coulomb drag per 1000 h (assumption: "
-                                    "output seals and bearings)", "nonnegative"),
-        "backlash_rate": Parameter(math.radians(3.0 / 60.0), "rad", "growth of the clearance at the gear per "
-                                   "1000 h (assumption: 3 arcmin per 1000 h of tooth wear)", "nonnegative"),
-    }
 
     def __init__(self, params: Mapping[str, float], n: int, rig: Rig) -> None:
         super().__init__(params, n, rig)
@@ -110,6 +96,7 @@ class _RigClock(EffectBase):
         return 1.0 if duration <= 0.0 or self.time >= start + duration else (self.time - start) / duration
 
 
+@simulates
 class LubricantLoss(_RigClock):
     """Loss of lubricant (a leak, a starved mesh): mu steps up by ``rise`` at rig time ``at``.
 
@@ -119,13 +106,6 @@ class LubricantLoss(_RigClock):
     """
 
     name = "lubricant_loss"
-    summary = "lubricant loss: mu stepping up at a given rig time"
-    parameters = {
-        "rise": Parameter(0.0, "1", "relative rise of mu after the loss (0: healthy; a starved mesh: 0.3)",
-                          "relative"),
-        "at": Parameter(0.0, "s", "rig time of the loss since the start of the run", "nonnegative"),
-        "duration": Parameter(0.0, "s", "time over which mu rises to its new value (0: a step)", "nonnegative"),
-    }
 
     def friction(self, mu: np.ndarray, v_sliding: np.ndarray, s: ShaftState) -> np.ndarray:
         return mu * (1.0 + self.p["rise"] * self._onset(self.p["at"], self.p["duration"]))
@@ -135,6 +115,7 @@ class LubricantLoss(_RigClock):
         return mu * (1.0 + self.p["rise"] * self._onset(self.p["at"], self.p["duration"]))
 
 
+@simulates
 class SealDrag(_RigClock):
     """A seal starting to drag: Coulomb drag on the worm and gear shafts from rig time ``onset``.
 
@@ -145,16 +126,7 @@ class SealDrag(_RigClock):
     """
 
     name = "seal_drag"
-    summary = "a seal starting to drag: Coulomb drag on the worm and gear shafts from a given rig time"
     dissipative = True
-    parameters = {
-        "worm_torque": Parameter(0.0, "N m", "extra Coulomb drag on the worm shaft (0: healthy; a dragging "
-                                 "15 mm lip seal: a few mN m)", "nonnegative"),
-        "gear_torque": Parameter(0.0, "N m", "extra Coulomb drag on the gear shaft (0: healthy)", "nonnegative"),
-        "onset": Parameter(0.0, "s", "rig time at which the drag starts", "nonnegative"),
-        "growth": Parameter(0.0, "s", "time over which the drag grows to its full value (0: at once)",
-                            "nonnegative"),
-    }
 
     def worm_torque(self, s: ShaftState) -> np.ndarray:
         return -(self.p["worm_torque"] * self._onset(self.p["onset"], self.p["growth"])) * np.sign(s.omega_worm)

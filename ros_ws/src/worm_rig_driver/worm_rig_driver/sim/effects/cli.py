@@ -5,18 +5,19 @@ import sys
 
 from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser, existing_file, output_path
+from worm_model.effects import FORMAT_NAME, FORMAT_VERSION, VOCABULARY, load_effects
 from worm_model.files.writing import Output, atomic_file, check_output
 
-from worm_rig_driver.sim.effects.config import FORMAT_NAME, FORMAT_VERSION, load_effects
 from worm_rig_driver.sim.effects.registry import EFFECTS
 
 
 def describe() -> str:
-    """Every registered effect with its hooks and parameters (unit, default, meaning)."""
+    """Every effect the simulator has hooks for, with its hooks and parameters (unit, default, meaning)."""
     lines = []
     for name, cls in EFFECTS.items():
-        lines.append(f"{name}: {cls.summary}  [changes: {', '.join(sorted(cls.hooks()))}]")
-        for key, p in cls.parameters.items():
+        declared = VOCABULARY[name]
+        lines.append(f"{name}: {declared.summary}  [changes: {', '.join(sorted(cls.hooks()))}]")
+        for key, p in declared.parameters.items():
             unit = "" if p.unit == "1" else f" {p.unit}"
             lines.append(f"    {key} = {p.default:g}{unit}: {p.doc}")
     return "\n".join(lines)
@@ -29,9 +30,9 @@ def template(names: tuple[str, ...] | None = None) -> str:
              f"# or give it 'enabled: false', to switch it off. {TEMPLATE_MARK}",
              f"format: {FORMAT_NAME}", f"version: {FORMAT_VERSION}", "effects:"]
     for name in names or tuple(EFFECTS):
-        cls = EFFECTS[name]
-        lines.append(f"  {name}:  # {cls.summary}")
-        for key, p in cls.parameters.items():
+        declared = VOCABULARY[name]
+        lines.append(f"  {name}:  # {declared.summary}")
+        for key, p in declared.parameters.items():
             lines.append(f'    {key}: {{value: {p.default!r}, unit: "{p.unit}"}}  # {p.doc}')
     return "\n".join(lines) + "\n"
 
@@ -80,7 +81,7 @@ def _main(argv: list[str] | None) -> int:
                 tmp.write_text(text, encoding="utf-8")
     if config is not None:
         for name, params in config.effects.items():
-            units = {k: ("" if p.unit == "1" else " " + p.unit) for k, p in EFFECTS[name].parameters.items()}
+            units = {k: ("" if p.unit == "1" else " " + p.unit) for k, p in VOCABULARY[name].parameters.items()}
             shown = ", ".join(f"{k}={v:g}{units[k]}" for k, v in params.items())
             print(f"{name}: {shown}")
         if not config.effects:

@@ -3,9 +3,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from worm_rig_driver.sim.effects.hooks import Parameter, EffectBase, ShaftState, _sign
+from worm_rig_driver.sim.effects.hooks import simulates, EffectBase, ShaftState, _sign
 
 
+@simulates
 class BearingCoulomb(EffectBase):
     """Coulomb drag of the bearings and lip seals of the worm and gear shafts.
 
@@ -15,14 +16,7 @@ class BearingCoulomb(EffectBase):
     """
 
     name = "bearing_coulomb"
-    summary = "bearing and seal Coulomb drag on the worm and gear shafts"
     dissipative = True
-    parameters = {
-        "worm_torque": Parameter(3e-3, "N m", "Coulomb drag on the worm shaft (assumption: two ball bearings "
-                                 "and a 15 mm lip seal, a few mN m)", "nonnegative"),
-        "gear_torque": Parameter(15e-3, "N m", "Coulomb drag on the gear shaft (assumption: two 14 mm lip "
-                                 "seals and the output bearings)", "nonnegative"),
-    }
 
     def worm_torque(self, s: ShaftState) -> np.ndarray:
         return -self.p["worm_torque"] * np.sign(s.omega_worm)
@@ -37,6 +31,7 @@ class BearingCoulomb(EffectBase):
         return self.p["gear_torque"] * _sign(omega_gear)
 
 
+@simulates
 class ViscousDrag(EffectBase):
     """Viscous and oil-churning drag: T(omega) = T_ref (|omega| / omega_ref)^exponent sign(omega).
 
@@ -46,17 +41,7 @@ class ViscousDrag(EffectBase):
     """
 
     name = "viscous_drag"
-    summary = "viscous and oil-churning drag on the worm and gear shafts"
     dissipative = True
-    parameters = {
-        "worm_torque": Parameter(3e-3, "N m", "drag on the worm shaft at the reference speed (assumption: "
-                                 "splash-lubricated worm, ~1 W at 300 rad/s)", "nonnegative"),
-        "gear_torque": Parameter(10e-3, "N m", "drag on the gear shaft at the reference worm speed "
-                                 "(assumption: wheel churning in the oil bath)", "nonnegative"),
-        "reference_speed": Parameter(300.0, "rad/s", "worm speed at which the torques above are reached",
-                                     "positive"),
-        "exponent": Parameter(1.0, "1", "speed exponent: 1 viscous, 0.5..1 churning", "nonnegative"),
-    }
 
     def _law(self, torque: float, worm_speed: np.ndarray) -> np.ndarray:
         x = np.abs(worm_speed) / self.p["reference_speed"]

@@ -1,66 +1,23 @@
-"""The simulator's effect hooks: how an effect declares its parameters (units, checks), the shaft state and
-sensing context it sees, the protocol, the base class.
+"""The simulator's face of an effect: the shaft state and sensing context it sees, the protocol, the base class.
 
 An effect implements only the hooks it changes (:data:`HOOKS`; the package's map lists them); each hook that
-runs every step has a float twin for the scalar path (:data:`FLOAT_SHAFT`).  Signs: the package's docstring.
+runs every step has a float twin for the scalar path (:data:`FLOAT_SHAFT`).  Its name, summary and parameters
+are the vocabulary's (worm_model.effects): a hook class names a declared effect and is attached to it with
+:func:`simulates`.  Signs: the package's docstring.
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar, Protocol, runtime_checkable
+from typing import ClassVar, Protocol, TypeVar, runtime_checkable
 
 import numpy as np
 
+from worm_model.effects import VOCABULARY, implement
 from worm_model.physics.parameters import Rig
 
-# --- parameters and their units ------------------------------------------------------------------
-
-#: unit accepted in an effects file -> (factor to the parameter's unit, that unit)
-UNITS: dict[str, tuple[float, str]] = {
-    "N m": (1.0, "N m"), "mN m": (1e-3, "N m"),
-    "rad": (1.0, "rad"), "deg": (math.pi / 180.0, "rad"), "arcmin": (math.pi / 10800.0, "rad"),
-    "rad/s": (1.0, "rad/s"), "rpm": (math.pi / 30.0, "rad/s"),
-    "m/s": (1.0, "m/s"),
-    "A": (1.0, "A"), "mA": (1e-3, "A"),
-    "s": (1.0, "s"), "min": (60.0, "s"),
-    "h": (1.0, "h"),  # a gearbox's age (hours run): the aging effects
-    "Hz": (1.0, "Hz"), "kHz": (1e3, "Hz"),
-    "degC": (1.0, "degC"),
-    "K/W": (1.0, "K/W"),
-    "1/K": (1.0, "1/K"),
-    "1": (1.0, "1"), "%": (0.01, "1"),
-}
-
-#: largest magnitude an effect parameter of each unit may have: far beyond what a bench rig like this one
-#: shows (its motors make ~1 N m, turn at ~400 rad/s, draw ~10 A), so only typos and overflows are refused
-PLAUSIBLE: dict[str, float] = {
-    "N m": 100.0, "rad": 2 * math.pi, "rad/s": 1e4, "m/s": 100.0, "A": 100.0, "s": 1e6, "Hz": 1e5,
-    "degC": 300.0, "K/W": 1e3, "1/K": 1.0, "h": 1e6, "1": 1e6,  # "1" holds counts too (PWM levels, orders)
-}
-
-#: range check name -> (predicate, message)
-CHECKS: dict[str, tuple[Any, str]] = {
-    "any": (lambda x: True, ""),
-    "nonnegative": (lambda x: x >= 0.0, "must be >= 0"),
-    "positive": (lambda x: x > 0.0, "must be > 0"),
-    # a relative change or error: above +1000 % is a slip (a percentage written as a fraction, a unit), not a gearbox
-    "relative": (lambda x: -1.0 < x <= 10.0, "must be > -1 and <= 10 (a relative change, -100 % .. +1000 %)"),
-    "count": (lambda x: x >= 1 and float(x).is_integer(), "must be an integer >= 1"),
-    "count0": (lambda x: x >= 0 and float(x).is_integer(), "must be an integer >= 0"),
-}
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """Declaration of one effect parameter: default (in ``unit``), unit, meaning, range check."""
-
-    default: float
-    unit: str
-    doc: str
-    check: str = "any"
-
+#: the simulator's face in worm_model.effects' registry
+FACE = "simulator"
 
 @dataclass
 class ShaftState:
@@ -96,9 +53,7 @@ SIGNALS = ("current_drive", "current_load_1", "current_load_2", "tacho_drive", "
 class Effect(Protocol):
     """One effect the model lacks. Implement only the hooks that the effect changes."""
 
-    name: ClassVar[str]
-    summary: ClassVar[str]
-    parameters: ClassVar[Mapping[str, Parameter]]
+    name: ClassVar[str]  # the vocabulary's name of the effect
     dissipative: ClassVar[bool]  # its shaft torques turn work into heat inside the gearbox
 
     def worm_torque(self, s: ShaftState) -> np.ndarray: ...
@@ -132,18 +87,18 @@ class EffectBase:
     """Identity implementation of every hook; an effect overrides the ones it changes.
 
     Args:
-        params: every declared parameter, in its declared unit (see :data:`UNITS`).
+        params: every parameter the vocabulary declares for ``name``, in its declared unit (an effect
+            the vocabulary does not know takes none: a test's effect outside the vocabulary).
         n: number of rigs simulated side by side (size of any state the effect keeps).
         rig: the rig's parameters (geometry an effect needs: ratio, teeth, inductance).
     """
 
     name: ClassVar[str] = ""
-    summary: ClassVar[str] = ""
-    parameters: ClassVar[Mapping[str, Parameter]] = {}
-    dissipative: ClassVar[bool] = False
+    dissipative: ClassVar[bool] = False  # its shaft torques turn work into heat inside the gearbox
 
     def __init__(self, params: Mapping[str, float], n: int, rig: Rig) -> None:
-        self.p = {key: float(params[key]) for key in self.parameters}
+        declared = VOCABULARY[self.name].parameters if self.name in VOCABULARY else {}
+        self.p = {key: float(params[key]) for key in declared}
         self.n = n
         self.rig = rig
 
@@ -182,6 +137,15 @@ class EffectBase:
     def hooks(cls) -> frozenset[str]:
         """The hooks this effect overrides: what it changes in the simulator."""
         return frozenset(h for h in HOOKS if getattr(cls, h) is not getattr(EffectBase, h))
+
+
+Hooks = TypeVar("Hooks", bound=type[EffectBase])
+
+
+def simulates(cls: Hooks) -> Hooks:
+    """Class decorator: ``cls`` is the simulator's hooks of the declared effect ``cls.name`` (registry.EFFECTS)."""
+    implement(FACE, cls.name, cls)
+    return cls
 
 
 def _ripple(amplitude: float, load_fraction: float, load, sine):

@@ -6,11 +6,13 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from worm_model.effects import oil
 from worm_model.physics.parameters import Rig
 
-from worm_rig_driver.sim.effects.hooks import Parameter, EffectBase, ShaftState
+from worm_rig_driver.sim.effects.hooks import simulates, EffectBase, ShaftState
 
 
+@simulates
 class SpeedDependentMu(EffectBase):
     """Mesh friction rising at low sliding speed (Stribeck / EHL film build-up), on top of the rig's law.
 
@@ -20,13 +22,6 @@ class SpeedDependentMu(EffectBase):
     """
 
     name = "speed_dependent_mu"
-    summary = "mesh mu rising at low sliding speed (Stribeck), beyond the model's mu law"
-    parameters = {
-        "low_speed_gain": Parameter(0.5, "1", "relative increase of mu as the sliding speed goes to 0 "
-                                    "(assumption: boundary vs. EHL friction of bronze on steel)", "relative"),
-        "stribeck_speed": Parameter(0.3, "m/s", "sliding speed over which the increase decays "
-                                    "(assumption: 0.3 m/s ~ 40 rad/s worm speed on the bundled rig)", "positive"),
-    }
 
     def friction(self, mu: np.ndarray, v_sliding: np.ndarray, s: ShaftState) -> np.ndarray:
         return mu * (1.0 + self.p["low_speed_gain"] * np.exp(-v_sliding / self.p["stribeck_speed"]))
@@ -36,6 +31,7 @@ class SpeedDependentMu(EffectBase):
         return mu * (1.0 + self.p["low_speed_gain"] * math.exp(-v_sliding / self.p["stribeck_speed"]))
 
 
+@simulates
 class LoadDependentMu(EffectBase):
     """Mesh friction that depends on the load the mesh carries.
 
@@ -44,13 +40,6 @@ class LoadDependentMu(EffectBase):
     """
 
     name = "load_dependent_mu"
-    summary = "mesh mu changing with the transmitted load"
-    parameters = {
-        "sensitivity": Parameter(-0.15, "1", "relative change of mu at the reference torque (assumption: mu "
-                                 "falls as the load grows, as the paper's Fig. 9 shows)"),
-        "reference_torque": Parameter(0.25, "N m", "gear-side torque at which the change is `sensitivity`",
-                                      "positive"),
-    }
 
     def friction(self, mu: np.ndarray, v_sliding: np.ndarray, s: ShaftState) -> np.ndarray:
         factor = 1.0 + self.p["sensitivity"] * s.mesh_load / self.p["reference_torque"]
@@ -62,27 +51,18 @@ class LoadDependentMu(EffectBase):
         return mu * (0.1 if factor < 0.1 else factor)  # np.maximum(factor, 0.1), NaN kept
 
 
+@simulates
 class OilTemperature(EffectBase):
     """Oil temperature with a thermal time constant, and mu that follows it.
 
-    First-order thermal model of the housing: C dT/dt = P - (T - T_amb)/R_th with
-    C = time_constant / thermal_resistance, P the heat made inside the gearbox (mesh
-    friction and the dissipative shaft effects) [W]. The mesh mu is scaled by
+    The model's oil law (worm_model.effects.oil: C dT/dt = P - (T - T_amb)/R_th), stepped
+    exactly every sample with P the heat made inside the gearbox that sample (mesh friction
+    and the dissipative shaft effects) [W]: the truth. The mesh mu is scaled by
     max(0.1, 1 + mu_per_kelvin (T - ambient)): the model's mu is the one at ambient.
     Residual signature: a slow drift over minutes at a constant operating point.
     """
 
     name = "oil_temperature"
-    summary = "oil temperature (first order, thermal time constant) scaling the mesh mu"
-    parameters = {
-        "ambient": Parameter(25.0, "degC", "ambient temperature; the model's mu holds there (assumption: lab)"),
-        "initial": Parameter(25.0, "degC", "oil temperature at the start of the run"),
-        "thermal_resistance": Parameter(5.0, "K/W", "housing to ambient (assumption: ~0.2 W/K for a small "
-                                        "aluminium housing in still air)", "positive"),
-        "time_constant": Parameter(900.0, "s", "thermal time constant R_th C (assumption: ~15 min)", "positive"),
-        "mu_per_kelvin": Parameter(-0.003, "1/K", "relative change of mu per kelvin (assumption: thinner, "
-                                   "hotter oil lowers the viscous part of the mesh friction)"),
-    }
 
     def __init__(self, params: Mapping[str, float], n: int, rig: Rig) -> None:
         super().__init__(params, n, rig)
@@ -92,9 +72,8 @@ class OilTemperature(EffectBase):
         return mu * np.maximum(1.0 + self.p["mu_per_kelvin"] * (self.temperature - self.p["ambient"]), 0.1)
 
     def advance(self, dt: float, heat: np.ndarray) -> None:
-        # exact for P held over dt: T -> T_ss + (T - T_ss) exp(-dt / tau)
-        steady = self.p["ambient"] + self.p["thermal_resistance"] * heat
-        self.temperature = steady + (self.temperature - steady) * math.exp(-dt / self.p["time_constant"])
+        steady = oil.steady_temperature(self.p["ambient"], heat, self.p["thermal_resistance"])
+        self.temperature = oil.relax(self.temperature, steady, oil.decay(dt, self.p["time_constant"]))
 
     # (n = 1: the temperature stays a (1,) array, written in place, so that observe() is unchanged)
     def friction_float(self, mu, v_sliding, omega_worm, theta_worm, omega_gear, theta_gear, current,
@@ -103,13 +82,14 @@ class OilTemperature(EffectBase):
         return mu * (0.1 if factor < 0.1 else factor)
 
     def advance_float(self, dt: float, heat: float) -> None:
-        steady = self.p["ambient"] + self.p["thermal_resistance"] * heat
-        self.temperature[0] = steady + (float(self.temperature[0]) - steady) * math.exp(-dt / self.p["time_constant"])
+        steady = oil.steady_temperature(self.p["ambient"], heat, self.p["thermal_resistance"])
+        self.temperature[0] = oil.relax(float(self.temperature[0]), steady, oil.decay(dt, self.p["time_constant"]))
 
     def observe(self) -> dict[str, np.ndarray]:
         return {"oil_temperature": self.temperature.copy()}
 
 
+@simulates
 class Backlash(EffectBase):
     """Clearance between thread and teeth: the mesh becomes a dead zone of this width.
 
@@ -121,17 +101,12 @@ class Backlash(EffectBase):
     """
 
     name = "backlash"
-    summary = "mesh clearance: a dead zone crossed at each flank change"
-    parameters = {
-        "angle": Parameter(math.radians(15.0 / 60.0), "rad", "circumferential clearance at the gear (output) "
-                           "shaft (assumption: 15 arcmin, the order catalogues give for small worm gearboxes)",
-                           "nonnegative"),
-    }
 
     def backlash(self) -> float:
         return self.p["angle"]
 
 
+@simulates
 class InertiaError(EffectBase):
     """The shafts' true inertias differ from the rig file's: J_true = (1 + error) J_file.
 
@@ -139,11 +114,6 @@ class InertiaError(EffectBase):
     """
 
     name = "inertia_error"
-    summary = "true shaft inertias differ from the rig file's"
-    parameters = {
-        "worm": Parameter(0.2, "1", "relative error of the worm-shaft inertia (worm + motor rotor)", "relative"),
-        "gear": Parameter(0.2, "1", "relative error of the gear-shaft inertia (gear + load rotors)", "relative"),
-    }
 
     def inertia(self, worm: float, gear: float) -> tuple[float, float]:
         return worm * (1.0 + self.p["worm"]), gear * (1.0 + self.p["gear"])

@@ -1,14 +1,15 @@
-"""The registry: every effect the simulator knows, by name (as rosbags finds its storage plug-ins)."""
+"""The registry: every effect the simulator knows, by name (as rosbags finds its storage plug-ins).
+
+A live view of worm_model.effects' registry: the declared effects whose hooks are attached (:func:`hooks.simulates`
+in the modules below, or ``worm_model.effects.register(..., simulator=cls)`` from outside), in the vocabulary's order.
+"""
 from __future__ import annotations
 
-from worm_rig_driver.sim.effects.aging import LubricantLoss, SealDrag, Wear
-from worm_rig_driver.sim.effects.drags import BearingCoulomb, ViscousDrag
-from worm_rig_driver.sim.effects.hooks import EffectBase
-from worm_rig_driver.sim.effects.mesh import Backlash, InertiaError, LoadDependentMu, OilTemperature, SpeedDependentMu
-from worm_rig_driver.sim.effects.ripples import GearRunout, MotorCogging, ToothPass, WormRunout
-from worm_rig_driver.sim.effects.sensing import Pwm, SensorGain, SensorOffset
+from worm_model.effects import Face
 
-#: effect name -> class; the names are those of physics.md section 9 (plus the PWM), then the aging effects
-EFFECTS: dict[str, type[EffectBase]] = {cls.name: cls for cls in (
-    BearingCoulomb, ViscousDrag, SpeedDependentMu, LoadDependentMu, OilTemperature, WormRunout, ToothPass,
-    GearRunout, MotorCogging, Backlash, SensorGain, SensorOffset, InertiaError, Pwm, Wear, LubricantLoss, SealDrag)}
+# the modules whose hook classes attach themselves on import
+from worm_rig_driver.sim.effects import aging, drags, mesh, ripples, sensing  # noqa: F401
+from worm_rig_driver.sim.effects.hooks import FACE
+
+#: effect name -> hook class (EffectBase subclass)
+EFFECTS = Face(FACE)

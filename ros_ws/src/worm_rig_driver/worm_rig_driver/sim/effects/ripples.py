@@ -5,9 +5,10 @@ import math
 
 import numpy as np
 
-from worm_rig_driver.sim.effects.hooks import Parameter, EffectBase, ShaftState, _ripple
+from worm_rig_driver.sim.effects.hooks import simulates, EffectBase, ShaftState, _ripple
 
 
+@simulates
 class WormRunout(EffectBase):
     """Worm eccentricity / coupling misalignment: a torque ripple once per worm turn.
 
@@ -18,14 +19,6 @@ class WormRunout(EffectBase):
     """
 
     name = "worm_runout"
-    summary = "torque ripple once per worm turn (eccentricity, misalignment)"
-    parameters = {
-        "amplitude": Parameter(1e-3, "N m", "load-independent ripple amplitude on the worm shaft (assumption)",
-                               "nonnegative"),
-        "load_fraction": Parameter(0.02, "1", "ripple amplitude per unit of mesh torque at the worm "
-                                   "(assumption: ~2 %, eccentricity + misalignment)", "nonnegative"),
-        "phase": Parameter(0.0, "rad", "angle of the ripple's zero crossing on the worm"),
-    }
 
     def worm_torque(self, s: ShaftState) -> np.ndarray:
         return -_ripple(self.p["amplitude"], self.p["load_fraction"], self.rig.gearbox.ratio * s.mesh_load,
@@ -36,6 +29,7 @@ class WormRunout(EffectBase):
                         math.sin(theta_worm + self.p["phase"]))
 
 
+@simulates
 class ToothPass(EffectBase):
     """Mesh (tooth-pass) ripple: a gear-side torque ripple at the tooth-pass order.
 
@@ -45,14 +39,6 @@ class ToothPass(EffectBase):
     """
 
     name = "tooth_pass"
-    summary = "mesh ripple at the tooth-pass order (Z_g per gear turn = n per worm turn)"
-    parameters = {
-        "amplitude": Parameter(5e-3, "N m", "load-independent ripple amplitude on the gear shaft (assumption)",
-                               "nonnegative"),
-        "load_fraction": Parameter(0.03, "1", "ripple amplitude per unit of mesh load (assumption: mesh "
-                                   "stiffness variation of a few %)", "nonnegative"),
-        "phase": Parameter(0.0, "rad", "phase of the ripple at theta_gear = 0"),
-    }
 
     def gear_torque(self, s: ShaftState) -> np.ndarray:
         return _ripple(self.p["amplitude"], self.p["load_fraction"], s.mesh_load,
@@ -63,6 +49,7 @@ class ToothPass(EffectBase):
                        math.sin(self.rig.gearbox.gear_teeth * theta_gear + self.p["phase"]))
 
 
+@simulates
 class GearRunout(EffectBase):
     """Gear (wheel) eccentricity: a gear-side torque ripple once per gear turn.
 
@@ -71,14 +58,6 @@ class GearRunout(EffectBase):
     """
 
     name = "gear_runout"
-    summary = "torque ripple once per gear turn (wheel eccentricity)"
-    parameters = {
-        "amplitude": Parameter(10e-3, "N m", "load-independent ripple amplitude on the gear shaft (assumption)",
-                               "nonnegative"),
-        "load_fraction": Parameter(0.03, "1", "ripple amplitude per unit of mesh load (assumption)",
-                                   "nonnegative"),
-        "phase": Parameter(0.0, "rad", "phase of the ripple at theta_gear = 0"),
-    }
 
     def gear_torque(self, s: ShaftState) -> np.ndarray:
         return _ripple(self.p["amplitude"], self.p["load_fraction"], s.mesh_load,
@@ -88,6 +67,7 @@ class GearRunout(EffectBase):
         return _ripple(self.p["amplitude"], self.p["load_fraction"], mesh_load, math.sin(theta_gear + self.p["phase"]))
 
 
+@simulates
 class MotorCogging(EffectBase):
     """Cogging of the drive motor: a torque periodic in the motor (= worm) angle.
 
@@ -97,13 +77,6 @@ class MotorCogging(EffectBase):
     """
 
     name = "motor_cogging"
-    summary = "drive-motor cogging torque, `order` cycles per motor turn"
-    parameters = {
-        "amplitude": Parameter(2e-3, "N m", "cogging torque amplitude (assumption: ~1.5 % of the rated "
-                               "0.14 N m of a brushed servo)", "nonnegative"),
-        "order": Parameter(14, "1", "cogging cycles per turn (assumption: 2 poles, 7 slots -> LCM 14)", "count"),
-        "phase": Parameter(0.0, "rad", "phase at theta_worm = 0"),
-    }
 
     def worm_torque(self, s: ShaftState) -> np.ndarray:
         return -self.p["amplitude"] * np.sin(self.p["order"] * s.theta_worm + self.p["phase"])

@@ -5,10 +5,10 @@ import math
 
 import numpy as np
 
-import worm_rig_driver.protocol.table as protocol_table
-from worm_rig_driver.sim.effects.hooks import Parameter, EffectBase, SenseContext, _sign
+from worm_rig_driver.sim.effects.hooks import simulates, EffectBase, SenseContext, _sign
 
 
+@simulates
 class SensorGain(EffectBase):
     """Gain errors of the Hall current sensors and tachogenerators: reading = (1 + gain) x true.
 
@@ -16,14 +16,6 @@ class SensorGain(EffectBase):
     """
 
     name = "sensor_gain"
-    summary = "gain error of the current sensors and tachos (readings only)"
-    parameters = {
-        "drive_current": Parameter(0.03, "1", "relative gain error of the drive current sensor (assumption: "
-                                   "ACS712 sensitivity tolerance is a few %)", "relative"),
-        "load_current": Parameter(0.02, "1", "relative gain error of both load current sensors", "relative"),
-        "drive_tacho": Parameter(0.01, "1", "relative gain error of the drive tacho", "relative"),
-        "load_tacho": Parameter(0.01, "1", "relative gain error of both load tachos", "relative"),
-    }
 
     def sense(self, signals: dict[str, np.ndarray], context: SenseContext) -> None:
         for key, gain in (("current_drive", "drive_current"), ("current_load_1", "load_current"),
@@ -34,6 +26,7 @@ class SensorGain(EffectBase):
     sense_float = sense  # plain arithmetic: the same code serves floats
 
 
+@simulates
 class SensorOffset(EffectBase):
     """Zero offsets of the Hall current sensors and tachos: reading = true + offset.
 
@@ -41,14 +34,6 @@ class SensorOffset(EffectBase):
     """
 
     name = "sensor_offset"
-    summary = "zero offset of the current sensors and tachos (readings only)"
-    parameters = {
-        "drive_current": Parameter(0.05, "A", "offset of the drive current sensor (assumption: ACS712 zero "
-                                   "drift of ~10 mV / 185 mV/A)"),
-        "load_current": Parameter(0.03, "A", "offset of both load current sensors"),
-        "drive_tacho": Parameter(0.0, "rad/s", "offset of the drive tacho channel"),
-        "load_tacho": Parameter(0.0, "rad/s", "offset of both load tacho channels"),
-    }
 
     def sense(self, signals: dict[str, np.ndarray], context: SenseContext) -> None:
         for key, offset in (("current_drive", "drive_current"), ("current_load_1", "load_current"),
@@ -59,6 +44,7 @@ class SensorOffset(EffectBase):
     sense_float = sense  # plain arithmetic: the same code serves floats
 
 
+@simulates
 class Pwm(EffectBase):
     """The H-bridge's PWM: duty quantised to the timer's levels, and the armature current ripple.
 
@@ -71,15 +57,6 @@ class Pwm(EffectBase):
     """
 
     name = "pwm"
-    summary = "H-bridge PWM: duty resolution and the current ripple the ADC samples"
-    parameters = {
-        "frequency": Parameter(protocol_table.F_CPU_HZ / (protocol_table.PWM_TOP + 1), "Hz",
-                               "PWM frequency (the firmware's: 16 MHz / (PWM_TOP + 1) = 20 kHz)", "positive"),
-        "duty_levels": Parameter(protocol_table.PWM_TOP + 1, "1", "duty steps from 0 to 100 % (the firmware's "
-                                 "PWM_TOP + 1 = 800); 0 = continuous", "count0"),
-        "filter_cutoff": Parameter(2000.0, "Hz", "first-order cut-off of the Hall sensor's output filter "
-                                   "(assumption: ACS712 with C_F = 47 nF)", "positive"),
-    }
 
     def drive_voltage(self, voltage: np.ndarray, supply: float) -> np.ndarray:
         levels = self.p["duty_levels"]

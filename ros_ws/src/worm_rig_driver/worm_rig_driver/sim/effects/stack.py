@@ -3,7 +3,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from worm_model.effects import EffectsConfig
+from worm_model.errors import EffectsError
+from worm_model.physics.parameters import Rig
+
 from worm_rig_driver.sim.effects.hooks import HOOKS, EffectBase, SenseContext, ShaftState
+from worm_rig_driver.sim.effects.registry import EFFECTS
 
 
 class EffectStack:
@@ -32,6 +37,19 @@ class EffectStack:
         self.has_sense = bool(self._sense)
         self.needs_heat = bool(self._advance)
         self.backlash = float(sum(e.backlash() for e in by_hook["backlash"]))
+
+    @classmethod
+    def build(cls, config: EffectsConfig, n: int, rig: Rig) -> "EffectStack":
+        """The live effects (each with its own state) of ``config`` for a simulator of n rigs.
+
+        Raises:
+            EffectsError: an effect the vocabulary declares but the simulator has no hooks for.
+        """
+        missing = [name for name in config.effects if name not in EFFECTS]
+        if missing:
+            raise EffectsError(config.source or "<effects>", f"effects.{missing[0]}",
+                               f"the simulator has no hooks for this effect (it has: {', '.join(EFFECTS)})")
+        return cls([EFFECTS[name](params, n, rig) for name, params in config.effects.items()])
 
     @property
     def names(self) -> tuple[str, ...]:

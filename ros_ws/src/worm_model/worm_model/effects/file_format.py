@@ -12,9 +12,11 @@ version 1 (current)::
       oil_temperature: {}                        # every parameter at its default
       sensor_gain: {enabled: false}              # listed but off
 
-The same ``effects`` section may also sit in a ``worm_rig_parameters`` file
-(worm_model's rig file, which skips it); :func:`load_effects` reads it from either.
-Every failure raises :class:`EffectsError`, whose message names the file and the key.
+The same ``effects`` section may also sit in a ``worm_rig_parameters`` file (the rig file, which
+:func:`worm_model.physics.parameters.load_rig` skips; the residual analysis writes its extended model
+so); :func:`load_effects` reads it from either. Effect names and parameters are the vocabulary's
+(worm_model.effects.vocabulary). Every failure raises :class:`EffectsError`, whose message names the
+file and the key.
 """
 from __future__ import annotations
 
@@ -23,14 +25,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from worm_model.errors import InputError
+import worm_model.effects.vocabulary  # noqa: F401  (declares the built-in effects)
+from worm_model.effects.parameters import parameter_value
+from worm_model.effects.registry import VOCABULARY
+from worm_model.errors import EffectsError, InputError
 from worm_model.files.reading import load_yaml
-from worm_model.physics.parameters import Rig, finite_number
-
-from worm_rig_driver.errors import EffectsError
-from worm_rig_driver.sim.effects.hooks import CHECKS, PLAUSIBLE, UNITS, Parameter
-from worm_rig_driver.sim.effects.registry import EFFECTS
-from worm_rig_driver.sim.effects.stack import EffectStack
 
 FORMAT_NAME = "worm_rig_effects"
 FORMAT_VERSION = 1
@@ -38,39 +37,13 @@ FORMAT_VERSION = 1
 RIG_FORMAT_NAME = "worm_rig_parameters"
 
 
-def _parameter_value(raw: Any, declared: Parameter, origin: str, where: str) -> float:
-    """A plain number (in the declared unit) or {value, unit[, note|source|assumption]}, checked."""
-    if isinstance(raw, Mapping):
-        unknown = set(raw) - {"value", "unit", "note", "source", "assumption"}
-        if unknown or "value" not in raw:
-            raise EffectsError(origin, where, "expected a number or a mapping {value, unit}"
-                               + (f"; unknown keys {sorted(unknown)}" if unknown else ""))
-        number = finite_number(raw["value"], origin, where, EffectsError)
-        unit = str(raw.get("unit", declared.unit))
-        if unit not in UNITS:
-            raise EffectsError(origin, where, f"unknown unit {unit!r} (known: {', '.join(UNITS)})")
-        factor, base = UNITS[unit]
-        if base != declared.unit:
-            raise EffectsError(origin, where, f"unit {unit!r} is not a {declared.unit!r}")
-        number *= factor
-    else:
-        number = finite_number(raw, origin, where, EffectsError)
-    predicate, message = CHECKS[declared.check]
-    if not predicate(number):
-        raise EffectsError(origin, where, f"value {number:g} {declared.unit}: {message}")
-    limit = PLAUSIBLE[declared.unit]
-    if abs(number) > limit:
-        raise EffectsError(origin, where, f"value {number:g} {declared.unit} is far beyond any bench rig "
-                                          f"(|value| <= {limit:g} {declared.unit})")
-    return number
-
-
 @dataclass(frozen=True)
 class EffectsConfig:
     """Which effects are on, with every parameter in its declared unit (defaults filled in).
 
-    Build one with :func:`load_effects`, :meth:`from_mapping` or :meth:`defaults`;
-    :meth:`build` makes the live effects for a simulator of n rigs.
+    Build one with :func:`load_effects`, :meth:`from_mapping` or :meth:`defaults`; :meth:`section` is
+    what a file's ``effects:`` holds. The simulator builds its live effects from one
+    (worm_rig_driver.sim.effects.stack.build_stack).
     """
 
     effects: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
@@ -94,15 +67,15 @@ class EffectsConfig:
         chosen: dict[str, dict[str, float]] = {}
         for name, section in effects.items():
             where = f"effects.{name}"
-            if name not in EFFECTS:
-                raise EffectsError(origin, where, f"unknown effect (known: {', '.join(EFFECTS)})")
+            if name not in VOCABULARY:
+                raise EffectsError(origin, where, f"unknown effect (known: {', '.join(VOCABULARY)})")
             section = {} if section is None else section
             if not isinstance(section, Mapping):
                 raise EffectsError(origin, where, "expected a mapping of parameters (or {} for the defaults)")
             enabled = section.get("enabled", True)
             if not isinstance(enabled, bool):
                 raise EffectsError(origin, where + ".enabled", f"expected true or false, got {enabled!r}")
-            declared = EFFECTS[name].parameters
+            declared = VOCABULARY[name].parameters
             unknown = set(section) - set(declared) - {"enabled"}
             if unknown:
                 raise EffectsError(origin, f"{where}.{sorted(unknown)[0]}",
@@ -110,7 +83,7 @@ class EffectsConfig:
             values = {key: float(p.default) for key, p in declared.items()}
             for key, raw in section.items():
                 if key != "enabled":
-                    values[key] = _parameter_value(raw, declared[key], origin, f"{where}.{key}")
+                    values[key] = parameter_value(raw, declared[key], origin, f"{where}.{key}")
             if enabled:
                 chosen[name] = values
         return cls(chosen, origin)
@@ -122,14 +95,13 @@ class EffectsConfig:
         section.update({name: dict(values) for name, values in overrides.items()})
         return cls.from_mapping(section, "<defaults>")
 
-    def build(self, n: int, rig: Rig) -> EffectStack:
-        """Live effects (with their own state) for a simulator of n rigs."""
-        return EffectStack([EFFECTS[name](params, n, rig) for name, params in self.effects.items()])
+    def section(self) -> dict[str, dict[str, float]]:
+        """The ``effects:`` mapping of a file: effect name -> {parameter: value in its declared unit}."""
+        return {name: {key: float(value) for key, value in params.items()} for name, params in self.effects.items()}
 
     def to_dict(self) -> dict[str, Any]:
         """The file's document: format, version and the effects (values in declared units)."""
-        return {"format": FORMAT_NAME, "version": FORMAT_VERSION,
-                "effects": {name: dict(params) for name, params in self.effects.items()}}
+        return {"format": FORMAT_NAME, "version": FORMAT_VERSION, "effects": self.section()}
 
 
 def load_effects(path: str | os.PathLike[str]) -> EffectsConfig:
@@ -171,3 +143,6 @@ def as_config(effects: "EffectsConfig | Mapping[str, Any] | str | os.PathLike[st
     if isinstance(effects, Mapping):
         return EffectsConfig.from_mapping(effects)
     return load_effects(effects)
+
+
+__all__ = ["FORMAT_NAME", "FORMAT_VERSION", "RIG_FORMAT_NAME", "EffectsConfig", "as_config", "load_effects"]
