@@ -21,8 +21,9 @@ Map (dependencies point up this list; only ``nodes`` and ``fil.commander_node`` 
               scheduling (``realtime``)
 ``fil``       the real firmware in simavr, closed through the simulated plant
               (``harness``, ``run`` = ``make fil``, ``commander_node``)
-``recording`` the ``bag`` command over recorded runs (``bag_cli``); the folder a recording goes
-              into, beside a killed recorder's bag (``bag_folder``)
+``recording`` the recorder's core (``recorder``: topics, QoS, loss report; ``bag_folder``: the folder
+              a recording goes into, beside a killed recorder's bag) and the ``bag`` command over
+              recorded runs (``bag_cli``)
 ``robot``     what a robot's stack sees of a drive: the standard outputs' trusted load
               (``standard_outputs``), several rigs merged into one JointState (``joint_states``)
 ``nodes``     sim_node, driver_node, recorder_node, joint_state_merger: the executables' ROS

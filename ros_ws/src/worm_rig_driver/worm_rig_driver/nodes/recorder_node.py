@@ -1,4 +1,6 @@
-"""Record topics into a rosbag2 bag: a thin rclpy shell over ``bag_recording``.
+"""Record topics into a rosbag2 bag: the rclpy shell over :mod:`worm_rig_driver.recording.recorder` (which
+topics, their classes and offered QoS, the loss report), :mod:`~worm_rig_driver.recording.bag_folder` (which
+folder) and :mod:`worm_model.bags.writer` (the bag).
 
 Node ``recorder``. It subscribes with ``raw=True`` and writes the CDR bytes as
 received, stamped with the node clock's receive time (ns), like
@@ -60,7 +62,6 @@ process's node (the demo does).
 from __future__ import annotations
 
 import functools
-import importlib
 import os
 import shutil
 import signal
@@ -69,7 +70,7 @@ import threading
 import time
 from collections.abc import Iterable, Mapping, Sequence
 from types import FrameType
-from typing import Any, Final, TypeVar
+from typing import Any, Final
 
 import rclpy
 from rclpy.exceptions import ParameterException
@@ -81,15 +82,6 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.subscription import Subscription
 from rclpy.timer import Timer
 from rclpy.topic_endpoint_info import TopicEndpointInfo
-from rosbags.interfaces import (
-    Qos,
-    QosDurability,
-    QosHistory,
-    QosLiveliness,
-    QosReliability,
-    QosTime,
-)
-
 
 from worm_model.cli.errors import one_line
 from worm_model.files.writing import check_output
@@ -106,9 +98,17 @@ from worm_model.bags.writer import (
     normalize_type_name,
 )
 from worm_model.bags.seq_check import DeliveryCheck, StreamCheck
-from worm_model.bags.topic_names import topic_name_problem
 from worm_model.rig_data.samples import EVERY_SAMPLE_TYPES
 from worm_rig_driver.recording.bag_folder import bag_folder, hold
+from worm_rig_driver.recording.recorder import (
+    DEFAULT_EXCLUDE,
+    bag_qos,
+    check_topic_name,
+    is_excluded,
+    is_hidden,
+    loss_report,
+    message_class,
+)
 
 DEFAULT_QUEUE_DEPTH: Final[int] = 10000
 SPIN_TIMEOUT_S: Final[float] = 0.1
@@ -118,52 +118,6 @@ DRAIN_QUIET_S: Final[float] = 0.2
 DRAIN_LIMIT_S: Final[float] = 2.0
 """... or for at most this long."""
 STOP_SIGNALS: Final[tuple[signal.Signals, ...]] = (signal.SIGINT, signal.SIGTERM)
-
-_QosEnum = TypeVar('_QosEnum', QosHistory, QosReliability, QosDurability, QosLiveliness)
-
-
-def message_class(type_name: str) -> type:
-    """Import the Python class of ``pkg/msg/Name`` (as rosidl_runtime_py does).
-
-    Raises:
-        BagRecordingError: The package or class cannot be imported.
-
-    """
-    package, kind, name = type_name.split('/')
-    try:
-        cls: type = getattr(importlib.import_module(f'{package}.{kind}'), name)
-    except (ImportError, AttributeError) as err:
-        msg = f'Cannot import the Python class of {type_name!r}: {err}'
-        raise BagRecordingError(msg) from err
-    return cls
-
-
-def _seconds_nanos(duration_ns: int) -> QosTime:
-    """Split a duration (ns) into rosbag2's (sec, nsec)."""
-    sec, nsec = divmod(duration_ns, 1_000_000_000)
-    return QosTime(sec, nsec)
-
-
-def bag_qos(profile: QoSProfile) -> Qos:
-    """Convert an rclpy QoS profile to rosbags' (the rmw enum values agree)."""
-
-    def convert(enum: type[_QosEnum], value: int) -> _QosEnum:
-        try:
-            return enum(value)
-        except ValueError:
-            return enum.UNKNOWN
-
-    return Qos(
-        history=convert(QosHistory, int(profile.history)),
-        depth=profile.depth,
-        reliability=convert(QosReliability, int(profile.reliability)),
-        durability=convert(QosDurability, int(profile.durability)),
-        deadline=_seconds_nanos(profile.deadline.nanoseconds),
-        lifespan=_seconds_nanos(profile.lifespan.nanoseconds),
-        liveliness=convert(QosLiveliness, int(profile.liveliness)),
-        liveliness_lease_duration=_seconds_nanos(profile.liveliness_lease_duration.nanoseconds),
-        avoid_ros_namespace_conventions=profile.avoid_ros_namespace_conventions,
-    )
 
 
 def subscription_qos(publishers: Sequence[TopicEndpointInfo], depth: int) -> QoSProfile:
@@ -179,22 +133,6 @@ def subscription_qos(publishers: Sequence[TopicEndpointInfo], depth: int) -> QoS
         reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE,
         durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE,
     )
-
-
-#: what recording every topic leaves out by default: each rig's per-sample copy of its rig/samples
-DEFAULT_EXCLUDE: tuple[str, ...] = ('rig/sample',)
-
-
-def is_excluded(topic: str, exclude: Iterable[str]) -> bool:
-    """Whether the full name ``topic`` is one of ``exclude``: an absolute name is that topic, a relative one
-    (``rig/sample``) that topic in any namespace (/rig/sample, /arm/joint2/rig/sample, ...)."""
-    return any(topic == name if name.startswith('/') else topic == f'/{name}' or topic.endswith(f'/{name}')
-               for name in exclude)
-
-
-def is_hidden(topic: str) -> bool:
-    """Whether a name part of ``topic`` starts with ``_`` (ROS hidden topic)."""
-    return any(part.startswith('_') for part in topic.split('/'))
 
 
 class TopicRecorder:
@@ -378,20 +316,9 @@ class TopicRecorder:
         self._on_message(handle, data, None)
 
     def loss_report(self) -> tuple[int, list[str]]:
-        """Messages the recorder lost (DDS numbers), one line per topic and check, and a verdict."""
-        lost = self.deliveries.lost + self.dropped_after_close
-        lines = self.deliveries.report()
-        lines += [f'{line} (seq field)' for line in self.sequences.report()]
-        if self.dropped_after_close:
-            lines.append(f'{self.dropped_after_close} messages arrived after the bag was closed')
-        publishers = sum(len(p) for p in self.deliveries.trackers.values())
-        if lost:
-            lines.append(f'recorder: LOST {lost} messages (gaps in the DDS sequence numbers of '
-                         f'{publishers} publisher(s); see the lines above)')
-        else:
-            lines.append(f'recorder: lost nothing: no gap in the DDS sequence numbers of '
-                         f'{publishers} publisher(s) on {len(self.deliveries.trackers)} topic(s)')
-        return lost, lines
+        """Messages the recorder lost (DDS numbers), one line per topic and check, and a verdict
+        (:func:`~worm_rig_driver.recording.recorder.loss_report`)."""
+        return loss_report(self.deliveries, self.sequences, self.dropped_after_close)
 
 
 class RecorderNode(Node):
@@ -506,16 +433,6 @@ def drain(executor: Executor, recorder: TopicRecorder) -> None:
         executor.spin_once(timeout_sec=DRAIN_QUIET_S / 4)
         if (total := sum(recorder.counts.values())) != written:
             written, last_change = total, time.monotonic()
-
-
-def check_topic_name(topic: str) -> None:
-    """Refuse a topic name ROS cannot subscribe to, before anything is created (worm_model.bags.topic_names).
-
-    Raises:
-        ValueError: naming the topic and what is wrong with it.
-    """
-    if (problem := topic_name_problem(topic)) is not None:
-        raise ValueError(f'parameter topics/exclude: {topic!r} is not a valid topic name ({problem})')
 
 
 def main(args: list[str] | None = None) -> int:
