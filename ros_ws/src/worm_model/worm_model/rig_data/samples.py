@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import Any, Final, NamedTuple
 
 RIG_SAMPLE_TYPE: Final[str] = "worm_msgs/msg/RigSample"
 RIG_SAMPLES_TYPE: Final[str] = "worm_msgs/msg/RigSamples"
@@ -67,27 +67,38 @@ class Header:
     frame_id: str
 
 
-@dataclass(frozen=True)
-class Sample:
-    """One rig sample unpacked from a batch: the fields of worm_msgs/RigSample (and the speed
-    command in force, ``command_seq``, 0 when unknown)."""
+class RigSample(NamedTuple):
+    """One rig sample in SI units, the one record of a sample on its way through the product: the rig's
+    link and the simulator make it, :func:`unbatch` reads it out of a RigSamples message, the rig's topics
+    publish it. Its fields are worm_msgs/RigSample's (``header`` is built from ``stamp_ns`` and
+    ``frame_id`` when asked for), with the speed command in force (``command_seq``, 0 when unknown).
 
-    header: Header
-    seq: int
-    current_drive: float
-    current_load_1: float
-    current_load_2: float
-    omega_worm: float
-    omega_gear: float
-    theta_worm: float
-    theta_gear: float
-    count_drive: int
-    count_load_1: int
-    count_load_2: int
-    voltage_drive: float
-    tau_load: float
-    status: int
-    command_seq: int = 0
+    Signs: speeds and angles positive in the worm's positive rotation, ``tau_load`` [N m] positive where
+    it opposes positive rotation of the gear (worm_msgs/RigSample).
+    """
+
+    seq: int  #: sample number (the firmware's tick: consecutive samples differ by the stream's period in ticks)
+    stamp_ns: int  #: [ns] host time of the sampling instant
+    current_drive: float  #: [A]
+    current_load_1: float  #: [A]
+    current_load_2: float  #: [A]
+    omega_worm: float  #: [rad/s]
+    omega_gear: float  #: [rad/s]
+    theta_worm: float  #: [rad]
+    theta_gear: float  #: [rad]
+    count_drive: int  #: [count] raw int32
+    count_load_1: int  #: [count]
+    count_load_2: int  #: [count]
+    voltage_drive: float  #: [V]
+    tau_load: float  #: [N m]
+    status: int  #: RigSample.STATUS_* bits
+    command_seq: int = 0  #: source seq of the speed command in force (0: unknown)
+    frame_id: str = ""
+
+    @property
+    def header(self) -> Header:
+        """std_msgs/Header of this sample, as worm_msgs/RigSample carries it."""
+        return Header(Stamp(self.stamp_ns // NS_PER_S, self.stamp_ns % NS_PER_S), self.frame_id)
 
 
 def stamp_ns(stamp: Any) -> int:
@@ -117,18 +128,13 @@ def batch_stamps_ns(batch: Any, n: int) -> list[int]:
     return [first + int(round(k * period_ns)) for k in range(n)]
 
 
-def unbatch(batch: Any) -> list[Sample]:
+def unbatch(batch: Any) -> list[RigSample]:
     """The samples of one RigSamples message, in order; sample k is stamped first + k * sample_period."""
     columns = [list(getattr(batch, name)) for name in FIELDS]
     commands = list(getattr(batch, "command_seq", ())) or [0] * len(columns[0])
     stamps = batch_stamps_ns(batch, len(columns[0]))
-    frame_id = batch.header.frame_id
-    out = []
-    for k, values in enumerate(zip(*columns, commands)):
-        ns = stamps[k]
-        out.append(Sample(Header(Stamp(ns // NS_PER_S, ns % NS_PER_S), frame_id), int(batch.first_seq) + k,
-                          *values))
-    return out
+    frame_id, first = batch.header.frame_id, int(batch.first_seq)
+    return [RigSample(first + k, stamps[k], *values, frame_id) for k, values in enumerate(zip(*columns, commands))]
 
 
 def samples_of(message: Any, type_name: str) -> list[Any]:
@@ -178,6 +184,6 @@ def missing_seqs(seqs: Iterator[int]) -> int:
 
 
 __all__ = ["EVERY_SAMPLE_TYPES", "FIELDS", "RIG_SAMPLES_TYPE", "RIG_SAMPLE_TYPE", "SAMPLE_TOPICS",
-           "SAMPLE_TYPES", "SIM_TRUTHS_TOPIC", "recorded_name", "SIM_TRUTHS_TYPE", "TRUTH_FIELDS", "Header", "Sample",
+           "SAMPLE_TYPES", "SIM_TRUTHS_TOPIC", "recorded_name", "SIM_TRUTHS_TYPE", "TRUTH_FIELDS", "Header",
            "batch_problem", "batch_stamps_ns", "command_latencies", "missing_seqs",
-           "Stamp", "iter_samples", "samples_of", "stamp_ns", "unbatch"]
+           "RigSample", "Stamp", "iter_samples", "samples_of", "stamp_ns", "unbatch"]

@@ -30,6 +30,7 @@ from enum import Enum
 import worm_rig_driver.protocol.table as table
 from worm_rig_driver.protocol.codec import Frame, StreamDecoder, encode_frame
 from worm_rig_driver.protocol.scaling import RigScaling
+from worm_model.rig_data.samples import RigSample
 
 T = {f.name: f.code for f in table.FRAMES}
 STATUS = {k: v for k, (v, _) in table.STATUS_BITS.items()}
@@ -84,29 +85,6 @@ class CommandLimits:
         if abs(torque) > self.max_load_torque:
             return f"|torque|={abs(torque):g} N m exceeds max_load_torque={self.max_load_torque:g} N m"
         return None
-
-
-@dataclass
-class Sample:
-    """One telemetry frame in SI units, as worm_msgs/RigSample carries it."""
-
-    seq: int  #: firmware sample tick since its reset (advances by 1000/stream_rate_hz)
-    stamp_ns: int  #: host time [ns] of the sampling instant (firmware clock mapped, see ClockMapper)
-    t_fw: float  #: firmware time [s], unwrapped
-    current_drive: float  #: [A]
-    current_load_1: float
-    current_load_2: float
-    omega_worm: float  #: [rad/s]
-    omega_gear: float  #: [rad/s] mean of the load tachos
-    theta_worm: float  #: [rad] unwrapped since the driver started
-    theta_gear: float  #: [rad] mean of the load encoders
-    count_drive: int  #: [count] raw int32
-    count_load_1: int
-    count_load_2: int
-    voltage_drive: float  #: [V] applied duty x supply
-    tau_load: float  #: [N m]
-    status: int  #: RigSample.STATUS_* bits
-    fw_status: int  #: the firmware's STATUS_* bits as received
 
 
 @dataclass
@@ -273,9 +251,9 @@ class LinkCore:
         self._last_hello = now
 
     # --- incoming bytes ---------------------------------------------------------------------
-    def on_bytes(self, data: bytes, now: float, recv_ns: int) -> list[Sample]:
+    def on_bytes(self, data: bytes, now: float, recv_ns: int) -> list[RigSample]:
         """Decode bytes read from the port at `now` (host time recv_ns [ns]); returns the new samples."""
-        samples: list[Sample] = []
+        samples: list[RigSample] = []
         for frame in self.decoder.feed(data):
             self._last_rx = now
             if self.state is LinkState.UP:
@@ -339,7 +317,7 @@ class LinkCore:
         self.rig_error_counts[name] = self.rig_error_counts.get(name, 0) + 1
         self._log("warn", f"rig refused {ref} seq {err.ref_seq}: {name} (detail {err.detail})")
 
-    def _sample(self, frame: Frame, recv_ns: int) -> Sample:
+    def _sample(self, frame: Frame, recv_ns: int) -> RigSample:
         p = frame.payload
         sc = self.scaling
         self.stats.telemetry += 1
@@ -360,16 +338,16 @@ class LinkCore:
         status = ((RIG_STATUS_DRIVE_LIMIT if fw & STATUS["DRIVE_LIMIT"] else 0)
                   | (RIG_STATUS_WATCHDOG_STOP if fw & STATUS["WATCHDOG_STOP"] or self.watchdog_active else 0)
                   | (RIG_STATUS_SENSOR_FAULT if fw & (STATUS["SENSOR_FAULT"] | STATUS["ENCODER_ERROR"]) else 0))
-        return Sample(
+        return RigSample(
             seq=t_us * table.SAMPLE_RATE_HZ // 1_000_000,
-            stamp_ns=self._clock.stamp(t_us * 1000, recv_ns), t_fw=t_fw,
+            stamp_ns=self._clock.stamp(t_us * 1000, recv_ns),
             current_drive=sc.current(p.current_drive), current_load_1=i1, current_load_2=i2,
             omega_worm=sc.tacho(p.tacho_drive, load=False),
             omega_gear=0.5 * (sc.tacho(p.tacho_load_1, load=True) + sc.tacho(p.tacho_load_2, load=True)),
             theta_worm=sc.angle(c0), theta_gear=sc.angle(0.5 * (c1 + c2)),
             count_drive=p.count_drive, count_load_1=p.count_load_1, count_load_2=p.count_load_2,
             voltage_drive=sc.voltage(p.duty_drive), tau_load=sc.load_torque(i1, i2),
-            status=status, fw_status=fw)
+            status=status)
 
     @property
     def telemetry_rate_hz(self) -> float:

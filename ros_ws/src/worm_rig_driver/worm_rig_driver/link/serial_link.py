@@ -25,7 +25,8 @@ from collections.abc import Callable
 
 import serial
 
-from worm_rig_driver.link.core import LinkCore, Sample
+from worm_model.rig_data.samples import RigSample
+from worm_rig_driver.link.core import LinkCore
 
 # Standard rates a 16 MHz AVR reaches with U2X (1 Mbaud exactly: UBRR = 1) and Linux names.
 SUPPORTED_BAUDS = (115200, 230400, 460800, 500000, 1000000, 2000000)
@@ -63,7 +64,7 @@ class SerialLink:
         on_thread_start: called first thing in the reader thread (e.g. to ask for real-time scheduling).
     """
 
-    def __init__(self, path: str, core: LinkCore, on_samples: Callable[[list[Sample]], None],
+    def __init__(self, path: str, core: LinkCore, on_samples: Callable[[list[RigSample]], None],
                  on_log: Callable[[str, str], None], baud: int = 1_000_000,
                  reconnect_period: float = 0.1, poll_period: float = 0.005,
                  on_thread_start: Callable[[], None] | None = None) -> None:

@@ -30,21 +30,23 @@ import stat
 import time
 
 from rclpy.node import Node
-from worm_msgs.msg import DriveCommand, LoadCommand, RigSample, SpeedCommand
+from worm_msgs.msg import DriveCommand, LoadCommand, SpeedCommand
+from worm_msgs.msg import RigSample as RigSampleMsg
 
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
 from worm_model.physics.parameters import load_rig
+from worm_model.rig_data.samples import RigSample
 
 import worm_rig_driver.protocol.table as table
-from worm_rig_driver.link.core import CommandLimits, LinkConfig, LinkCore, LinkState, Sample
+from worm_rig_driver.link.core import CommandLimits, LinkConfig, LinkCore, LinkState
 from worm_rig_driver.protocol.scaling import RigScaling
 from worm_rig_driver.link.serial_link import SUPPORTED_BAUDS, SerialLink
 from worm_rig_driver.drive.realtime import make_realtime
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
-from worm_rig_driver.nodes.rig_topics import (FIELDS, RigEstimate, RigTopics, declare_rig_feedforward, log_refusal,
+from worm_rig_driver.nodes.rig_topics import (RigEstimate, RigTopics, declare_rig_feedforward, log_refusal,
                                              speed_command_from_msg, subscribe_commands)
 
 
@@ -156,18 +158,17 @@ class DriverNode(Node):
         self._refused("load", self.link.command(lambda core, now: core.load(msg.torque, now)))
 
     # --- telemetry (called from the reader thread) ----------------------------------------------
-    def publish_samples(self, samples: list[Sample]) -> None:
+    def publish_samples(self, samples: list[RigSample]) -> None:
         """Run the speed loop on the newest frame and send its voltage; publish every frame."""
-        stopped = RigSample.STATUS_WATCHDOG_STOP if self.loop.watchdog_stopped else 0
+        stopped = RigSampleMsg.STATUS_WATCHDOG_STOP if self.loop.watchdog_stopped else 0
         for s in samples:
-            values = {name: getattr(s, name) for name in FIELDS}
-            values["status"] |= stopped
             # every sample to the rig's own estimator, numbered in samples (its gaps are lost samples)
             estimate = self.loop.observe(s.omega_worm, s.current_drive, s.voltage_drive, s.theta_worm,
                                          s.seq // self._seq_step)
             # its estimate before the graph's stream (the controller waits for the estimate), then the sample
             self.estimate.after_sample(s.seq, s.stamp_ns, self.topics.closes_batch(s.seq), estimate)
-            self.topics.add(s.seq, s.stamp_ns, values, self._command_seq)
+            self.topics.add(s._replace(status=s.status | stopped, command_seq=self._command_seq,
+                                       frame_id=self.frame_id))
         newest = samples[-1]
         out = self.loop.step(time.monotonic(), newest.omega_worm, newest.seq)
         self._command_seq = out.command_seq

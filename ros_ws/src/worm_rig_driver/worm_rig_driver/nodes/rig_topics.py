@@ -49,9 +49,11 @@ from rclpy.node import Node
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Empty
-from worm_msgs.msg import DriveCommand, EncoderCounts, LoadCommand, MotorCurrents, RigSample, RigSamples, SpeedCommand
+from worm_msgs.msg import DriveCommand, EncoderCounts, LoadCommand, MotorCurrents, RigSamples, SpeedCommand
+from worm_msgs.msg import RigSample as RigSampleMsg
 
 from worm_model.physics.parameters import Rig
+from worm_model.rig_data.samples import FIELDS, RigSample
 from worm_model.ros.commands import subscribe_command
 from worm_model.ros.parameters import declare
 from worm_model.ros.qos import STREAM
@@ -63,16 +65,15 @@ from worm_rig_driver.drive.rig_loop import RigFeedforward, voltage_problem
 from worm_rig_driver.drive.rig_loop import SpeedCommand as LoopCommand
 from worm_rig_driver.nodes.estimate_topics import EstimateTopics
 
-#: RigSamples' per-sample fields, in message order (RigSample's fields of the same names)
-FIELDS = ("current_drive", "current_load_1", "current_load_2", "omega_worm", "omega_gear", "theta_worm",
-          "theta_gear", "count_drive", "count_load_1", "count_load_2", "voltage_drive", "tau_load", "status")
+#: RigSamples' per-sample columns: RigSample's fields (rig_data.samples.FIELDS) and the command in force
+_BATCHED = (*FIELDS, "command_seq")
 
 
 @dataclass
 class _Batch:
     first_seq: int = 0
     first_stamp_ns: int = 0
-    columns: dict[str, list] = field(default_factory=lambda: {name: [] for name in (*FIELDS, "command_seq")})
+    columns: dict[str, list] = field(default_factory=lambda: {name: [] for name in _BATCHED})
 
     def __len__(self) -> int:
         return len(self.columns["command_seq"])
@@ -98,7 +99,7 @@ class RigTopics:
         self.decimation = decimation
         self.counts_per_rev = counts_per_rev
         self.pub_samples = node.create_publisher(RigSamples, "rig/samples", STREAM)
-        self.pub_sample = node.create_publisher(RigSample, "rig/sample", STREAM)
+        self.pub_sample = node.create_publisher(RigSampleMsg, "rig/sample", STREAM)
         self.pub_currents = node.create_publisher(MotorCurrents, "rig/currents", STREAM)
         self.pub_joints = node.create_publisher(JointState, "rig/joint_states", STREAM)
         self.pub_encoders = node.create_publisher(EncoderCounts, "rig/encoders", STREAM)
@@ -106,27 +107,26 @@ class RigTopics:
         self._single = False  # rig/sample has subscribers (asked when a batch opens)
         self.published = 0  # samples published on /rig/samples
 
-    def add(self, seq: int, stamp_ns: int, values: dict[str, float | int], command_seq: int) -> None:
-        """One sample (``values``: every name of FIELDS); publishes the batch once it is full, and the
-        per-sample topics that have subscribers."""
-        batch = self._batch
+    def add(self, sample: RigSample) -> None:
+        """One sample; publishes the batch once it is full, and the per-sample topics that have subscribers."""
+        batch, seq = self._batch, sample.seq
         if len(batch) and seq != batch.first_seq + len(batch):
             self.flush()  # a gap (lost telemetry): a batch holds consecutive samples only
             batch = self._batch
         if not len(batch):
-            batch.first_seq, batch.first_stamp_ns = seq, stamp_ns
+            batch.first_seq, batch.first_stamp_ns = seq, sample.stamp_ns
             # asked once a batch, not every sample (a few microseconds each at 1 kHz): a subscriber that
             # appears mid-batch gets rig/sample from the next batch on
             self._single = self.pub_sample.get_subscription_count() > 0
-        for name in FIELDS:
-            batch.columns[name].append(values[name])
-        batch.columns["command_seq"].append(command_seq)
+        columns = batch.columns
+        for name in _BATCHED:
+            columns[name].append(getattr(sample, name))
         single = self._single
         channels = seq % self.decimation == 0 and (self.pub_currents.get_subscription_count()
                                                    or self.pub_joints.get_subscription_count()
                                                    or self.pub_encoders.get_subscription_count())
         if single or channels:
-            self._publish_single(seq, stamp_ns, values, single, channels)
+            self._publish_single(sample, single, channels)
         if len(batch) >= self.batch_size:
             self.flush()
 
@@ -156,15 +156,14 @@ class RigTopics:
         self.pub_samples.publish(msg)
         self.published += len(batch)
 
-    def _publish_single(self, seq: int, stamp_ns: int, values: dict, single: bool, channels: bool) -> None:
-        sample = RigSample(seq=seq, **values)
-        sample.header.stamp = Time(nanoseconds=stamp_ns).to_msg()
-        sample.header.frame_id = self.frame_id
+    def _publish_single(self, sample: RigSample, single: bool, channels: bool) -> None:
+        s = RigSampleMsg(seq=sample.seq, **{name: getattr(sample, name) for name in FIELDS})
+        s.header.stamp = Time(nanoseconds=sample.stamp_ns).to_msg()
+        s.header.frame_id = self.frame_id
         if single:
-            self.pub_sample.publish(sample)
+            self.pub_sample.publish(s)
         if not channels:
             return
-        s = sample
         if self.pub_currents.get_subscription_count():
             self.pub_currents.publish(MotorCurrents(header=s.header, drive=s.current_drive, load_1=s.current_load_1,
                                                     load_2=s.current_load_2))
@@ -369,5 +368,5 @@ def log_refusal(node: Node, what: str, reason: str) -> None:
         log.warning(text, throttle_duration_sec=1.0)
 
 
-__all__ = ["FIELDS", "CommandGate", "RigEstimate", "RigTopics", "declare_rig_feedforward", "log_refusal",
+__all__ = ["CommandGate", "RigEstimate", "RigTopics", "declare_rig_feedforward", "log_refusal",
            "speed_command_from_msg", "subscribe_commands"]

@@ -37,10 +37,11 @@ from dataclasses import replace
 
 from rclpy.node import Node
 from rclpy.time import Time
-from worm_msgs.msg import DriveCommand, LoadCommand, RigSample, SimTruth, SimTruths, SpeedCommand
+from worm_msgs.msg import DriveCommand, LoadCommand, SimTruth, SimTruths, SpeedCommand
+from worm_msgs.msg import RigSample as RigSampleMsg
 
 from worm_model.physics.parameters import load_rig
-from worm_model.rig_data.samples import SIM_TRUTHS_TOPIC, TRUTH_FIELDS
+from worm_model.rig_data.samples import SIM_TRUTHS_TOPIC, TRUTH_FIELDS, RigSample
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
@@ -53,8 +54,8 @@ from worm_rig_driver.nodes.rig_topics import (RigEstimate, RigTopics, declare_ri
                                              speed_command_from_msg, subscribe_commands)
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
-_WATCHDOG = RigSample.STATUS_WATCHDOG_STOP
-_LIMIT = RigSample.STATUS_DRIVE_LIMIT
+_WATCHDOG = RigSampleMsg.STATUS_WATCHDOG_STOP
+_LIMIT = RigSampleMsg.STATUS_DRIVE_LIMIT
 
 
 class SimNode(Node):
@@ -190,20 +191,15 @@ class SimNode(Node):
         self.sim.command(voltage_drive=out.voltage)
         self._in_force = (out.command_seq, (_WATCHDOG if self.loop.watchdog_stopped or out.mode == DriveMode.STOPPED
                                             else 0) | (_LIMIT if out.saturated else 0))
-        values = {
-            "current_drive": float(m.current_drive[0]), "current_load_1": float(m.current_load_1[0]),
-            "current_load_2": float(m.current_load_2[0]), "omega_worm": float(m.omega_worm[0]),
-            "omega_gear": float(m.omega_gear[0]), "theta_worm": float(m.theta_worm[0]),
-            "theta_gear": float(m.theta_gear[0]), "count_drive": int(m.count_drive[0]),
-            "count_load_1": int(m.count_load_1[0]), "count_load_2": int(m.count_load_2[0]),
-            "voltage_drive": float(m.voltage_drive[0]), "tau_load": float(m.tau_load[0]),
-            "status": int(m.status[0]) | status_bits,
-        }
         stamp_ns = self._start_ns + int(round(seq * self.period * 1e9))
         opens = self.pub_truths is not None and self.topics.opens_batch(seq)
         # the estimate (observed above) before the graph's stream: the controller waits for the estimate
         self.estimate.after_sample(seq, stamp_ns, self.topics.closes_batch(seq), estimate)
-        self.topics.add(seq, stamp_ns, values, command_seq)
+        self.topics.add(RigSample(
+            seq, stamp_ns, float(m.current_drive[0]), float(m.current_load_1[0]), float(m.current_load_2[0]),
+            float(m.omega_worm[0]), float(m.omega_gear[0]), float(m.theta_worm[0]), float(m.theta_gear[0]),
+            int(m.count_drive[0]), int(m.count_load_1[0]), int(m.count_load_2[0]), float(m.voltage_drive[0]),
+            float(m.tau_load[0]), int(m.status[0]) | status_bits, command_seq, self.topics.frame_id))
         if opens:
             # a /rig/samples batch started here: so does a truth batch, if anyone listens (asked once a batch)
             self._flush_truths()
