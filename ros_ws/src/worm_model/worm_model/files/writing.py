@@ -176,8 +176,9 @@ def _checked_output(given: Path, where: str, force: bool, folder: bool, inputs: 
     if target.exists() and folder and not target.is_dir():
         raise OutputError(where, "is a file, expected a folder")
     if target.exists() or given.is_symlink():
-        if not force:
-            raise OutputError(where, "exists; pass --force to replace it")
+        if not force:  # only a tool that knows its own output (``output``) can replace one
+            raise OutputError(where, "exists; pass --force to replace it" if output is not None
+                              else "exists; name a new one (this output is never replaced)")
         if not _ours(target, output, folder):
             what = "folder" if folder else "file"
             by = f"written by {output.tool}" if output is not None else "one this tool writes"
