@@ -67,6 +67,7 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from soak_chaos import KINDS as FAULT_KINDS  # bench/ is on sys.path: the script's folder
 from torque_estimator.graph.runner import rig_computer
 
 REPO = Path(__file__).resolve().parents[1]
@@ -87,6 +88,7 @@ P99_TARGET = 1.0  # [ms]
 HZ = os.sysconf("SC_CLK_TCK")
 MB = 1e6
 RECORDER = "recorder"
+MEASURED = ("/rig/samples", "/sim/truth_samples", "/torque_estimate")  # the recorder records these before t0
 
 
 def info(text: str) -> None:
@@ -156,11 +158,15 @@ def cpu_seconds(pid: int) -> float:
 
 
 def rss_bytes(pid: int) -> float:
-    """Resident set [bytes] of a process (VmRSS)."""
+    """Resident set [bytes] of a process (VmRSS).
+
+    Raises:
+        ValueError: the process has none (it was killed and is not reaped yet).
+    """
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
         if line.startswith("VmRSS:"):
             return float(line.split()[1]) * 1024
-    return float("nan")
+    raise ValueError(f"process {pid} has no resident set")
 
 
 def host_busy_seconds() -> float:
@@ -251,11 +257,11 @@ def run(args: argparse.Namespace, work: Path) -> dict:
                     "--quiet"], check=True, stdout=sys.stderr)
     overrides = parse_overrides([f"sim_node.feedforward_calibration={calibration}"])
     chaos = None
-    if args.chaos:
-        from soak_chaos import Chaos  # noqa: PLC0415 - bench/ is on sys.path when run as a script
-        chaos = Chaos(args.seed, duration, work)
+    if args.chaos:  # first: it may move this process into a network namespace before any thread starts
+        from soak_chaos import Chaos
+        chaos = Chaos(args.seed, duration, work, start_recorder, args.faults)
     graph = Graph(GRAPH_FILE, overrides, work / "logs", **rig_computer(GRAPH_FILE),
-                  **(chaos.graph_options() if chaos else {}))
+                  **(chaos.graph_options(GRAPH_FILE) if chaos else {}))
     record = {"minutes": args.minutes, "window": args.window, "seed": args.seed, "chaos": bool(chaos),
               "steps": [asdict(s) for s in steps], "events": [], "bags": [], "bag_sizes": [], "diagnostics": {}}
     procs = Processes()
@@ -277,12 +283,19 @@ def run(args: argparse.Namespace, work: Path) -> dict:
             bag = work / "bag"
             recorder = start_recorder(bag, work / "recorder.log")
             record["bags"].append(bag.name)
+            if chaos is not None:
+                chaos.start_station()
             seen: list[int] = []
             sub = node.create_subscription(RigSamples, "/rig/samples", lambda m: seen.append(m.first_seq), STREAM)
             if not spin_until(executor, lambda: bool(seen) or bool(graph.failed()), START_TIMEOUT) or not seen:
                 raise RuntimeError(f"/rig/samples did not flow within {START_TIMEOUT:g} s "
                                    f"(exited: {graph.failed()}); logs in {work}")
             node.destroy_subscription(sub)  # the probe does not listen to the stream during the run
+            log = work / "recorder.log"
+            if not spin_until(executor, lambda: all(f"Recording {t} " in log.read_text(errors="replace")
+                                                    for t in MEASURED), START_TIMEOUT):
+                raise RuntimeError(f"the recorder did not subscribe to {', '.join(MEASURED)} within "
+                                   f"{START_TIMEOUT:g} s; its log: {log}")
             setpoint.publish(Float64(data=steps[0].speed))
             load.publish(LoadCommand(torque=steps[0].load))
             info(f"graph up; {len(steps)} commands over {args.minutes:g} min in windows of {args.window:g} s; "
@@ -328,8 +341,10 @@ def run(args: argparse.Namespace, work: Path) -> dict:
             record["bag_sizes"].append((now, bag_bytes(work, record)))
             record["t1_ns"] = time.time_ns()
             if chaos is not None:
-                chaos.finish(now, graph, record)
+                chaos.finish(now, graph, recorder, record)
         finally:
+            if chaos is not None:
+                chaos.close()
             if recorder is not None:
                 code = stop_recorder(recorder)
                 record["recorder_exit"] = code
@@ -384,6 +399,8 @@ def read_bags(bags: list[Path], t0_ns: int, window_ns: int, n_windows: int, step
     estimates: list[tuple[int, int, float]] = []  # (window, stamp ns, torque)
     topics = ("/rig/samples", "/sim/truth_samples", "/torque_estimate", "/diagnostics")
     for bag in bags:
+        for w in windows:  # a new recorder: the time between two bags is not the stream's loss
+            w.last_seq = w.last_command = None
         with BagReader(bag, allow_truncated=True) as reader:
             for message in reader.messages([t for t in topics if t in reader.topics]):
                 m = message.decoded
@@ -511,8 +528,10 @@ def analyse(record: dict, work: Path) -> tuple[dict[str, float], list[str], list
         info(f"window {i + 1}: {w.samples} samples, {len(lat)} commands, {w.matched} of {w.estimates} estimates "
              f"matched to the truth, {len(ref)} in the reference hold, {w.restarts} rig restarts")
 
-    for key in keys:
-        points = [(r["t"], r["rss"][key] / MB) for r in resources if key in r["rss"] and r["t"] >= window - 1e-6]
+    for key in keys:  # the process running at the end (a respawned one from its start)
+        pid = next((r["pid"][key] for r in reversed(resources) if key in r["rss"]), None)
+        points = [(r["t"], r["rss"][key] / MB) for r in resources
+                  if r["pid"].get(key) == pid and key in r["rss"] and r["t"] >= window - 1e-6]
         put(f"soak_rss_growth_{metric_name(key)}", slope_per_hour(points), "MB/h")
     p99 = [figures[f"soak_latency_p99_w{i + 1}"] for i in range(n)]
     put("soak_latency_p99_rise", max(p99) - p99[0] if p99 else math.nan, "ms")
@@ -546,7 +565,14 @@ def analyse(record: dict, work: Path) -> tuple[dict[str, float], list[str], list
                     f"{last:+.4f} N m against the first's {first:+.4f} +- {spread:.4f} N m)")
 
     table = window_table(figures, keys, n, window)
-    return {k: (v, units[k]) for k, v in figures.items()}, table, verdicts
+    out = {k: (v, units[k]) for k, v in figures.items()}
+    if record["chaos"]:
+        from soak_chaos import chaos_figures
+
+        more, chaos_verdicts = chaos_figures(record, work, figures["soak_recorder_lost_messages"])
+        out.update(more)
+        verdicts += chaos_verdicts
+    return out, table, verdicts
 
 
 def window_table(figures: dict[str, float], keys: list[str], n: int, window: float) -> list[str]:
@@ -597,6 +623,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--chaos", action="store_true",
                         help="inject faults at seeded random moments (bench/soak_chaos.py): kill -9 of each "
                              "process of the graph and of the recorder, a CPU hog burst, a DDS cut where allowed")
+    parser.add_argument("--faults", default=",".join(FAULT_KINDS), metavar="KIND[,KIND]",
+                        help=f"with --chaos, the kinds of fault injected (default all: {','.join(FAULT_KINDS)})")
     parser.add_argument("--work", type=Path, default=None,
                         help="folder for the run's calibration, logs, bags and soak.json (must not exist; "
                              "default: a new temporary folder, kept)")
@@ -615,6 +643,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--minutes {args.minutes:g}: must be a positive number of minutes")
     if not (args.window >= 10 and math.isfinite(args.window)):
         parser.error(f"--window {args.window:g}: must be at least 10 s")
+    args.faults = tuple(k for k in args.faults.split(",") if k)
+    if unknown := [k for k in args.faults if k not in FAULT_KINDS] or not args.faults:
+        parser.error(f"--faults {','.join(args.faults)}: not kinds of fault {unknown or ''} (the kinds: "
+                     f"{', '.join(FAULT_KINDS)})")
     if args.work is not None and args.work.exists():
         parser.error(f"--work {args.work}: exists already; name a new folder")
     os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(100, 230)))
@@ -622,7 +654,6 @@ def main(argv: list[str] | None = None) -> int:
     work = args.work or Path(tempfile.mkdtemp(prefix="soak_bench_"))
     work.mkdir(parents=True, exist_ok=True)
     info(f"domain {os.environ['ROS_DOMAIN_ID']}, work dir {work}")
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
     try:
         record = run(args, work)
         figures, table, verdicts = analyse(record, work)
