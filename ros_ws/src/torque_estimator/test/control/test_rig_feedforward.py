@@ -9,7 +9,7 @@ from worm_rig_driver.drive.feedforward_plugin import load_rig_feedforward
 from worm_rig_driver.errors import FeedforwardUnavailable
 from worm_rig_driver.drive.rig_loop import RigLoop, SpeedCommand
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
-from worm_rig_driver.sim.simulated_rig import SimulatedRig
+from worm_rig_driver.sim.simulated_rig import SimulatedRig, rig_sample
 
 from torque_estimator.control.rig_feedforward import (FEEDFORWARD_FALSE_ALARM, EstimatorFeedforward, build,
                                                       feedforward_estimator)
@@ -59,8 +59,7 @@ def test_the_rig_loop_with_its_feedforward_is_the_benchmarks_rig_timing() -> Non
                                    RIG.supply_voltage, at_rig=True)
         loop.command_speed(command, k * T)  # as a controller keeps sending it (the rig's watchdog)
         m = sim.sample()
-        loop.observe(float(m.omega_worm[0]), float(m.current_drive[0]), float(m.voltage_drive[0]),
-                     float(m.theta_worm[0]), sim.seq)
+        loop.observe(rig_sample(m, sim.seq), sim.seq)
         out = loop.step(k * T, float(m.omega_worm[0]), sim.seq)
         sim.command(voltage_drive=out.voltage)
         omega.append(float(sim.plant.state.omega_worm[0]))

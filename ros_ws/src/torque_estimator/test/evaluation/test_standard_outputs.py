@@ -17,7 +17,7 @@ from worm_rig_driver.drive.rig_loop import RigLoop, SpeedCommand
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 from worm_rig_driver.robot.standard_outputs import (FLAG_AMBIGUOUS, FLAG_INVALID_INPUT, FLAG_OUT_OF_CALIBRATION,
                                                     FLAG_STANDSTILL, FLAG_TRANSIENT, UNTRUSTED, StandardEffort)
-from worm_rig_driver.sim.simulated_rig import SimulatedRig
+from worm_rig_driver.sim.simulated_rig import SimulatedRig, rig_sample
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.control.rig_feedforward import build
@@ -102,8 +102,7 @@ def demo_reversal(feedforward: bool, seed: int) -> dict[str, np.ndarray]:
         segment = scenario[segment_at(scenario, k * sim.sample_period)]
         sim.command(load_torque=segment.load)
         m = sim.sample()
-        est = loop.observe(float(m.omega_worm[0]), float(m.current_drive[0]), float(m.voltage_drive[0]),
-                           float(m.theta_worm[0]), sim.seq)
+        est = loop.observe(rig_sample(m, sim.seq), sim.seq)
         loop.command_speed(SpeedCommand(segment.speed, 0.0, DEFAULT_GAINS.kp, DEFAULT_GAINS.ki, RIG.supply_voltage,
                                         at_rig=feedforward), k * sim.sample_period)
         out = loop.step(k * sim.sample_period, float(m.omega_worm[0]), sim.seq)

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 from worm_model.physics.parameters import Rig
 from worm_model.physics.steady_state import make_balancing_torque_float
+from worm_model.rig_data.samples import RigSample
 
 from torque_estimator.control.feedforward import FeedforwardGate
 from torque_estimator.estimation.database import CalibrationDatabase
@@ -68,10 +69,9 @@ class EstimatorFeedforward:
         self._balancing = make_balancing_torque_float(rig)
         self._stamp = 0.0
 
-    def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> LiveEstimate:
-        """Sample ``seq``: worm speed [rad/s], drive current [A], drive voltage [V], worm angle [rad]; returns
-        its estimate."""
-        est = self.live.update(omega, current, voltage, theta, seq)
+    def observe(self, sample: RigSample, seq: int) -> LiveEstimate:
+        """The rig's ``sample``, its loop's sample ``seq``; returns its estimate."""
+        est = self.live.update(sample.omega_worm, sample.current_drive, sample.voltage_drive, sample.theta_worm, seq)
         self._stamp = seq * self.sample_period
         self.gate.offer(est.torque, est.flags, self._stamp)
         return est

@@ -6,6 +6,7 @@ import math
 import pytest
 
 from worm_model.physics.parameters import load_rig
+from worm_model.rig_data.samples import RigSample
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop, SpeedCommand
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, PiGains, PiLoop
 
@@ -94,14 +95,19 @@ def test_argument_checks() -> None:
         RigLoop(RIG, T, 0.0, DEFAULT_GAINS)
 
 
+def reading(omega: float, current: float, voltage: float, theta: float) -> RigSample:
+    """A rig sample with these worm speed [rad/s], drive current [A], drive voltage [V] and worm angle [rad]."""
+    return RigSample(0, 0, current, 0.0, 0.0, omega, 0.0, theta, 0.0, 0, 0, 0, voltage, 0.0, 0)
+
+
 class _Recording:
     """A rig feedforward that gives back a torque made of the last sample it saw and the set-point."""
 
     def __init__(self) -> None:
         self.seen: list[tuple] = []
 
-    def observe(self, omega, current, voltage, theta, seq) -> None:
-        self.seen.append((omega, current, voltage, theta, seq))
+    def observe(self, sample: RigSample, seq: int) -> None:
+        self.seen.append((sample.omega_worm, sample.current_drive, sample.voltage_drive, sample.theta_worm, seq))
 
     def torque(self, setpoint: float) -> float:
         return 1e-4 * self.seen[-1][4] + 1e-6 * setpoint
@@ -115,7 +121,7 @@ def test_a_command_at_rig_is_fed_the_rigs_own_feedforward_of_the_sample_just_tak
     reference = PiLoop(RIG, DEFAULT_GAINS, RIG.supply_voltage)
     loop.command_speed(SpeedCommand(150.0, 0.5, DEFAULT_GAINS.kp, DEFAULT_GAINS.ki, 24.0, 3, at_rig=True), 0.0)
     for seq in range(4, 9):
-        loop.observe(140.0 + seq, 0.3, 12.0, 0.01 * seq, seq)
+        loop.observe(reading(140.0 + seq, 0.3, 12.0, 0.01 * seq), seq)
         out = loop.step(seq * T, 140.0 + seq, seq)
         expected = 1e-4 * seq + 1e-6 * 150.0
         assert out.feedforward == expected and out.voltage == reference.update(T, 150.0, 140.0 + seq, expected)
@@ -123,12 +129,12 @@ def test_a_command_at_rig_is_fed_the_rigs_own_feedforward_of_the_sample_just_tak
     assert loop.feedforward_at_rig == 5
     # the same rig, a command without at_rig: the command's own feedforward
     loop.command_speed(command(setpoint=150.0, feedforward=0.02, source=9), 0.009)
-    loop.observe(150.0, 0.3, 12.0, 0.1, 10)
+    loop.observe(reading(150.0, 0.3, 12.0, 0.1), 10)
     assert loop.step(0.010, 150.0, 10).feedforward == 0.02 and loop.feedforward_at_rig == 5
 
 
 def test_a_command_at_rig_on_a_rig_without_an_estimator_uses_its_own_feedforward() -> None:
     loop = RigLoop(RIG, T, TIMEOUT, DEFAULT_GAINS)
-    loop.observe(1.0, 0.1, 1.0, 0.0, 1)  # nothing to hand it to: no effect
+    loop.observe(reading(1.0, 0.1, 1.0, 0.0), 1)  # nothing to hand it to: no effect
     loop.command_speed(SpeedCommand(150.0, 0.02, DEFAULT_GAINS.kp, DEFAULT_GAINS.ki, 24.0, 1, at_rig=True), 0.0)
     assert loop.step(0.001, 150.0, 2).feedforward == 0.02 and loop.feedforward_at_rig == 0

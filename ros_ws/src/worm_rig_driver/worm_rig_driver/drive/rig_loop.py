@@ -41,6 +41,7 @@ from enum import IntEnum
 from typing import Any, Protocol
 
 from worm_model.physics.parameters import Rig
+from worm_model.rig_data.samples import RigSample
 
 from worm_rig_driver.drive.speed_loop import PiGains, PiLoop
 
@@ -94,19 +95,19 @@ def voltage_problem(voltage: float) -> str:
 class RigFeedforward(Protocol):
     """A feedforward the rig computes itself, one sample at a time (module docstring).
 
-    ``observe`` takes sample ``seq``: worm speed [rad/s], drive current [A], the drive voltage of
-    the sample [V] and the worm encoder angle [rad]; ``torque`` gives the torque at the worm [N m]
-    (positive turns the worm positively) to add to the PI output for the period that follows, at
-    worm speed set-point ``setpoint`` [rad/s]: 0 when the estimate is unusable. Both run in the
-    rig's sample thread, so they must take microseconds, not milliseconds. ``observe`` returns the
-    sample's load estimate (torque_estimator's LiveEstimate: tau_d, uncertainty, flags, the filtered
-    speed and current), which the rig publishes as the graph's estimate (nodes.rig_topics);
-    ``method`` names its estimator.
+    ``observe`` takes the rig's sample (its worm speed, drive current, the drive voltage of the sample and the
+    worm encoder angle are what an estimator reads) as the loop's sample ``seq``; ``torque`` gives the torque
+    at the worm [N m] (positive turns the worm positively) to add to the PI output for the period that
+    follows, at worm speed set-point ``setpoint`` [rad/s]: 0 when the estimate is unusable. Both run in the
+    rig's sample thread, so they must take microseconds, not milliseconds. ``observe`` returns the sample's
+    load estimate (torque_estimator's LiveEstimate: tau_d, uncertainty, flags, the filtered speed and
+    current), which the rig publishes as the graph's estimate (nodes.rig_topics); ``method`` names its
+    estimator.
     """
 
     method: str
 
-    def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> Any: ...
+    def observe(self, sample: RigSample, seq: int) -> Any: ...
 
     def torque(self, setpoint: float) -> float: ...
 
@@ -175,13 +176,13 @@ class RigLoop:
         self._pending = None
 
     # --- every sample (the rig's thread) ---------------------------------------------------
-    def observe(self, omega: float, current: float, voltage: float, theta: float, seq: int) -> Any:
-        """Hand sample ``seq`` to the rig's feedforward source, if any (call for every sample, before
-        :meth:`step`): worm speed [rad/s], drive current [A], drive voltage [V], worm angle [rad].
-        Returns the source's estimate of the sample (RigFeedforward.observe), None without a source."""
+    def observe(self, sample: RigSample, seq: int) -> Any:
+        """Hand ``sample`` to the rig's feedforward source, if any (call for every sample, before :meth:`step`),
+        as the loop's sample ``seq``. Returns the source's estimate of the sample (RigFeedforward.observe), None
+        without a source."""
         if self.feedforward is None:
             return None
-        return self.feedforward.observe(omega, current, voltage, theta, seq)
+        return self.feedforward.observe(sample, seq)
 
     def step(self, now: float, omega_measured: float, seq: int) -> LoopOutput:
         """The voltage for the period starting at ``now`` [s], sample ``seq`` having just been taken

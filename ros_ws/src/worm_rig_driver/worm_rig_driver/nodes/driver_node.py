@@ -162,13 +162,12 @@ class DriverNode(Node):
         """Run the speed loop on the newest frame and send its voltage; publish every frame."""
         stopped = RigSampleMsg.STATUS_WATCHDOG_STOP if self.loop.watchdog_stopped else 0
         for s in samples:
+            sample = s._replace(status=s.status | stopped, command_seq=self._command_seq, frame_id=self.frame_id)
             # every sample to the rig's own estimator, numbered in samples (its gaps are lost samples)
-            estimate = self.loop.observe(s.omega_worm, s.current_drive, s.voltage_drive, s.theta_worm,
-                                         s.seq // self._seq_step)
+            estimate = self.loop.observe(sample, s.seq // self._seq_step)
             # its estimate before the graph's stream (the controller waits for the estimate), then the sample
             self.estimate.after_sample(s.seq, s.stamp_ns, self.topics.closes_batch(s.seq), estimate)
-            self.topics.add(s._replace(status=s.status | stopped, command_seq=self._command_seq,
-                                       frame_id=self.frame_id))
+            self.topics.add(sample)
         newest = samples[-1]
         out = self.loop.step(time.monotonic(), newest.omega_worm, newest.seq)
         self._command_seq = out.command_seq

@@ -25,7 +25,7 @@ estimator runs beside the speed loop on every sample, and speed commands with
 feedforward_at_rig get its feedforward on the very next period (rig_topics.
 declare_rig_feedforward; the rig's figures in bench/controller_bench.py's rig
 timing). The parameter effects_file switches
-on effects the model lacks (a worm_rig_effects file, see sim/effects.py); the
+on effects the model lacks (a worm_rig_effects file, see sim/effects/); the
 model is not told.
 """
 from __future__ import annotations
@@ -41,7 +41,7 @@ from worm_msgs.msg import DriveCommand, LoadCommand, SimTruth, SimTruths, SpeedC
 from worm_msgs.msg import RigSample as RigSampleMsg
 
 from worm_model.physics.parameters import load_rig
-from worm_model.rig_data.samples import SIM_TRUTHS_TOPIC, TRUTH_FIELDS, RigSample
+from worm_model.rig_data.samples import SIM_TRUTHS_TOPIC, TRUTH_FIELDS
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare
@@ -52,7 +52,7 @@ from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 from worm_rig_driver.nodes.rig_topics import (RigEstimate, RigTopics, declare_rig_feedforward, log_refusal,
                                              speed_command_from_msg, subscribe_commands)
-from worm_rig_driver.sim.simulated_rig import SimulatedRig
+from worm_rig_driver.sim.simulated_rig import SimulatedRig, rig_sample
 
 _WATCHDOG = RigSampleMsg.STATUS_WATCHDOG_STOP
 _LIMIT = RigSampleMsg.STATUS_DRIVE_LIMIT
@@ -185,21 +185,17 @@ class SimNode(Node):
         m = self.sim.sample()
         seq = self.sim.seq
         command_seq, status_bits = self._in_force
-        estimate = self.loop.observe(float(m.omega_worm[0]), float(m.current_drive[0]), float(m.voltage_drive[0]),
-                                     float(m.theta_worm[0]), seq)
-        out = self.loop.step(seq * self.period, float(m.omega_worm[0]), seq)
+        stamp_ns = self._start_ns + int(round(seq * self.period * 1e9))
+        sample = rig_sample(m, seq, stamp_ns, status_bits, command_seq, self.topics.frame_id)
+        estimate = self.loop.observe(sample, seq)
+        out = self.loop.step(seq * self.period, sample.omega_worm, seq)
         self.sim.command(voltage_drive=out.voltage)
         self._in_force = (out.command_seq, (_WATCHDOG if self.loop.watchdog_stopped or out.mode == DriveMode.STOPPED
                                             else 0) | (_LIMIT if out.saturated else 0))
-        stamp_ns = self._start_ns + int(round(seq * self.period * 1e9))
         opens = self.pub_truths is not None and self.topics.opens_batch(seq)
         # the estimate (observed above) before the graph's stream: the controller waits for the estimate
         self.estimate.after_sample(seq, stamp_ns, self.topics.closes_batch(seq), estimate)
-        self.topics.add(RigSample(
-            seq, stamp_ns, float(m.current_drive[0]), float(m.current_load_1[0]), float(m.current_load_2[0]),
-            float(m.omega_worm[0]), float(m.omega_gear[0]), float(m.theta_worm[0]), float(m.theta_gear[0]),
-            int(m.count_drive[0]), int(m.count_load_1[0]), int(m.count_load_2[0]), float(m.voltage_drive[0]),
-            float(m.tau_load[0]), int(m.status[0]) | status_bits, command_seq, self.topics.frame_id))
+        self.topics.add(sample)
         if opens:
             # a /rig/samples batch started here: so does a truth batch, if anyone listens (asked once a batch)
             self._flush_truths()

@@ -27,6 +27,7 @@ import numpy as np
 from worm_model.physics.internal_forces import internal_forces, internal_forces_float
 from worm_model.physics.modes import Flank, Mode
 from worm_model.physics.parameters import Rig
+from worm_model.rig_data.samples import RigSample
 
 from worm_rig_driver.sim.effects import EffectsConfig, as_config
 from worm_rig_driver.sim.plant import STANDSTILL_SPEED, PlantOutputs, RigPlant
@@ -56,6 +57,17 @@ class Truth:
     theta_gear: np.ndarray | None = None  # [rad] worm-referenced
     contact: np.ndarray | None = None  # int8: +1/-1 the side the teeth touch (fixed frame), 0 apart
     effects: dict | None = None  # observable effect states, e.g. {"oil_temperature": [degC]}
+
+
+def rig_sample(m: Measurement, seq: int, stamp_ns: int = 0, status_bits: int = 0, command_seq: int = 0,
+               frame_id: str = "", k: int = 0) -> RigSample:
+    """Rig ``k``'s reading of a SimulatedRig measurement as the rig publishes it: sample ``seq`` stamped
+    ``stamp_ns`` [ns], its status with ``status_bits`` (the rig loop's: watchdog, drive limit) added."""
+    return RigSample(
+        seq, stamp_ns, float(m.current_drive[k]), float(m.current_load_1[k]), float(m.current_load_2[k]),
+        float(m.omega_worm[k]), float(m.omega_gear[k]), float(m.theta_worm[k]), float(m.theta_gear[k]),
+        int(m.count_drive[k]), int(m.count_load_1[k]), int(m.count_load_2[k]), float(m.voltage_drive[k]),
+        float(m.tau_load[k]), int(m.status[k]) | status_bits, command_seq, frame_id)
 
 
 def true_mode(flank: np.ndarray, tau_load: np.ndarray, omega_worm: np.ndarray) -> np.ndarray:
