@@ -8,9 +8,9 @@ detection study) checks after a change of mu's scale (the ``wear`` effect). Ever
 its own oil temperature, load scale, noise and gear angle, drawn from the seed:
 
 * oil temperature: the hall's ambient (25 degC, sd 2 K, unknown to the monitor) plus the heating
-  of the work before the check: power P ~ U(0, 3) W for t ~ U(0, 3 tau), through the gearbox's
-  own R_th and tau (12 K/W and 900 s, each x U(0.8, 1.2) per gearbox): 23-60 degC, the
-  issue's +-15 K swing around 40;
+  of the work before the check: power P ~ U(0, WORK_HEAT) W for t ~ U(0, 3 tau), through the gearbox's
+  own R_th and tau (the declared 5 K/W and 900 s, each x U(0.8, 1.2) per gearbox): 23-60 degC, a
+  +-15 K swing around 40;
 * the reported temperature: measured (the true mean of the run + a 0.5 K sensor error) or
   estimated (worm_model.health.thermal from the assumed ambient and the work's heat, misjudged by
   a factor 1 + N(0, 0.15) per gearbox: the heat model's error);
@@ -51,6 +51,9 @@ GEARBOX_EFFECTS = {
     "gear_runout": {}, "motor_cogging": {}, "backlash": {}, "sensor_gain": {}, "sensor_offset": {},
     "wear": {"mu_rate": 0.1, "worm_drag_rate": 0.0, "gear_drag_rate": 0.0, "backlash_rate": 0.0},
 }
+#: [W] the most heat the work before a check makes: up to 36 K of rise through the declared 5 K/W (~15 W in at
+#: ~50 % efficiency, a quarter of the bundled drive motor's ~60 W rating)
+WORK_HEAT = 7.2
 #: hours of the wear effect per unit rise of mu (mu_rate 0.1 per 1000 h)
 HOURS_PER_RISE = 1000.0 / 0.1
 MODES = ("measured", "estimated")
@@ -83,7 +86,7 @@ def draw_lives(gearboxes: int, checks: int, seed: int, rises: np.ndarray | None 
     for _ in range(gearboxes):
         r_th = nominal.thermal_resistance * rng.uniform(0.8, 1.2)
         tau = nominal.time_constant * rng.uniform(0.8, 1.2)
-        power = rng.uniform(0.0, 3.0, checks)
+        power = rng.uniform(0.0, WORK_HEAT, checks)
         duration = rng.uniform(0.0, 3.0 * tau, checks)
         ambient = nominal.ambient + rng.normal(0.0, 2.0, checks)
         temperature = ambient + r_th * power * (1.0 - np.exp(-duration / tau))

@@ -8,8 +8,8 @@ A ``worm_rig_parameters`` v1 file (worm_model.physics.parameters) that is the de
   (``friction.model``);
 * the ``sensors:`` noise the record showed (identification.noise: the current's and the speed's white
   noise and grid step, the encoder's counts per turn), each with its ``source:``;
-* ``free:`` (the identified parameters a refit can fit again), ``effects:`` (the effects found, in the simulator's names
-  and units, as worm_model.residuals.extended writes them) and ``identification:`` (the road, the
+* ``free:`` (the identified parameters a refit can fit again), ``effects:`` (the effects found, in the vocabulary's
+  names and units, as worm_model.residuals.extended writes them) and ``identification:`` (the road, the
   ranges the record covered, what was fitted and what was held and why).
 
 Held parameters keep their declared leaves. Nothing is written at a physical bound (the
@@ -31,7 +31,7 @@ import yaml
 
 from worm_model.physics.parameters import default_rig_path, load_rig
 from worm_model.physics.units import UNITS, normalize_unit
-from worm_model.residuals.extended import ExtendedModel
+from worm_model.residuals.extended import ExtendedModel, effects_section
 from worm_model.residuals.free import FREE_PARAMETERS, get_value
 
 from torque_estimator.estimation.extended_model import identification_ranges
@@ -94,10 +94,7 @@ def document(rig_file: str | Path | None, ident: "Identification", source: str) 
     # the free list is what the next refit (identify or residuals --rig this file) may fit: the parameters the
     # time-series refit knows; the steady road's own (a support's low-speed rise) stay identified values only
     doc["free"] = [name for name in ident.fitted if name in FREE_PARAMETERS]
-    effects: dict[str, Any] = {}
-    for effect, values, grid in ident.model.effects:
-        effects[effect.name] = {k: float(f"{v:.6g}") for k, v in effect.simulator_entry(values, grid).items()}
-    doc["effects"] = effects
+    doc["effects"] = effects_section(ident.model)
     doc["identification"] = ident.section(source)
     return doc
 
@@ -142,7 +139,8 @@ def text(rig_file: str | Path | None, ident: "Identification", source: str) -> s
     """The file's text, header comment first."""
     header = (f"# Rig file extended by `identify` from {source} ({ident.road}).\n"
               "# Identified leaves say so in their source:, held ones keep what was declared (identification.held\n"
-              "# says why); sensors: are the record's measured noise; effects: use the simulator's effect names.\n")
+              "# says why); sensors: are the record's measured noise; effects: a worm_rig_effects section\n"
+              "# (worm_effects --list names its parameters).\n")
     return header + yaml.safe_dump(document(rig_file, ident, source), sort_keys=False, allow_unicode=True, width=120)
 
 

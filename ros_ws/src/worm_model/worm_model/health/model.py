@@ -42,6 +42,7 @@ from dataclasses import asdict, dataclass, fields, replace
 import numpy as np
 from numpy.typing import ArrayLike
 
+from worm_model.effects.heat import mesh_heat
 from worm_model.physics.dynamics import reflected_input_torque
 from worm_model.physics.friction import friction_coefficient, sliding_velocity
 from worm_model.physics.parameters import Rig
@@ -169,10 +170,11 @@ def input_torque(rig: Rig, p: HealthParameters, omega_worm: ArrayLike, tau_load:
 
 def mesh_loss(rig: Rig, p: HealthParameters, omega_worm: ArrayLike, tau_load: ArrayLike,
               temperature_factor: ArrayLike = 1.0) -> FloatArray:
-    """Power the mesh turns into heat [W] (>= 0): what goes in at the worm less what comes out at the gear."""
+    """Power the mesh turns into heat [W] (>= 0): what goes in at the worm less what comes out at the gear
+    (worm_model.effects.heat), at a steady point (no acceleration)."""
     w = np.asarray(omega_worm, dtype=float)
     mesh, d_mesh = mesh_torque(rig, p, w, tau_load, temperature_factor)
-    return np.maximum(mesh * w - d_mesh * rig.gearbox.ratio * w, 0.0)
+    return mesh_heat(mesh, w, d_mesh, rig.gearbox.ratio * w)
 
 
 def drag_power(rig: Rig, p: HealthParameters, omega_worm: ArrayLike) -> tuple[FloatArray, FloatArray]:

@@ -19,12 +19,15 @@ import os
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
+from worm_model.effects import VOCABULARY
 from worm_model.errors import InputError, SettingsError
 from worm_model.files.reading import load_yaml
 from worm_model.health.points import PointRules
 
 FORMAT_NAME = "worm_gearbox_health_settings"
 FORMAT_VERSION = 1
+#: the oil's declared defaults (worm_model.effects.vocabulary): the thermal model's and mu's temperature law's
+_OIL = VOCABULARY["oil_temperature"]
 
 
 @dataclass(frozen=True)
@@ -86,7 +89,8 @@ class TemperaturePrior:
     """mu's temperature law before the baseline checks teach it (worm_model.health.model.TemperatureLaw)."""
 
     reference: float = 25.0  # [degC] the health parameters' reference temperature
-    mu_per_kelvin: float = -0.003  # [1/K] assumption: thinner, hotter oil lowers mu (sign known, size not)
+    mu_per_kelvin: float = _OIL.default("mu_per_kelvin")  # [1/K] the oil effect's assumption: thinner, hotter oil
+    # lowers mu (sign known, size not)
     sigma: float = 0.003  # [1/K] as wide as the value: the baseline checks decide it
     min_span: float = 10.0  # [K] baseline checks must span this much to learn k from them
     sensor_sigma: float = 0.5  # [K] standard uncertainty of a measured oil temperature
@@ -96,10 +100,12 @@ class TemperaturePrior:
 class Thermal:
     """First-order thermal model of the gearbox (worm_model.health.thermal) for a drive without an oil sensor."""
 
-    ambient: float = 25.0  # [degC] assumption: a hall kept at 25 degC
+    ambient: float = _OIL.default("ambient")  # [degC] assumption: a hall kept at 25 degC (the oil effect's ambient)
     ambient_sigma: float = 2.5  # [K] how far the hall's temperature may be from it
-    thermal_resistance: float = 12.0  # [K/W] assumption: small housing in still air (to identify with a sensor once)
-    time_constant: float = 900.0  # [s] assumption: ~15 min (housing and oil)
+    # [K/W] and [s]: the oil effect's (worm_model.effects.vocabulary, THERMAL_RESISTANCE: why 5 K/W; to identify
+    # with a sensor once)
+    thermal_resistance: float = _OIL.default("thermal_resistance")
+    time_constant: float = _OIL.default("time_constant")
     power_sigma: float = 0.25  # [1] relative uncertainty of the heat estimate and of the resistance, together
     initial_sigma: float = 3.0  # [K] how far the oil may be from the hall at a cold start (a cold night), decaying
     drive_drag_heat: float = 0.6  # [1] share of the worm-shaft drag that heats the oil (input seal, churning;

@@ -1,11 +1,11 @@
-"""The oil temperature of a drive without a sensor: a first-order thermal model fed by the drive's own losses.
+"""The oil temperature of a drive without a sensor: the model's oil law fed by the drive's own losses.
 
     C dT/dt = P - (T - T_amb) / R_th,     tau = R_th C                        (T [degC], P [W])
 
-P is the heat made in the gearbox, estimated from the drive's signals and the health model
-(worm_model.health.model): the mesh's loss at the measured speed and load, plus the shares of the
-shaft drags that heat the oil (settings.Thermal). The estimate is T_amb + offset + rise, integrated
-exactly for P held over each step:
+(worm_model.effects.oil, the law the simulator's oil steps too). P is the heat made in the gearbox, estimated
+from the drive's signals and the health model (worm_model.health.model): the mesh's loss at the measured speed
+and load, plus the shares of the shaft drags that heat the oil (settings.Thermal). The estimate is T_amb +
+offset + rise, integrated exactly for P held over each step:
 
     offset <- offset e^(-dt/tau)                  (the start's distance from ambient, decaying)
     rise   <- R_th P + (rise - R_th P) e^(-dt/tau)
@@ -26,6 +26,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from worm_model.effects import oil
 from worm_model.health.settings import Thermal
 
 
@@ -54,10 +55,10 @@ class ThermalEstimate:
         if not dt > 0.0:
             return
         s = self.settings
-        e = math.exp(-dt / s.time_constant)
-        steady = s.thermal_resistance * (power if power > 0.0 else 0.0)
+        e = oil.decay(dt, s.time_constant)
+        steady = oil.steady_temperature(0.0, power if power > 0.0 else 0.0, s.thermal_resistance)
         self.offset *= e
-        self.rise = steady + (self.rise - steady) * e
+        self.rise = oil.relax(self.rise, steady, e)
         self.decay *= e
         self.time += dt
 

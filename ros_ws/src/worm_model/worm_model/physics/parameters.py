@@ -52,7 +52,7 @@ FORMAT_VERSION = 1
 RATIO_TOLERANCE = 0.05
 #: optional top-level sections other modules read from the same file (load_rig skips them):
 #: ``free`` (parameters the residual analysis may fit), ``effects`` (effects beyond
-#: Eqs 19-30, see worm_model.residuals.effects and the simulator's effect plug-ins) and
+#: Eqs 19-30: a ``worm_rig_effects`` section, worm_model.effects) and
 #: ``identification`` (what torque_estimator's ``identify`` recorded and found: ranges, corrections)
 OPTIONAL_TOP_SECTIONS = frozenset({"free", "effects", "identification"})
 

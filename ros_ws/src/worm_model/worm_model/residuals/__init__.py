@@ -7,7 +7,8 @@ Modules (plain Python, no ROS), in the order the analysis uses them:
                      error ratio*theta_worm - theta_gear when the data has a gear encoder
   ``free``           which rig parameters a fit may change (the rig file's ``free:`` list, the standard refit set,
                      each friction model's mu parameter), their tolerance bands and physical bounds
-  ``effects``        candidate effects as plug-ins (Protocol + registry EFFECTS)
+  ``effects``        the candidate effects' regressors, the analysis's face of worm_model.effects' vocabulary
+                     (Protocol + registry EFFECTS; a folder: its own map)
   ``settings``       the options of an analysis
   ``fitting``        the fits and their judges: held-out split, fits to the training samples (Problem and Fit),
                      screening of candidates, acceptance (a folder: its own map)

@@ -4,10 +4,10 @@ File: a ``worm_rig_parameters`` v1 file (worm_model.physics.parameters) with two
 top-level sections that ``load_rig`` skips:
 
 ``free``     the parameters the residual analysis fitted (dotted names, see residuals.free);
-``effects``  effect name -> {parameter: value} with the simulator's parameter names,
-             units and signs (worm_rig_driver effects.py, the ``effects:`` mapping of a
-             ``worm_rig_effects`` file), so ``SimulatedRig(rig, effects=doc["effects"])``
-             simulates the identified model.
+``effects``  effect name -> {parameter: value} with the vocabulary's parameter names,
+             units and signs (worm_model.effects: the ``effects:`` section of a
+             ``worm_rig_effects`` file, read and checked by its ``file_format``), so
+             ``SimulatedRig(rig, effects=doc["effects"])`` simulates the identified model.
 
 Use from an estimator or model_node (plain numpy, no ROS)::
 
@@ -34,7 +34,8 @@ import yaml
 from numpy.typing import ArrayLike
 
 from worm_model.physics.parameters import Rig, default_rig_path, load_rig
-from worm_model.errors import ParameterError
+from worm_model.effects import EffectsConfig, as_config, load_effects
+from worm_model.errors import EffectsError, ParameterError
 from worm_model.physics.units import UNITS, FloatArray, normalize_unit
 
 from worm_model.residuals.effects import EFFECTS, Effect, channels_of
@@ -139,25 +140,18 @@ class ExtendedModel:
         """Read a parameter file with an optional ``effects:`` section.
 
         Raises:
-            ParameterError: bad rig file, unknown effect, or a non-mapping section.
+            ParameterError: bad rig file; EffectsError (a ParameterError): a bad ``effects:`` section
+                (worm_model.effects.file_format), or an effect the residual analysis has no regressor for.
         """
         rig = load_rig(path)
-        document = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-        section = document.get("effects") or {}
-        if not isinstance(section, Mapping):
-            raise ParameterError(str(path), "effects", "expected a mapping effect name -> parameters")
+        config = load_effects(path)
         effects = []
-        for name, entry in section.items():
+        for name, entry in config.effects.items():
             if name not in EFFECTS:
-                raise ParameterError(str(path), f"effects.{name}", f"unknown effect (known: {', '.join(EFFECTS)})")
-            entry = entry or {}
-            if not isinstance(entry, Mapping):
-                raise ParameterError(str(path), f"effects.{name}", "expected a mapping of parameters")
-            if entry.get("enabled", True) is False:
-                continue
+                raise EffectsError(str(path), f"effects.{name}", "the residual analysis has no regressor for this "
+                                   f"effect (it has: {', '.join(EFFECTS)})")
             effect = EFFECTS[name]
-            plain = {k: (v["value"] if isinstance(v, Mapping) else v) for k, v in entry.items() if k != "enabled"}
-            values, grid = effect.from_simulator_entry(plain, rig)
+            values, grid = effect.from_simulator_entry(entry, rig)
             effects.append((effect, values, grid))
         return cls(rig, effects, alpha_time_constant)
 
@@ -192,15 +186,24 @@ def write_parameter_file(path: str | Path, base_file: str | Path, model: Extende
         node["source"] = f"{provenance} (95 % CI +-{ci:.2g} {unit}); {before}"
         document[section][leaf] = node
     document["free"] = list(free)
-    effects: dict[str, Any] = {}
-    for effect, values, grid in model.effects:
-        effects[effect.name] = {k: float(f"{v:.6g}") for k, v in effect.simulator_entry(values, grid).items()}
-    document["effects"] = effects
+    document["effects"] = effects_section(model, str(path))
     header = (f"# Extended model written by `residuals` ({provenance}).\n"
-              "# Rig parameters as in the base file, free ones identified; `effects:` uses the simulator's\n"
-              "# effect plug-ins' parameter names and units (worm_rig_driver effects.py).\n")
+              "# Rig parameters as in the base file, free ones identified; `effects:` is a worm_rig_effects\n"
+              "# section: the effects' parameter names and units (worm_effects --list).\n")
     notes = "".join(f"# {name}: {note}\n" for name, note in (effect_notes or {}).items())
     Path(path).write_text(header + notes + yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
+
+
+def effects_section(model: ExtendedModel, origin: str = "<fitted>") -> dict[str, dict[str, float]]:
+    """The ``effects:`` section a file of the extended model holds: each fitted effect as the vocabulary's parameters
+    (its regressor's translation, 6 significant digits), checked and completed by worm_model.effects.file_format.
+
+    Raises:
+        EffectsError: a fitted value no effects file may hold (outside its declared range).
+    """
+    fitted = {effect.name: {k: float(f"{v:.6g}") for k, v in effect.simulator_entry(values, grid).items()}
+              for effect, values, grid in model.effects}
+    return EffectsConfig.from_mapping(fitted, origin).section()
 
 
 def _shortened(text: str, limit: int = 120) -> str:
@@ -209,11 +212,12 @@ def _shortened(text: str, limit: int = 120) -> str:
 
 
 def write_with_effects(path: str | Path, effects: Mapping[str, Any], base_file: str | Path | None = None) -> Path:
-    """Write ``base_file`` (None: the bundled rig file) with ``effects`` (the simulator's names and units, as a
-    ``worm_rig_effects`` file's ``effects:`` mapping) as its ``effects:`` section; loadable by ExtendedModel.load.
+    """Write ``base_file`` (None: the bundled rig file) with ``effects`` (the vocabulary's names and units, as a
+    ``worm_rig_effects`` file's ``effects:`` mapping, checked and every parameter written) as its ``effects:``
+    section; loadable by ExtendedModel.load.
 
     Raises:
-        ParameterError: the base file cannot be read.
+        ParameterError: the base file cannot be read; EffectsError: a bad ``effects`` mapping.
     """
     base = Path(base_file) if base_file else default_rig_path()
     try:
@@ -221,6 +225,6 @@ def write_with_effects(path: str | Path, effects: Mapping[str, Any], base_file: 
     except (OSError, yaml.YAMLError) as err:
         raise ParameterError(str(base), "", f"cannot read parameter file: {err}") from err
     document = json.loads(json.dumps(document))  # plain data: no YAML aliases shared between sections
-    document["effects"] = json.loads(json.dumps(dict(effects)))
+    document["effects"] = as_config(dict(effects)).section()
     Path(path).write_text(yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
     return Path(path)

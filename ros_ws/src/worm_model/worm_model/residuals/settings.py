@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 from worm_model.physics.parameters import Rig
 from worm_model.physics.resolution import kinetic_speed
@@ -30,7 +30,8 @@ class Settings:
     alpha_time_constant: float = ALPHA_TIME_CONSTANT  # [s]
     reference_temperature: float = REFERENCE_TEMPERATURE  # [degC] oil temperature at which the declared mu holds
     confidence: float = 0.95
-    candidates: tuple[str, ...] = tuple(EFFECTS)
+    # every effect the analysis has a regressor for when the settings are made (an effect registered since counts)
+    candidates: tuple[str, ...] = field(default_factory=lambda: tuple(EFFECTS))
     # refitted always, on top of the caller's free list (free.STANDARD_REFIT: why these)
     refit: tuple[str, ...] = STANDARD_REFIT
     # held-out RMS above this multiple of the noise floor: an unexplained residual is reported

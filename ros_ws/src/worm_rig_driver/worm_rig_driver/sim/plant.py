@@ -17,7 +17,7 @@ where tau_em,load = count * K_t,load * i_load is what the load motors' current
 says (the calibration's "known" tau_d) and the rest is the load motors' own drag,
 which the mesh must also overcome. That gear-side drag is what gives the rig a
 non-zero switching torque (physics.md section 5). "effects" are the plug-ins of
-effects.py (bearing drag, ripples, ...), all zero for the paper's model.
+sim/effects/ (bearing drag, ripples, ...), all zero for the paper's model.
 
 Drive: the BTS7960B H-bridge switches the supply; the plant integrates the
 average-duty voltage (clamped to +-supply). The PWM period (50 us at the

@@ -14,7 +14,7 @@ than copied: Eq. 28 on one flank (Eq28.on_flank, floats or arrays), the constant
 (STANDSTILL_SPEED, ...) and the friction laws' coefficients
 (worm_model.physics.friction.FLOAT_FRICTION_MODELS beside FRICTION_MODELS).
 
-Effects: every effect of effects.py has float twins of its hooks (``*_float``);
+Effects: every effect of sim/effects/ has float twins of its hooks (``*_float``);
 :func:`float_hooks_missing` names the live effects that lack one, and
 SimulatedRig falls back to the vectorised plant when it is not empty. Hooks that
 only set constants (inertia, backlash) and observe() are read through the

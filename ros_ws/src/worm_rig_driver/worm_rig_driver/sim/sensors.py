@@ -10,7 +10,7 @@ Every number of the chain (noise, resolutions, ripple, ADC timing) is the rig
 file's ``sensors:`` section (worm_model.physics.parameters.Sensors), which the
 estimators read too.
 Each reading is: true signal -> sensor effects (gain, offset, PWM ripple; see
-effects.py) -> noise -> 10-bit quantisation with the converter's range limits.
+sim/effects/sensing.py) -> noise -> 10-bit quantisation with the converter's range limits.
 
 Digital: 500 pulse/rev two-channel encoders decoded 4x into counts that wrap
 as int32, latched at the tick.

@@ -27,7 +27,7 @@ class AliasFinding:
     """An effect named because a refitted parameter it is an alias of left its tolerance band.
 
     ``parameters``: dotted name -> (declared, identified, CI half-width) [SI];
-    ``values``/``grid``: the effect in the analysis' parametrisation (effects.py) that, with
+    ``values``/``grid``: the effect in the analysis' parametrisation (residuals/effects/) that, with
     those parameters back at their declared values, gives the same model current;
     ``clamped``: the fit with the parameters held at the band's edge (what "without it" means).
     """

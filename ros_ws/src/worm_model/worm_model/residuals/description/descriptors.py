@@ -25,7 +25,7 @@ import numpy as np
 from worm_model.physics.parameters import Rig
 from worm_model.physics.units import FloatArray
 
-from worm_model.residuals.effects import GridParameter, Parameter, Shapes
+from worm_model.residuals.effects import Coefficient, GridParameter, Shapes
 from worm_model.residuals.fitting.fitting import Fit, Problem
 from worm_model.residuals.model import ModelState, Signals
 
@@ -130,7 +130,7 @@ class Descriptor:
     grid_parameters: ClassVar[tuple[GridParameter, ...]] = ()
 
     def __post_init__(self) -> None:
-        self.parameters = tuple(Parameter(f"c{k}", "A") for k in range(self.columns.shape[1]))
+        self.parameters = tuple(Coefficient(f"c{k}", "A") for k in range(self.columns.shape[1]))
         self.description = f"generic description of the residual: {self.what}"
         self.grid_values = {"descriptor": float(next(_ids))}  # its own key in Problem's shape cache
 
