@@ -42,6 +42,7 @@ from dataclasses import asdict, dataclass, fields, replace
 import numpy as np
 from numpy.typing import ArrayLike
 
+from worm_model.effects import VOCABULARY
 from worm_model.effects.heat import mesh_heat
 from worm_model.physics.dynamics import reflected_input_torque
 from worm_model.physics.friction import friction_coefficient, sliding_velocity
@@ -107,6 +108,9 @@ class HealthParameters:
 class TemperatureLaw:
     """mu's oil-temperature law f_T(T) = max(0.1, 1 + k (T - reference)): 1 at the reference temperature.
 
+    The monitor's own law (fitted to checks), kept apart from the simulator's oil effect, whose mu follows the
+    same form: the health study judges the monitor on simulated gearboxes.
+
     Attributes:
         reference: T_ref [degC], where the health parameters hold.
         mu_per_kelvin: k [1/K] (< 0: hotter, thinner oil, lower mu).
@@ -115,7 +119,7 @@ class TemperatureLaw:
     """
 
     reference: float = 25.0
-    mu_per_kelvin: float = -0.003
+    mu_per_kelvin: float = VOCABULARY["oil_temperature"].default("mu_per_kelvin")  # the oil effect's assumption
     sigma: float = 0.003
     source: str = "prior"
 
