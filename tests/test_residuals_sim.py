@@ -69,6 +69,7 @@ from worm_model.residuals.extended import ExtendedModel, write_parameter_file
 from worm_model.residuals.model import prepare_signals
 from worm_model.rig_data.schema import MeasuredData, read_rig_csv, write_rig_csv
 import worm_rig_driver.protocol.table as protocol_table
+from worm_model.effects import VOCABULARY
 from worm_rig_driver.sim.effects import EFFECTS as SIM_EFFECTS
 from worm_rig_driver.sim.effects import SenseContext
 from worm_rig_driver.sim.sensors import AdcChain
@@ -344,9 +345,10 @@ def test_timing_constants_are_the_simulators_and_its_sampling_phase_is_constant(
         monkeypatch: pytest.MonkeyPatch) -> None:
     sim_pwm = SIM_EFFECTS["pwm"]
     assert CURRENT_HOLD_DELAY == pytest.approx(AdcChain().sample_times()["current_drive"], rel=1e-12)  # 12 us
-    assert PWM_FREQUENCY == sim_pwm.parameters["frequency"].default \
+    # the vocabulary's PWM (what both the simulator's hooks and the regressor read) is the firmware's
+    assert PWM_FREQUENCY == VOCABULARY["pwm"].default("frequency") \
         == protocol_table.F_CPU_HZ / (protocol_table.PWM_TOP + 1)
-    assert Pwm.filter_cutoff == sim_pwm.parameters["filter_cutoff"].default
+    assert Pwm.filter_cutoff == VOCABULARY["pwm"].default("filter_cutoff")
     assert RIG.sensors.sample_rate_hz == protocol_table.SAMPLE_RATE_HZ
     # the phase the simulator's pwm effect computes, on every sample of a 3 s run, on both sensor paths
     phases: list[float] = []
