@@ -19,6 +19,7 @@ from worm_model.physics.parameters import Rig
 #: the simulator's face in worm_model.effects' registry
 FACE = "simulator"
 
+
 @dataclass
 class ShaftState:
     """What an effect's torque or friction may depend on; arrays of shape (n,), SI.
