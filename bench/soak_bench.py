@@ -260,96 +260,98 @@ def run(args: argparse.Namespace, work: Path) -> dict:
     if args.chaos:  # first: it may move this process into a network namespace before any thread starts
         from soak_chaos import Chaos
         chaos = Chaos(args.seed, duration, work, start_recorder, args.faults)
-    graph = Graph(GRAPH_FILE, overrides, work / "logs", **rig_computer(GRAPH_FILE),
-                  **(chaos.graph_options(GRAPH_FILE) if chaos else {}))
-    record = {"minutes": args.minutes, "window": args.window, "seed": args.seed, "chaos": bool(chaos),
-              "steps": [asdict(s) for s in steps], "events": [], "bags": [], "bag_sizes": [], "diagnostics": {}}
-    procs = Processes()
-    recorder = None
-    heard: dict[str, list[float]] = {}  # node name -> receive times [s after t0] of its /diagnostics
+    try:
+        graph = Graph(GRAPH_FILE, overrides, work / "logs", **rig_computer(GRAPH_FILE),
+                      **(chaos.graph_options(GRAPH_FILE) if chaos else {}))
+        record = {"minutes": args.minutes, "window": args.window, "seed": args.seed, "chaos": bool(chaos),
+                  "steps": [asdict(s) for s in steps], "events": [], "bags": [], "bag_sizes": [], "diagnostics": {}}
+        procs = Processes()
+        recorder = None
+        heard: dict[str, list[float]] = {}  # node name -> receive times [s after t0] of its /diagnostics
 
-    with probe_node("soak_probe", EventsExecutor) as (node, executor):
-        t_zero = [time.monotonic()]
+        with probe_node("soak_probe", EventsExecutor) as (node, executor):
+            t_zero = [time.monotonic()]
 
-        def on_diagnostics(msg) -> None:
-            for status in msg.status:
-                heard.setdefault(status.name, []).append(time.monotonic() - t_zero[0])
+            def on_diagnostics(msg) -> None:
+                for status in msg.status:
+                    heard.setdefault(status.name, []).append(time.monotonic() - t_zero[0])
 
-        node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
-        setpoint = node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND)
-        load = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
-        try:
-            graph.start()
-            bag = work / "bag"
-            recorder = start_recorder(bag, work / "recorder.log")
-            record["bags"].append(bag.name)
-            if chaos is not None:
-                chaos.start_station()
-            seen: list[int] = []
-            sub = node.create_subscription(RigSamples, "/rig/samples", lambda m: seen.append(m.first_seq), STREAM)
-            if not spin_until(executor, lambda: bool(seen) or bool(graph.failed()), START_TIMEOUT) or not seen:
-                raise RuntimeError(f"/rig/samples did not flow within {START_TIMEOUT:g} s "
-                                   f"(exited: {graph.failed()}); logs in {work}")
-            node.destroy_subscription(sub)  # the probe does not listen to the stream during the run
-            log = work / "recorder.log"
-            if not spin_until(executor, lambda: all(f"Recording {t} " in log.read_text(errors="replace")
-                                                    for t in MEASURED), START_TIMEOUT):
-                raise RuntimeError(f"the recorder did not subscribe to {', '.join(MEASURED)} within "
-                                   f"{START_TIMEOUT:g} s; its log: {log}")
-            setpoint.publish(Float64(data=steps[0].speed))
-            load.publish(LoadCommand(torque=steps[0].load))
-            info(f"graph up; {len(steps)} commands over {args.minutes:g} min in windows of {args.window:g} s; "
-                 f"settling {SETTLE:g} s")
-            spin_until(executor, lambda: False, SETTLE)
-            t0_wall, t_zero[0] = time.time_ns(), time.monotonic()
-            record["t0_ns"] = t0_wall
-            heard.clear()
-
-            def pids() -> dict[str, int]:
-                alive = {key: proc.pid for key, proc in graph.processes.items() if proc.poll() is None}
-                if recorder is not None and recorder.poll() is None:
-                    alive[RECORDER] = recorder.pid
-                return alive
-
-            procs.sample(0.0, pids())
-            record["bag_sizes"].append((0.0, bag_bytes(work, record)))
-            next_step, next_resource, window_end = 1, RESOURCE_PERIOD, args.window
-            while (now := time.monotonic() - t_zero[0]) < duration:
-                while next_step < len(steps) and steps[next_step].at <= now:
-                    step = steps[next_step]
-                    setpoint.publish(Float64(data=step.speed))
-                    load.publish(LoadCommand(torque=step.load))
-                    next_step += 1
+            node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
+            setpoint = node.create_publisher(Float64, "/controller/speed_setpoint", COMMAND)
+            load = node.create_publisher(LoadCommand, "/rig/load_command", COMMAND)
+            try:
+                graph.start()
+                bag = work / "bag"
+                recorder = start_recorder(bag, work / "recorder.log")
+                record["bags"].append(bag.name)
                 if chaos is not None:
-                    recorder = chaos.tick(now, graph, recorder, record)
-                if graph.failed() and chaos is None:
-                    raise RuntimeError(f"nodes exited during the run: {graph.failed()}; logs in {work}")
-                if now >= next_resource or now >= window_end:
-                    row = procs.sample(now, pids())
-                    next_resource = now + RESOURCE_PERIOD
-                    if now >= window_end:
-                        record["bag_sizes"].append((now, bag_bytes(work, record)))
-                        rss = ", ".join(f"{k} {v / MB:.1f} MB" for k, v in row["rss"].items())
-                        info(f"window {round(window_end / args.window)} done ({now / 60:.1f} of "
-                             f"{args.minutes:g} min): RSS {rss}")
-                        window_end += args.window
-                due = min(steps[next_step].at if next_step < len(steps) else duration, next_resource, window_end,
-                          duration, *(chaos.due() if chaos else ()))
-                executor.spin_once(timeout_sec=max(0.0, min(0.2, due - (time.monotonic() - t_zero[0]))))
-            now = time.monotonic() - t_zero[0]
-            procs.sample(now, pids())
-            record["bag_sizes"].append((now, bag_bytes(work, record)))
-            record["t1_ns"] = time.time_ns()
-            if chaos is not None:
-                chaos.finish(now, graph, recorder, record)
-        finally:
-            if chaos is not None:
-                chaos.close()
-            if recorder is not None:
-                code = stop_recorder(recorder)
-                record["recorder_exit"] = code
-            codes = graph.stop()
-            record["exit_codes"] = codes
+                    chaos.start_station()
+                seen: list[int] = []
+                sub = node.create_subscription(RigSamples, "/rig/samples", lambda m: seen.append(m.first_seq), STREAM)
+                if not spin_until(executor, lambda: bool(seen) or bool(graph.failed()), START_TIMEOUT) or not seen:
+                    raise RuntimeError(f"/rig/samples did not flow within {START_TIMEOUT:g} s "
+                                       f"(exited: {graph.failed()}); logs in {work}")
+                node.destroy_subscription(sub)  # the probe does not listen to the stream during the run
+                log = work / "recorder.log"
+                if not spin_until(executor, lambda: all(f"Recording {t} " in log.read_text(errors="replace")
+                                                        for t in MEASURED), START_TIMEOUT):
+                    raise RuntimeError(f"the recorder did not subscribe to {', '.join(MEASURED)} within "
+                                       f"{START_TIMEOUT:g} s; its log: {log}")
+                setpoint.publish(Float64(data=steps[0].speed))
+                load.publish(LoadCommand(torque=steps[0].load))
+                info(f"graph up; {len(steps)} commands over {args.minutes:g} min in windows of {args.window:g} s; "
+                     f"settling {SETTLE:g} s")
+                spin_until(executor, lambda: False, SETTLE)
+                t0_wall, t_zero[0] = time.time_ns(), time.monotonic()
+                record["t0_ns"] = t0_wall
+                heard.clear()
+
+                def pids() -> dict[str, int]:
+                    alive = {key: proc.pid for key, proc in graph.processes.items() if proc.poll() is None}
+                    if recorder is not None and recorder.poll() is None:
+                        alive[RECORDER] = recorder.pid
+                    return alive
+
+                procs.sample(0.0, pids())
+                record["bag_sizes"].append((0.0, bag_bytes(work, record)))
+                next_step, next_resource, window_end = 1, RESOURCE_PERIOD, args.window
+                while (now := time.monotonic() - t_zero[0]) < duration:
+                    while next_step < len(steps) and steps[next_step].at <= now:
+                        step = steps[next_step]
+                        setpoint.publish(Float64(data=step.speed))
+                        load.publish(LoadCommand(torque=step.load))
+                        next_step += 1
+                    if chaos is not None:
+                        recorder = chaos.tick(now, graph, recorder, record)
+                    if graph.failed() and chaos is None:
+                        raise RuntimeError(f"nodes exited during the run: {graph.failed()}; logs in {work}")
+                    if now >= next_resource or now >= window_end:
+                        row = procs.sample(now, pids())
+                        next_resource = now + RESOURCE_PERIOD
+                        if now >= window_end:
+                            record["bag_sizes"].append((now, bag_bytes(work, record)))
+                            rss = ", ".join(f"{k} {v / MB:.1f} MB" for k, v in row["rss"].items())
+                            info(f"window {round(window_end / args.window)} done ({now / 60:.1f} of "
+                                 f"{args.minutes:g} min): RSS {rss}")
+                            window_end += args.window
+                    due = min(steps[next_step].at if next_step < len(steps) else duration, next_resource, window_end,
+                              duration, *(chaos.due() if chaos else ()))
+                    executor.spin_once(timeout_sec=max(0.0, min(0.2, due - (time.monotonic() - t_zero[0]))))
+                now = time.monotonic() - t_zero[0]
+                procs.sample(now, pids())
+                record["bag_sizes"].append((now, bag_bytes(work, record)))
+                record["t1_ns"] = time.time_ns()
+                if chaos is not None:
+                    chaos.finish(now, graph, recorder, record)
+            finally:
+                if recorder is not None:
+                    code = stop_recorder(recorder)
+                    record["recorder_exit"] = code
+                codes = graph.stop()
+                record["exit_codes"] = codes
+    finally:
+        if chaos is not None:
+            chaos.close()  # the hogs, the workstation's recorder, the namespaces
     record["resources"] = procs.samples
     record["diagnostics"] = heard
     record["recorder_log"] = (work / "recorder.log").read_text(errors="replace")[-20000:]
