@@ -80,7 +80,7 @@ from typing import Callable
 
 RESPAWN_DELAY = 1.0  # [s]
 SUPERVISE_PERIOD = 0.2  # [s]
-SPACING = 40.0  # [s] between two faults at least (in short runs less: the run over the faults + 1)
+SPACING = 40.0  # [s] between two faults at least (less in a short run: fault_spacing)
 HOG_PROCESSES = 2
 HOG_SECONDS = 20.0  # [s] (at most half the spacing of the faults)
 CUT = 3.0  # [s] the link down (well inside Fast DDS's 20 s participant lease)
@@ -101,16 +101,16 @@ def info(text: str) -> None:
 
 def fault_plan(seed: int, duration: float, kinds: tuple[str, ...] = KINDS) -> list[tuple[float, str]]:
     """(time [s after the first window's start], kind) of every fault, sorted: one of each kind per 10 minutes
-    (at least one), at seeded random moments at least SPACING (or a fifth of a short run) apart, none in the
-    first or last spacing of the run."""
+    (at least one), at seeded random moments at least :func:`fault_spacing` apart, none in the first or last
+    spacing of the run."""
     rng = random.Random(f"chaos {seed}")
     per_kind = max(1, round(duration / 600.0))
     faults = [kind for kind in kinds for _ in range(per_kind)]
     rng.shuffle(faults)
     spacing = fault_spacing(duration, len(faults))
     slack = duration - spacing * (len(faults) + 1)  # spread at random over the gaps
-    cuts = sorted(rng.uniform(0, slack) for _ in faults)
-    return [(round(spacing * (k + 1) + cut, 3), kind) for k, (cut, kind) in enumerate(zip(cuts, faults))]
+    offsets = sorted(rng.uniform(0, slack) for _ in faults)
+    return [(round(spacing * (k + 1) + offset, 3), kind) for k, (offset, kind) in enumerate(zip(offsets, faults))]
 
 
 def fault_spacing(duration: float, faults: int) -> float:
