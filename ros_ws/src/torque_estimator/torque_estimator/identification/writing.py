@@ -94,7 +94,7 @@ def document(rig_file: str | Path | None, ident: "Identification", source: str) 
     # the free list is what the next refit (identify or residuals --rig this file) may fit: the parameters the
     # time-series refit knows; the steady road's own (a support's low-speed rise) stay identified values only
     doc["free"] = [name for name in ident.fitted if name in FREE_PARAMETERS]
-    doc["effects"] = effects_section(ident.model)
+    doc["effects"] = effects_section(ident.model)  # an unphysical fit of an effect is left out (its docstring)
     doc["identification"] = ident.section(source)
     return doc
 

@@ -186,7 +186,10 @@ def write_parameter_file(path: str | Path, base_file: str | Path, model: Extende
         node["source"] = f"{provenance} (95 % CI +-{ci:.2g} {unit}); {before}"
         document[section][leaf] = node
     document["free"] = list(free)
-    document["effects"] = effects_section(model, str(path))
+    left_out: dict[str, str] = {}
+    document["effects"] = effects_section(model, str(path), left_out)
+    effect_notes = {**(effect_notes or {}), **{name: f"left out of this model, its fit is unphysical: {why}"
+                                               for name, why in left_out.items()}}
     header = (f"# Extended model written by `residuals` ({provenance}).\n"
               "# Rig parameters as in the base file, free ones identified; `effects:` is a worm_rig_effects\n"
               "# section: the effects' parameter names and units (worm_effects --list).\n")
@@ -194,15 +197,25 @@ def write_parameter_file(path: str | Path, base_file: str | Path, model: Extende
     Path(path).write_text(header + notes + yaml.safe_dump(document, sort_keys=False), encoding="utf-8")
 
 
-def effects_section(model: ExtendedModel, origin: str = "<fitted>") -> dict[str, dict[str, float]]:
+def effects_section(model: ExtendedModel, origin: str = "<fitted>",
+                    left_out: dict[str, str] | None = None) -> dict[str, dict[str, float]]:
     """The ``effects:`` section a file of the extended model holds: each fitted effect as the vocabulary's parameters
     (its regressor's translation, 6 significant digits), checked and completed by worm_model.effects.file_format.
 
-    Raises:
-        EffectsError: a fitted value no effects file may hold (outside its declared range).
+    A fitted effect with a value no effects file may hold (outside its declared range: no physical gearbox has it,
+    so the fit took up something else) is left out of the section, and why goes into ``left_out`` (effect name ->
+    the file format's reason), for the writer to say so.
     """
-    fitted = {effect.name: {k: float(f"{v:.6g}") for k, v in effect.simulator_entry(values, grid).items()}
-              for effect, values, grid in model.effects}
+    fitted = {}
+    for effect, values, grid in model.effects:
+        entry = {k: float(f"{v:.6g}") for k, v in effect.simulator_entry(values, grid).items()}
+        try:
+            EffectsConfig.from_mapping({effect.name: entry}, origin)
+        except EffectsError as err:
+            if left_out is not None:
+                left_out[effect.name] = str(err)
+            continue
+        fitted[effect.name] = entry
     return EffectsConfig.from_mapping(fitted, origin).section()
 
 
