@@ -67,7 +67,8 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from soak_chaos import KINDS as FAULT_KINDS  # bench/ is on sys.path: the script's folder
+from graph_bench import cpu_seconds, percentile  # bench/ is on sys.path: the script's folder
+from soak_chaos import KINDS as FAULT_KINDS
 from torque_estimator.graph.runner import rig_computer
 
 REPO = Path(__file__).resolve().parents[1]
@@ -142,19 +143,6 @@ def command_profile(seed: int, duration: float, window: float) -> list[Step]:
             steps.append(Step(round(t, 3), kind, round(speed, 3), round(load, 4)))
             t += rng.uniform(*HOLD) * scale
     return steps
-
-
-def percentile(values: list[float], q: float) -> float:
-    if not values:
-        return float("nan")
-    ordered = sorted(values)
-    return ordered[min(len(ordered) - 1, max(0, math.ceil(q / 100 * len(ordered)) - 1))]
-
-
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU time [s] of a process and its threads."""
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / HZ
 
 
 def rss_bytes(pid: int) -> float:
