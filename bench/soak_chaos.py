@@ -481,7 +481,9 @@ def chaos_figures(record: dict, work: Path, recorder_said_lost: float) -> tuple[
         worst = max(waits.values())
         longest[key] = max(longest.get(key, 0.0), worst)
         late_resume += worst > RESUME_LIMIT
-        info(f"{e['t']:.1f} s respawn of {key}: " + ", ".join(f"{what} after {w:.2f} s" for what, w in waits.items()))
+        info(f"{e['t']:.1f} s respawn of {key}: " + ", ".join(
+            f"{what} after {w:.2f} s" if math.isfinite(w) else f"{what} not back before the run ended"
+            for what, w in waits.items()))
     figures["chaos_respawns"] = (float(len(respawns)), "")
     for key in (CONTROL, RIG, RECORDER):
         figures[f"chaos_resume_max_{key.replace('+', '__')}"] = (longest.get(key, math.nan), "s")

@@ -159,6 +159,9 @@ def run_nodes(makers: Sequence[Callable[[], Node]], args: list[str] | None = Non
     # A node that does not exit after SIGINT can be asked where it is stuck: SIGUSR1 prints every
     # thread's Python stack to stderr (run_graph and the tests do this before SIGKILL).
     faulthandler.register(signal.SIGUSR1, all_threads=True)
+    # A crash inside the middleware or a C extension (SIGSEGV, SIGABRT, ...) prints every thread's Python
+    # stack to stderr before the process dies, so its log says where instead of being empty.
+    faulthandler.enable(all_threads=True)
     for signum in (signal.SIGINT, signal.SIGTERM):  # building may block (a slow file): Ctrl-C must end it
         signal.signal(signum, _interrupt)
     refused = init_rclpy(program, args)
