@@ -17,11 +17,13 @@ import numpy as np
 import pytest
 
 from worm_model.physics.parameters import load_rig
+from worm_model.physics.resolution import standstill_speed
 from worm_model.rig_data.epos import read_epos
 from worm_model.ros.ament import find_executable
 
 from torque_estimator.evaluation import real_drive
 from torque_estimator.identification.steady import halves
+from torque_estimator.offline.moves import score_moves
 
 REPO = Path(__file__).resolve().parents[5]
 DOC = REPO / "docs" / "real-data.md"
@@ -174,16 +176,17 @@ def test_parameters(study: real_drive.Study, doc: str) -> None:
 
 def test_the_start_stop_table(study: real_drive.Study, doc: str) -> None:
     rows = re.findall(r"^\| (\d+\.csv) \| (\w+) \| (yes|no) \| (lifting|lowering) \| ([-+\d.]+) \| ([\d.]+) \| "
-                      r"([-+\d.]+) \| (\d+) \| (\d+) \|$", doc, re.M)
+                      r"([-+\d.]+) \| (\d+) \| (\d+) \| (\d+) \|$", doc, re.M)
     assert len(rows) == len(study.moves) == 16
     by_key = {(m.file, m.method, "yes" if m.prior else "no", m.move): m for m in study.moves}
-    for file, method, prior, move, error, bound, model, trusted, worst in rows:
+    for file, method, prior, move, error, bound, model, trusted, worst, turn in rows:
         m = by_key[(file, method, prior, move)]
         assert close(error, m.error_pct) and close(bound, m.bound) and close(model, m.model_bound_pct)
         assert int(trusted) == round(100 * m.trusted) and int(worst) == round(m.worst), (file, method, prior, move)
+        assert int(turn) == round(m.worst_bound), (file, method, prior, move)
 
 
-def test_what_the_page_says_of_the_moves(study: real_drive.Study) -> None:
+def test_what_the_page_says_of_the_moves(study: real_drive.Study, folder: Path) -> None:
     """The page's prose on the start-stop runs, and the targets where they are met."""
     moves = {(m.file, m.method, m.prior, m.move): m for m in study.moves}
     slow = [m for m in study.moves if m.file == "10.csv"]
@@ -199,6 +202,27 @@ def test_what_the_page_says_of_the_moves(study: real_drive.Study) -> None:
     assert close("-8.1", bare.error_pct) and round(100 * (1 - bare.trusted)) == 17
     worst = [m.worst for m in study.moves if m.file == "200.csv" and m.move == "lowering"]
     assert round(min(worst)) == 37 and round(max(worst)) == 72
+    # the model's residual at the -200 rpm export, in its standard errors
+    k = int(np.argmin(study.points.omega))
+    assert close("1.15", abs(study.fitted[k] - study.measured[k]) / study.sem[k])
+    assert close("0.009", 1e3 * abs(study.fitted[k] - study.measured[k]))
+    # the climb: each worm turn's torque against the steady export's, through the model's slope
+    data = real_drive.read(real_drive.start_stop_folder() / "200.csv", study.rig, skip_bad_rows=False)
+    scored = score_moves(data, np.zeros(len(data)), np.ones(len(data), dtype=bool), standstill_speed(study.rig))
+    (lowering,) = [m.cruise for m in scored if m.kind == "lowering"]
+    kt = study.rig.drive_motor.torque_constant
+    per = 100.0 / abs(float(real_drive.slope(study.full.model, np.array([-20.9]))[0])) / real_drive.LOAD
+    off = [abs(kt * np.mean(data.current_drive[t]) - fast.steady_torque) * per
+           for t in real_drive.worm_turns(data, lowering)]
+    assert (round(min(off[:6])), round(max(off[:6]))) == (16, 32)
+    assert (round(min(off[6:])), round(max(off[6:]))) == (0, 18)
+    assert round(fast.worst_bound) == 32
+    # the momentum observer at 2 Hz, as estimate --params-file sets it
+    steady = {real_drive.nominal_rpm(f, w): t for f, w, t in zip(study.files, study.points.omega, study.measured)}
+    faster, *_ = real_drive.moves(real_drive.start_stop_folder() / "200.csv", folder / "identified.yaml",
+                                  "momentum", True, study.rig, steady, options={"bandwidth": 2.0})
+    at_2hz = next(m for m in faster if m.move == "lowering")
+    assert close("-16.3", at_2hz.error_pct) and round(at_2hz.worst) == 58
     # every move, with the prior, within 10 % lifting and 15 % lowering or the larger of the two bounds
     for m in study.moves:
         if m.prior:

@@ -38,8 +38,11 @@ The lines (each on one line):
           lift_mae_pct=<x> lift_max_pct=<x> lower_mae_pct=<x> lower_bound_pct=<x> mu=<x> tro_mu=0.12
           not_identifiable=<names>
     real_start_stop: file=<f> method=<m> prior=<yes|no> move=<lifting|lowering> error_pct=<x>
-          data_bound_pct=<x> model_bound_pct=<x> trusted_pct=<x> worst_pct=<x>
-(worst_pct: the largest error of one trusted estimate in the move.)
+          data_bound_pct=<x> model_bound_pct=<x> trusted_pct=<x> worst_pct=<x> worst_bound_pct=<x>
+(worst_pct: the largest error of one trusted estimate in the move; worst_bound_pct: the data's bound on one
+worm turn, the largest over the moves' whole worm turns of the turn's mean torque against the steady export's,
+through the model's slope: the ripple repeats with the worm's turn, so no estimate that averages less than a turn
+is steadier, and none from a model of the steady exports is nearer than the turn's own torque allows.)
 """
 from __future__ import annotations
 
@@ -205,6 +208,7 @@ class Move:
     torque: float  # [N m] the move's mean motor torque
     steady_torque: float  # [N m] the steady export's at the same nominal speed
     model_load: float  # [N m] the identified model's load for the move's mean speed and torque (module docstring)
+    worst_bound: float  # [% of the load] the data's bound on one worm turn: the largest of the moves' turns
 
     @property
     def model_bound_pct(self) -> float:
@@ -218,15 +222,29 @@ class Move:
         return (f"real_start_stop: file={self.file} method={self.method} prior={'yes' if self.prior else 'no'} "
                 f"move={self.move} error_pct={self.error_pct:.1f} data_bound_pct={self.bound:.1f} "
                 f"model_bound_pct={self.model_bound_pct:.1f} "
-                f"trusted_pct={100.0 * self.trusted:.0f} worst_pct={self.worst:.0f}")
+                f"trusted_pct={100.0 * self.trusted:.0f} worst_pct={self.worst:.0f} "
+                f"worst_bound_pct={self.worst_bound:.0f}")
 
 
-def moves(path: Path, model_file: Path, method: str, prior: bool, rig: Rig,
-          steady: dict[int, float]) -> tuple[list[Move], MeasuredData, np.ndarray, np.ndarray]:
+def worm_turns(data: MeasuredData, cruise: np.ndarray) -> list[np.ndarray]:
+    """A move's cruise (sample indices) cut into whole worm turns, from its start: each the samples over which
+    the worm turned 2 pi (the last, shorter, left out); a cruise shorter than one turn (10 rpm: a turn takes 6 s)
+    is its one piece. The torque's ripple repeats with the worm's turn, so a turn's mean is the shortest average
+    free of it."""
+    if not len(cruise):
+        return []
+    angle = np.abs(np.cumsum(data.omega_worm[cruise]) * data.sample_period)
+    index = np.floor(angle / (2.0 * math.pi)).astype(int)
+    return [cruise[index == k] for k in range(int(index[-1]))] or [cruise]
+
+
+def moves(path: Path, model_file: Path, method: str, prior: bool, rig: Rig, steady: dict[int, float],
+          options: dict[str, float] | None = None) -> tuple[list[Move], MeasuredData, np.ndarray, np.ndarray]:
     """``estimate`` on one start-stop export (module docstring): its moves as ``estimate`` scores them
     (offline.moves), the lowering ones and the lifting ones each taken together, the data, the estimate and its
-    flags. ``steady``: the steady exports' mean motor torque [N m] by nominal rpm (signed)."""
-    options = {"load_min": PRIOR[0], "load_max": PRIOR[1]} if prior else {}
+    flags. ``steady``: the steady exports' mean motor torque [N m] by nominal rpm (signed); ``options``: more of
+    the estimator's parameters (what ``estimate --params-file`` sets; the nodes' defaults when None)."""
+    options = {**(options or {}), **({"load_min": PRIOR[0], "load_max": PRIOR[1]} if prior else {})}
     built = build_estimator(EstimatorSettings(method, model_file=str(model_file), options=options))
     data = read(path, built.rig, skip_bad_rows=False)
     estimate = run_estimator(data, lambda: built.live(data.sample_period))
@@ -248,9 +266,12 @@ def moves(path: Path, model_file: Path, method: str, prior: bool, rig: Rig,
         sign = 1 if speed > 0 else -1
         rpm = sign * min((abs(r) for r in steady), key=lambda r: abs(r - abs(speed) * 30.0 / math.pi))
         reference = steady.get(rpm, math.nan)
-        bound = 100.0 * abs(torque - reference) / abs(float(slope(model, np.array([speed]))[0])) / LOAD
-        out.append(Move(path.name, method, prior, name, mean, float(np.mean(ok)), worst, bound, torque, reference,
-                        model_load(model, speed, float(np.mean(data.current_drive[idx])))))
+        per_load = 100.0 / abs(float(slope(model, np.array([speed]))[0])) / LOAD  # [% of the load per N m]
+        turns = np.array([kt * np.mean(data.current_drive[turn]) for m in these for turn in worm_turns(data, m.cruise)])
+        out.append(Move(path.name, method, prior, name, mean, float(np.mean(ok)), worst,
+                        abs(torque - reference) * per_load, torque, reference,
+                        model_load(model, speed, float(np.mean(data.current_drive[idx]))),
+                        float(np.max(np.abs(turns - reference))) * per_load if len(turns) else math.nan))
     return out, data, estimate.torque, estimate.flags
 
 
@@ -369,8 +390,9 @@ def lines(study: Study) -> list[str]:
         out.append(f"    {move.file} {move.method:14s} prior {'yes' if move.prior else 'no ':3s} {move.move:8s} "
                    f"mean {1e3 * move.mean:6.2f} mN m ({move.error_pct:+6.1f} %), trusted {100 * move.trusted:3.0f} %, "
                    f"worst {move.worst:3.0f} %; torque {1e3 * move.torque:+.3f} against the steady export's "
-                   f"{1e3 * move.steady_torque:+.3f} mN m: the data's bound {move.bound:.1f} %; the model's load for "
-                   f"the move's mean torque {move.model_bound_pct:+.1f} %")
+                   f"{1e3 * move.steady_torque:+.3f} mN m: the data's bound {move.bound:.1f} % (on one worm turn "
+                   f"{move.worst_bound:.0f} %); the model's load for the move's mean torque "
+                   f"{move.model_bound_pct:+.1f} %")
     out += [m.line() for m in study.moves]
     out.append(study.line())
     return out
