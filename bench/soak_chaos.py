@@ -14,10 +14,10 @@ or for half the spacing after the last one):
                  SCHED_FIFO 40, the recorder and this process do not)
   dds_cut        the link between the rig computer's network namespace (the graph, its recorder, this
                  process) and a workstation's (a second recorder, of /rig/samples and /torque_estimate)
-                 down for CUT seconds; the two hosts are two network namespaces joined by a veth pair, as
-                 tests/test_two_hosts_dds.py makes them, DDS discovery on the subnet. It needs
-                 root and iproute2: without them the run says why and has no cut (and the graph runs on
-                 localhost as in the soak)
+                 down for CUT seconds; the two hosts are two network namespaces joined by a veth pair
+                 (worm_model.ros.two_hosts, as tests/test_two_hosts_dds.py has them, on SUBNET), DDS discovery
+                 on the subnet. It needs root and iproute2: without them the run says why and has no cut (and
+                 the graph runs on localhost as in the soak)
 
 Counted over the run, from the bags (the rig's own stamps) and what this process saw, and printed (each
 fault's outcome on stderr):
@@ -65,18 +65,18 @@ and verdict lines watchdog, respawn, recorder, stuck, cut (SKIPPED, with the rea
 from __future__ import annotations
 
 import bisect
-import ctypes
 import math
 import os
 import random
 import re
-import shutil
 import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
 from typing import Callable
+
+from worm_model.ros import two_hosts
 
 RESPAWN_DELAY = 1.0  # [s]
 SUPERVISE_PERIOD = 0.2  # [s]
@@ -91,8 +91,8 @@ SILENT_LIMIT = 3.0  # [s] of /diagnostics silence (1 Hz) that counts a node stuc
 CONTROL, RIG, RECORDER = "model_node+controller_node", "sim_node", "recorder"
 OUTPUTS = {CONTROL: ("/rig/speed_command", "/gearbox/forces"), RIG: ("/rig/samples", "/torque_estimate")}
 NODES = {CONTROL: ("model_node", "controller_node"), RIG: ("sim_node",)}
-SUBNET = "10.78.0"
-CLONE_NEWNET = 0x40000000
+SUBNET = "10.78.0"  # the two hosts' network (the two-hosts test uses another)
+HOSTS_TAG = "s"  # begins the names of their namespaces and links
 
 
 def info(text: str) -> None:
@@ -123,63 +123,6 @@ def hog_seconds(spacing: float) -> float:
     return min(HOG_SECONDS, 0.5 * spacing)
 
 
-# --- two hosts --------------------------------------------------------------------------------------------------
-
-def ip(*args: str) -> None:
-    subprocess.run(["ip", *args], check=True, capture_output=True, timeout=10)
-
-
-class TwoHosts:
-    """Namespaces rig and station joined by a veth pair on SUBNET.0/24 (as tests/test_two_hosts_dds.py)."""
-
-    def __init__(self) -> None:
-        tag = os.getpid() % 100000
-        self.rig, self.station = f"srig{tag}", f"ssta{tag}"
-        self.rig_if, self.station_if = f"sr{tag}", f"ss{tag}"
-
-    def create(self) -> None:
-        ip("netns", "add", self.rig)
-        ip("netns", "add", self.station)
-        ip("link", "add", self.rig_if, "type", "veth", "peer", "name", self.station_if)
-        for ns, dev, host in ((self.rig, self.rig_if, 1), (self.station, self.station_if, 2)):
-            ip("link", "set", dev, "netns", ns)
-            ip("-n", ns, "addr", "add", f"{SUBNET}.{host}/24", "dev", dev)
-            ip("-n", ns, "link", "set", "lo", "up")
-        self.connect()
-
-    def connect(self) -> None:
-        """Both ends up, with the multicast route discovery needs (a link going down drops it)."""
-        for ns, dev in ((self.rig, self.rig_if), (self.station, self.station_if)):
-            ip("-n", ns, "link", "set", dev, "up")
-            ip("-n", ns, "route", "replace", "224.0.0.0/4", "dev", dev)
-
-    def cut(self) -> None:
-        ip("-n", self.rig, "link", "set", self.rig_if, "down")
-
-    def enter_rig(self) -> None:
-        """Move this process (its only thread: call it before rclpy starts any) into the rig's namespace, so
-        that every process it starts runs there too."""
-        fd = os.open(f"/var/run/netns/{self.rig}", os.O_RDONLY)
-        try:
-            if ctypes.CDLL(None, use_errno=True).setns(fd, CLONE_NEWNET) != 0:
-                raise OSError(ctypes.get_errno(), f"setns into {self.rig}")
-        finally:
-            os.close(fd)
-
-    def remove(self) -> None:
-        for ns in (self.rig, self.station):  # removing a namespace removes its end of the veth pair
-            subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=10)
-
-
-def cut_problem() -> str:
-    """Why this machine cannot cut a link between two network namespaces ('' if it can)."""
-    if os.geteuid() != 0:
-        return "not root (network namespaces need CAP_SYS_ADMIN)"
-    if shutil.which("ip") is None:
-        return "no iproute2 'ip' command"
-    return ""
-
-
 # --- during the run ---------------------------------------------------------------------------------------------
 
 class Chaos:
@@ -188,10 +131,10 @@ class Chaos:
     def __init__(self, seed: int, duration: float, work: Path,
                  start_recorder: Callable[[Path, Path], subprocess.Popen], kinds: tuple[str, ...] = KINDS) -> None:
         self.work, self.duration, self.start_recorder = work, duration, start_recorder
-        self.hosts: TwoHosts | None = None
-        self.cut_skipped = cut_problem() if "dds_cut" in kinds else "not asked for (--faults)"
+        self.hosts: two_hosts.TwoHosts | None = None
+        self.cut_skipped = two_hosts.problem() if "dds_cut" in kinds else "not asked for (--faults)"
         if not self.cut_skipped:
-            hosts = TwoHosts()
+            hosts = two_hosts.TwoHosts(SUBNET, HOSTS_TAG)
             try:
                 hosts.create()
                 hosts.enter_rig()

@@ -1,13 +1,12 @@
 """The graph split over two hosts, as a rig computer and a workstation run it, and the link between them cut.
 
-Two network namespaces joined by a veth pair stand for the two hosts (the test creates and removes them;
-it needs root, as CI has): the rig computer runs sim_node (whose load observer feeds forward and publishes
-the graph's /torque_estimate) and controller_node, the workstation runs model_node and a recorder. DDS
-finds its peers across the link by multicast
-(ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET). Fast DDS is kept to UDP (FASTDDS_BUILTIN_TRANSPORTS=UDPv4), the
-only transport two real hosts share: two namespaces of one machine also share /dev/shm, and whether the
-shared-memory transport pairs them depends on how a Fast DDS version tells hosts apart (Kilted's did not
-here; the data stopped at the cut either way).
+Two network namespaces joined by a veth pair stand for the two hosts (worm_model.ros.two_hosts; the test
+creates and removes them; it needs root, as CI has): the rig computer runs sim_node (whose load observer feeds
+forward and publishes the graph's /torque_estimate) and controller_node, the workstation runs model_node and a
+recorder. DDS finds its peers across the link by multicast (ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET). Fast DDS
+is kept to UDP (FASTDDS_BUILTIN_TRANSPORTS=UDPv4), the only transport two real hosts share: two namespaces of
+one machine also share /dev/shm, and whether the shared-memory transport pairs them depends on how a Fast DDS
+version tells hosts apart (Kilted's did not here; the data stopped at the cut either way).
 
 The rig runs at 150 rad/s against +0.1 N m; then the link is taken down for CUT seconds and brought back.
 Judged on the streams' own stamps, in bags recorded on each side:
@@ -22,8 +21,6 @@ Judged on the streams' own stamps, in bags recorded on each side:
 """
 from __future__ import annotations
 
-import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -37,9 +34,9 @@ from torque_estimator.graph.runner import Graph, batch_rate, parse_overrides
 from worm_model.errors import BagReadError
 from worm_model.bags.writer import read_messages
 from worm_model.ros.ament import find_executable
+from worm_model.ros.two_hosts import TwoHosts, problem
 
-pytestmark = pytest.mark.skipif(os.geteuid() != 0 or shutil.which("ip") is None,
-                                reason="creates network namespaces: needs root and iproute2 (CI has both)")
+pytestmark = pytest.mark.skipif(bool(problem()), reason=f"creates network namespaces: {problem()} (CI can)")
 
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
@@ -50,7 +47,8 @@ LOAD = 0.1  # [N m]
 ESTIMATE_TIMEOUT = 0.05  # [s] controller_node's estimate_timeout (sim_graph.yaml)
 CUT = 3.0  # [s] the link is down this long (well inside Fast DDS's 20 s participant lease)
 START_TIMEOUT = 60.0  # [s] generous: a loaded 2-core machine starts six Python processes
-SUBNET = "10.77.0"
+SUBNET = "10.77.0"  # the two hosts' network (the soak's chaos run uses another)
+HOSTS_TAG = "w"  # begins the names of their namespaces and links
 
 # Publishes the load while the test runs (a stand-in for whatever sets the load on a real rig).
 LOAD_PUBLISHER = f"""
@@ -67,42 +65,6 @@ try:
 except Exception:
     pass
 """
-
-
-def ip(*args: str) -> None:
-    subprocess.run(["ip", *args], check=True, capture_output=True, timeout=10)
-
-
-class TwoHosts:
-    """Namespaces ``rig`` and ``station`` with veth ends ``rig_if`` and ``station_if`` on SUBNET.0/24."""
-
-    def __init__(self) -> None:
-        tag = os.getpid() % 100000
-        self.rig, self.station = f"wrig{tag}", f"wsta{tag}"
-        self.rig_if, self.station_if = f"vr{tag}", f"vs{tag}"
-
-    def create(self) -> None:
-        ip("netns", "add", self.rig)
-        ip("netns", "add", self.station)
-        ip("link", "add", self.rig_if, "type", "veth", "peer", "name", self.station_if)
-        for ns, dev, host in ((self.rig, self.rig_if, 1), (self.station, self.station_if, 2)):
-            ip("link", "set", dev, "netns", ns)
-            ip("-n", ns, "addr", "add", f"{SUBNET}.{host}/24", "dev", dev)
-            ip("-n", ns, "link", "set", "lo", "up")
-        self.connect()
-
-    def connect(self) -> None:
-        """Bring both ends up, with the multicast route discovery needs (a link going down drops it)."""
-        for ns, dev in ((self.rig, self.rig_if), (self.station, self.station_if)):
-            ip("-n", ns, "link", "set", dev, "up")
-            ip("-n", ns, "route", "replace", "224.0.0.0/4", "dev", dev)
-
-    def cut(self) -> None:
-        ip("-n", self.rig, "link", "set", self.rig_if, "down")
-
-    def remove(self) -> None:
-        for ns in (self.rig, self.station):  # removing a namespace removes its end of the veth pair
-            subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=10)
 
 
 def stamp_s(stamp) -> float:
@@ -176,7 +138,7 @@ class Run:
 @pytest.fixture(scope="module")
 def two_hosts(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Run, float, float]]:
     """The run: (the run, time the link was cut, time it was back) [s, system clock, as the stamps]."""
-    hosts = TwoHosts()
+    hosts = TwoHosts(SUBNET, HOSTS_TAG)
     env = {**ros_env, "ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "FASTDDS_BUILTIN_TRANSPORTS": "UDPv4",
            "OPENBLAS_NUM_THREADS": "1"}
     run = Run(hosts, env, tmp_path_factory.mktemp("two_hosts"))

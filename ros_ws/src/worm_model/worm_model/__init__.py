@@ -30,7 +30,8 @@ outside ``ros/`` and ``nodes/``):
               a rig file from a gear catalogue and a motor datasheet
 ``figures``   ``report``: the paper's Figures 6-11 from a calibration
 ``ros``       what every node of the project shares (QoS, parameters, diagnostics,
-              lifecycle, ament lookup)
+              lifecycle, ament lookup), and what tests and benchmarks share (DDS
+              probes, two network namespaces as two hosts)
 ``nodes``     model_node, the ROS shell over ``live``
 ============  =================================================================
 
