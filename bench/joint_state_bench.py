@@ -177,8 +177,8 @@ def run(args: argparse.Namespace) -> dict[str, float]:
     index = {base + k * 1_000_000: k for k in range(samples)}
     for j, name in enumerate(names):
         live = built.live(1e-3)
-        direct = [live.update(float(sim["omega"][k, j]), float(sim["current"][k, j]), None,
-                              float(sim["theta"][k, j]), k).torque for k in range(samples)]
+        direct = [live.update(float(sim["omega"][k, j]), float(sim["current"][k, j]),
+                              theta_worm=float(sim["theta"][k, j]), seq=k).torque for k in range(samples)]
         for m in got[name]:
             k = index.get(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec)
             if k is not None:

@@ -47,7 +47,7 @@ class _WithoutEncoder:
 
     def stream(self, period: float):
         inner = self.estimator.stream(period)
-        return type("Stream", (), {"update": lambda _s, v, i, w, th=None: inner.update(v, i, w, None),
+        return type("Stream", (), {"update": lambda _s, **sample: inner.update(**{**sample, "theta_worm": None}),
                                    "skip": lambda _s, n: inner.skip(n)})()
 
 

@@ -136,7 +136,7 @@ def test_the_momentum_observer(database) -> None:
     class Blind:  # the same streams fed no encoder angle
         def stream(self, period):
             inner = plain.stream(period)
-            return type("S", (), {"update": lambda _s, v, i, w, th=None: inner.update(v, i, w, None),
+            return type("S", (), {"update": lambda _s, **sample: inner.update(**{**sample, "theta_worm": None}),
                                   "skip": lambda _s, n: inner.skip(n)})()
 
     assert transient_figures(RIG, replace(built, estimator=Blind()), database.torque_range).step90_ms == int(without)

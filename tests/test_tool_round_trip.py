@@ -558,6 +558,6 @@ def test_any_valid_correction_is_written_and_read_back(data: st.DataObject, iden
     rate = read.sensors.sample_rate_hz
     live = built["extended_model"].live(1.0 / rate)
     for k in range(2000):
-        estimate = live.update(omega, current, math.nan, omega * k / rate)
+        estimate = live.update(omega, current, voltage_drive=math.nan, theta_worm=omega * k / rate)
     assert estimate.torque == pytest.approx(load, abs=0.01 * (high - low)), (values, estimate)
 

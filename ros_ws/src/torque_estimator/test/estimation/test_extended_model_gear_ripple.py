@@ -99,7 +99,7 @@ def test_live_estimator_passes_the_angle(estimator) -> None:
     for label, angle in (("with", theta), ("without", None)):
         live = LiveEstimator(rig, estimator, 1e-3, inertia_compensation=False)
         for _ in range(400):
-            out = live.update(40.0, current, theta=angle)
+            out = live.update(40.0, current, theta_worm=angle)
         results[label] = out.torque
     assert results["with"] == pytest.approx(0.2, abs=0.003)
     assert abs(results["without"] - 0.2) > 0.01

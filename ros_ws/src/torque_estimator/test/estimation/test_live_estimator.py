@@ -126,6 +126,12 @@ def _session(seed: int, samples: int, load: float) -> list[tuple[float, float, f
     return rows
 
 
+def _feed(live: LiveEstimator, row: tuple):
+    """One row (omega [rad/s], current [A], voltage [V], theta [rad][, seq]) into ``live``."""
+    omega, current, voltage, theta, *seq = row
+    return live.update(omega, current, voltage_drive=voltage, theta_worm=theta, seq=seq[0] if seq else None)
+
+
 def _observer_live() -> LiveEstimator:
     from torque_estimator.estimation.registry import make_estimator
     return LiveEstimator(RIG, make_estimator("observer", None), DT)
@@ -138,8 +144,8 @@ def test_a_restarted_rig_stream_starts_every_state_again() -> None:
     first, second = _session(0, 1500, 0.2), _session(1, 1500, -0.1)
     used, fresh = _observer_live(), _observer_live()
     for row in first:
-        used.update(*row)
-    assert [used.update(*row) for row in second] == [fresh.update(*row) for row in second]
+        _feed(used, row)
+    assert [_feed(used, row) for row in second] == [_feed(fresh, row) for row in second]
     assert used.restarts == 1 and used.gaps == 0
 
 
@@ -151,12 +157,12 @@ def test_lost_samples_are_bridged() -> None:
     run = _session(0, 1500, 0.2)
     lossy = run[:800] + run[805:]
     whole, bridged = _observer_live(), _observer_live()
-    reference = [whole.update(*row) for row in run]
-    after = [(e, reference[row[4]]) for e, row in zip((bridged.update(*row) for row in lossy), lossy) if row[4] >= 805]
+    reference = [_feed(whole, row) for row in run]
+    after = [(e, reference[row[4]]) for e, row in zip((_feed(bridged, row) for row in lossy), lossy) if row[4] >= 805]
     assert (bridged.gaps, bridged.lost, bridged.restarts, bridged.stream.restarts) == (1, 5, 0, 0)
     assert max(abs(e.torque - r.torque) for e, r in after) < 2e-3
     assert max(abs(e.torque - r.torque) for e, r in after[100:]) < 1e-3
     blind = _observer_live()
     for row in lossy:
-        blind.update(*row[:4])
+        _feed(blind, row[:4])
     assert blind.stream.restarts == 1

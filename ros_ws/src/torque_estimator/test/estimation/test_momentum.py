@@ -45,8 +45,8 @@ class WithoutEncoder:
         inner = self.estimator.stream(period)
 
         class Stream:
-            def update(self, voltage, current, omega, theta=None):
-                return inner.update(voltage, current, omega, None)
+            def update(self, **sample):
+                return inner.update(**{**sample, "theta_worm": None})
 
             def skip(self, samples):
                 inner.skip(samples)
@@ -88,7 +88,8 @@ def test_it_never_reads_the_voltage() -> None:
         live = LiveEstimator(RIG, make_estimator("momentum", None), 1e-3)
         voltages = {"applied": [v for _w, _i, v, _th in samples], "nan": [math.nan] * len(samples),
                     "garbage": rng.normal(0.0, 50.0, len(samples)).tolist()}[name]
-        estimates[name] = [live.update(w, i, v, th) for (w, i, _v, th), v in zip(samples, voltages)]
+        estimates[name] = [live.update(w, i, voltage_drive=v, theta_worm=th)
+                           for (w, i, _v, th), v in zip(samples, voltages)]
     assert estimates["applied"] == estimates["nan"] == estimates["garbage"]
     assert math.isfinite(estimates["nan"][-1].torque)
 
@@ -197,8 +198,8 @@ def test_invalid_input_missing_angle_and_standstill() -> None:
     load: without the standing rule, the model would read the stopped worm as the load that balances a zero
     current)."""
     obs = MomentumObserver(RIG, 1e-3)
-    assert obs.update(0.0, math.nan, 10.0).flags & EstimateFlags.INVALID_INPUT
-    assert math.isnan(obs.update(0.0, 0.2, math.nan).torque)
+    assert obs.update(voltage_drive=0.0, current_drive=math.nan, omega_worm=10.0).flags & EstimateFlags.INVALID_INPUT
+    assert math.isnan(obs.update(voltage_drive=0.0, current_drive=0.2, omega_worm=math.nan).torque)
     run = run_observers(RIG, lambda t: np.full(1, 150.0 if t < 0.6 else 0.0), lambda t: np.full(1, 0.1), 1, 1.2,
                         estimator=make_estimator("momentum", None))
     moving, standing = run["tau_est"][500:600, 0], run["tau_est"][700:, 0]
@@ -207,12 +208,13 @@ def test_invalid_input_missing_angle_and_standstill() -> None:
     obs = make_estimator("momentum", None).stream(1e-3)
     rng = np.random.default_rng(0)
     for k in range(300):
-        est = obs.update(0.0, 0.35 + 0.02 * rng.normal(), 150.0 + 0.5 * rng.normal(), 0.15 * k)
+        est = obs.update(voltage_drive=0.0, current_drive=0.35 + 0.02 * rng.normal(),
+                         omega_worm=150.0 + 0.5 * rng.normal(), theta_worm=0.15 * k)
     held = est.torque
     for bad in ((0.35, math.nan), (math.inf, 150.0)):
-        est = obs.update(0.0, *bad, 0.15 * 300)
+        est = obs.update(voltage_drive=0.0, current_drive=bad[0], omega_worm=bad[1], theta_worm=0.15 * 300)
         assert est.flags & EstimateFlags.INVALID_INPUT and abs(est.torque - held) < 1e-3
-    est = obs.update(0.0, 0.35, 150.0, math.nan)
+    est = obs.update(voltage_drive=0.0, current_drive=0.35, omega_worm=150.0, theta_worm=math.nan)
     assert not est.flags & EstimateFlags.INVALID_INPUT and math.isfinite(est.torque)
 
 
@@ -223,12 +225,12 @@ def test_self_locking_v_and_limits() -> None:
     smap = StaticLoadMap(RIG)
     t_dist = smap.worm_torque(2.0, 0.1)[0]
     current = (t_dist + RIG.drive_motor.viscous_drag * 2.0) / RIG.drive_motor.torque_constant
-    est = obs.update(0.0, current, 2.0)
+    est = obs.update(voltage_drive=0.0, current_drive=current, omega_worm=2.0)
     _driving, coast, _f, _c = smap.invert(2.0, t_dist)
     assert est.flags & EstimateFlags.AMBIGUOUS and est.torque == pytest.approx(0.1, abs=1e-9)
     assert est.uncertainty >= abs(float(coast) - 0.1) - 1e-12
     big = MomentumObserver(RIG, 1e-3)
-    big.update(0.0, 0.35, 150.0)
+    big.update(voltage_drive=0.0, current_drive=0.35, omega_worm=150.0)
     big.x[2], big._at_x = 5.0, None
     assert big._estimate(False).flags & EstimateFlags.OUT_OF_CALIBRATION
 
@@ -238,9 +240,9 @@ def test_gaps_and_restarts_through_live_estimator() -> None:
     live = LiveEstimator(RIG, make_estimator("momentum", None), 1e-3)
     rng = np.random.default_rng(1)
     for k in range(400):
-        live.update(150.0 + 0.5 * rng.normal(), 0.35 + 0.02 * rng.normal(), None, 0.15 * k, seq=k)
+        live.update(150.0 + 0.5 * rng.normal(), 0.35 + 0.02 * rng.normal(), theta_worm=0.15 * k, seq=k)
     before = live.stream.x.copy()
-    live.update(150.0, 0.35, None, 0.15 * 405, seq=405)
+    live.update(150.0, 0.35, theta_worm=0.15 * 405, seq=405)
     assert live.gaps == 1 and live.lost == 5 and abs(live.stream.x[2] - before[2]) < 0.01
-    live.update(150.0, 0.35, None, 0.0, seq=3)
+    live.update(150.0, 0.35, theta_worm=0.0, seq=3)
     assert live.restarts == 1 and live.stream.samples == 1

@@ -117,23 +117,24 @@ def test_held_out_points_streaming() -> None:
 
 def test_flags_and_invalid_input() -> None:
     obs = LoadObserver(RIG)
-    assert obs.update(math.nan, 0.1, 10.0, 0.0).flags & EstimateFlags.INVALID_INPUT  # before any valid sample
+    first = obs.update(voltage_drive=math.nan, current_drive=0.1, omega_worm=10.0, theta_worm=0.0)
+    assert first.flags & EstimateFlags.INVALID_INPUT  # before any valid sample
     run = run_observers(RIG, lambda t: np.full(1, 150.0), lambda t: np.full(1, 0.1), 1, 0.5)
     assert abs(run["tau_est"][-1, 0] - 0.1) < 0.01
     # feed NaNs into a converged observer: held, flagged, no exception
     obs = LoadObserver(RIG)
     rng = np.random.default_rng(0)
     for k in range(300):
-        obs.update(8.5, 0.1 + 0.02 * rng.normal(), 150.0, 0.15 * k)
+        obs.update(voltage_drive=8.5, current_drive=0.1 + 0.02 * rng.normal(), omega_worm=150.0, theta_worm=0.15 * k)
     held = obs.x[3]
     for bad in (math.nan, math.inf):
-        est = obs.update(bad, 0.1, 150.0, 0.15 * 300)
+        est = obs.update(voltage_drive=bad, current_drive=0.1, omega_worm=150.0, theta_worm=0.15 * 300)
         assert est.flags & EstimateFlags.INVALID_INPUT and est.torque == held
-    est = obs.update(8.5, 0.1, math.nan, 0.15 * 301)
+    est = obs.update(voltage_drive=8.5, current_drive=0.1, omega_worm=math.nan, theta_worm=0.15 * 301)
     assert est.flags & EstimateFlags.INVALID_INPUT
     # a load the rig cannot apply is out of calibration
     big = LoadObserver(RIG)
-    big.update(8.5, 0.1, 150.0, 0.0)
+    big.update(voltage_drive=8.5, current_drive=0.1, omega_worm=150.0, theta_worm=0.0)
     big.x[3] = 5.0
     assert big._estimate(False, 0).flags & EstimateFlags.OUT_OF_CALIBRATION
 
@@ -158,7 +159,8 @@ def test_started_on_a_running_drive_it_settles_without_a_load_step(volts: float,
     flags = []
     for _ in range(3000):
         m = sim.sample()
-        est = obs.update(volts, float(m.current_drive[0]), float(m.omega_worm[0]), float(m.theta_worm[0]))
+        est = obs.update(voltage_drive=volts, current_drive=float(m.current_drive[0]),
+                         omega_worm=float(m.omega_worm[0]), theta_worm=float(m.theta_worm[0]))
         flags.append(est.flags & EstimateFlags.TRANSIENT)
     transient = np.flatnonzero(flags)
     # one run from the start (converging), then settled for good
@@ -217,7 +219,8 @@ def _reference_cases() -> dict:
 
 def _reference_outputs(inputs: np.ndarray, rig, options: dict, encoder: bool) -> dict[str, np.ndarray]:
     obs = LoadObserver(rig, 1e-3, **options)
-    out = [obs.update(v, i, w, th if encoder else None) for v, i, w, th in inputs.tolist()]
+    out = [obs.update(voltage_drive=v, current_drive=i, omega_worm=w, theta_worm=th if encoder else None)
+           for v, i, w, th in inputs.tolist()]
     return {"torque": np.array([e.torque for e in out]), "uncertainty": np.array([e.uncertainty for e in out]),
             "flags": np.array([e.flags for e in out], dtype=np.int8), "jump": np.array([e.jump for e in out])}
 
@@ -309,8 +312,9 @@ def test_a_discontinuity_restarts_the_filter() -> None:
     inputs = _reference_inputs()
     obs = LoadObserver(RIG, 1e-3)
     for v, i, w, th in inputs[:350].tolist():
-        obs.update(v, i, w, th)
+        obs.update(voltage_drive=v, current_drive=i, omega_worm=w, theta_worm=th)
     assert obs.restarts == 0
-    estimates = [obs.update(0.0, 0.0, 0.0, 0.0) for _ in range(200)]
+    estimates = [obs.update(voltage_drive=0.0, current_drive=0.0, omega_worm=0.0, theta_worm=0.0)
+                 for _ in range(200)]
     assert obs.restarts == 1 and RESTART_NIS < 1e5
     assert all(math.isfinite(e.torque) and abs(e.torque) < 0.01 for e in estimates)

@@ -135,4 +135,5 @@ def test_built_as_before_the_settings_existed(calibration) -> None:
     for method, by_hand in (("knn", KnnEstimator(db, k=4)), ("observer", ObserverEstimator(db))):
         built = build_estimator(EstimatorSettings(method, calibration_file=str(calibration))).live(1e-3)
         hand = LiveEstimator(RIG, by_hand, 1e-3)
-        assert [built.update(w, i, v, th) for w, i, v, th in rows] == [hand.update(w, i, v, th) for w, i, v, th in rows]
+        assert ([built.update(w, i, voltage_drive=v, theta_worm=th) for w, i, v, th in rows]
+                == [hand.update(w, i, voltage_drive=v, theta_worm=th) for w, i, v, th in rows])

@@ -52,8 +52,8 @@ def test_a_joint_state_estimates_as_the_rig_samples_do() -> None:
         effort = [2.0, *(data["current_drive"][k, j] * k_t for j in order)]
         got = joints.update(k * NS, names, position, velocity, effort)
         for j in range(2):
-            want = direct[j].update(float(data["omega_worm"][k, j]), float(data["current_drive"][k, j]), None,
-                                    float(data["theta_worm"][k, j]), k)
+            want = direct[j].update(float(data["omega_worm"][k, j]), float(data["current_drive"][k, j]),
+                                    theta_worm=float(data["theta_worm"][k, j]), seq=k)
             seq, est = got[j]
             assert seq == k
             worst = max(worst, abs(est.torque - want.torque))

@@ -35,11 +35,12 @@ from __future__ import annotations
 
 from worm_model.physics.parameters import Rig
 from worm_model.physics.steady_state import make_balancing_torque_float
+from worm_model.rig_data.estimate import Estimate
 from worm_model.rig_data.samples import RigSample
 
 from torque_estimator.control.feedforward import FeedforwardGate
 from torque_estimator.estimation.database import CalibrationDatabase
-from torque_estimator.estimation.live import LiveEstimate, LiveEstimator
+from torque_estimator.estimation.live import LiveEstimator
 from torque_estimator.estimation.observer import LoadProcess
 from torque_estimator.estimation.settings import BuiltEstimator, EstimatorSettings, build_estimator
 
@@ -69,9 +70,10 @@ class EstimatorFeedforward:
         self._balancing = make_balancing_torque_float(rig)
         self._stamp = 0.0
 
-    def observe(self, sample: RigSample, seq: int) -> LiveEstimate:
+    def observe(self, sample: RigSample, seq: int) -> Estimate:
         """The rig's ``sample``, its loop's sample ``seq``; returns its estimate."""
-        est = self.live.update(sample.omega_worm, sample.current_drive, sample.voltage_drive, sample.theta_worm, seq)
+        est = self.live.update(sample.omega_worm, sample.current_drive, voltage_drive=sample.voltage_drive,
+                               theta_worm=sample.theta_worm, seq=seq)
         self._stamp = seq * self.sample_period
         self.gate.offer(est.torque, est.flags, self._stamp)
         return est

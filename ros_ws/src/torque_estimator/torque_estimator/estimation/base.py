@@ -27,12 +27,15 @@ and speed only) runs only the others.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import IntFlag
 from typing import Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from worm_model.rig_data.estimate import Estimate
 
 
 class EstimateFlags(IntFlag):
@@ -72,32 +75,14 @@ class TorqueEstimates:
     other: NDArray[np.float64] | None = None
 
 
-class SampleEstimate(Protocol):
-    """One sample's estimate, as a stream returns it: τ_d [N·m], its 1-sigma uncertainty [N·m],
-    EstimateFlags bits, and the filtered worm speed [rad/s] and drive current [A] it is at."""
-
-    @property
-    def torque(self) -> float: ...
-
-    @property
-    def uncertainty(self) -> float: ...
-
-    @property
-    def flags(self) -> int: ...
-
-    @property
-    def omega_worm(self) -> float: ...
-
-    @property
-    def current_drive(self) -> float: ...
-
-
 class EstimateStream(Protocol):
     """A streaming estimator's state for one rig: every sample in order, one estimate each."""
 
-    def update(self, voltage: float, current: float, omega: float, theta: float | None = None) -> SampleEstimate:
-        """One sample: drive voltage applied from its tick on [V], drive current [A], worm speed [rad/s],
-        encoder angle [rad] (None: no encoder). Never raises for NaN/inf (flagged INVALID_INPUT)."""
+    def update(self, *, omega_worm: float, current_drive: float, voltage_drive: float = math.nan,
+               theta_worm: float | None = None) -> Estimate:
+        """One sample, by name (RigSample's fields): worm speed [rad/s], drive current [A], the drive voltage
+        applied from its tick on [V] (NaN: not measured), encoder angle [rad] (None: no encoder). Never raises for
+        NaN/inf (flagged INVALID_INPUT)."""
         ...
 
     def skip(self, samples: int) -> None:
@@ -147,5 +132,5 @@ def needs_voltage(estimator_class: object) -> bool:
     return bool(getattr(estimator_class, "needs_voltage", False))
 
 
-__all__ = ["AngleEstimator", "EstimateFlags", "EstimateStream", "SampleEstimate", "StreamingEstimator",
+__all__ = ["AngleEstimator", "EstimateFlags", "EstimateStream", "StreamingEstimator",
            "TorqueEstimates", "TorqueEstimator", "needs_voltage"]

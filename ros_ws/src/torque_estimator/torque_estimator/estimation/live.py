@@ -90,6 +90,7 @@ from worm_model.physics.friction import friction_coefficient
 from worm_model.physics.gear_side import make_gear_side_drag_float
 from worm_model.physics.parameters import Rig
 from worm_model.physics.resolution import current_sigma, standstill_speed
+from worm_model.rig_data.estimate import Estimate
 
 from collections.abc import Sequence
 
@@ -114,24 +115,6 @@ STILL_SAMPLES = 3
 
 
 @dataclass(frozen=True)
-class LiveEstimate:
-    """One sample's estimate.
-
-    Attributes:
-        torque: τ_d [N·m]; uncertainty [N·m]; flags: EstimateFlags bits;
-        omega_worm [rad/s] and current_drive [A]: the filtered (and, for the
-        current, inertia-compensated) inputs the estimate was computed from.
-    """
-
-    torque: float
-    uncertainty: float
-    flags: int
-    omega_worm: float
-    current_drive: float
-    other: float = math.nan  # the map's other candidate where it found two (AMBIGUOUS), NaN elsewhere
-
-
-@dataclass(frozen=True)
 class Filtered:
     """One sample after LiveEstimator's filters (steps 1-2), before the map (step 3): what
     :func:`estimate_filtered` maps, several at once.
@@ -148,7 +131,7 @@ class Filtered:
     flags: int
 
 
-def estimate_filtered(estimator: TorqueEstimator, samples: Sequence[Filtered]) -> list[LiveEstimate]:
+def estimate_filtered(estimator: TorqueEstimator, samples: Sequence[Filtered]) -> list[Estimate]:
     """The map's estimates of several filtered samples (of one or several rigs) in one vectorised call (step 3),
     at the cost of one (a quasi-static map costs about the same for one sample as for a few hundred); each
     rig's :meth:`LiveEstimator.judge` then takes its own (step 4), as :meth:`LiveEstimator.update` does. The
@@ -164,7 +147,7 @@ def estimate_filtered(estimator: TorqueEstimator, samples: Sequence[Filtered]) -
         result = estimator.estimate(omega, current)
     torque, spread, flags = (np.asarray(x).tolist() for x in (result.torque, result.uncertainty, result.flags))
     other = [math.nan] * len(samples) if result.other is None else np.asarray(result.other).ravel().tolist()
-    return [LiveEstimate(float(torque[k]), float(spread[k]), int(flags[k]) | s.flags, s.omega, s.current,
+    return [Estimate(float(torque[k]), float(spread[k]), int(flags[k]) | s.flags, s.omega, s.current,
                          float(other[k])) for k, s in enumerate(samples)]
 
 
@@ -341,26 +324,27 @@ class LiveEstimator:
         """Whether the estimator is a map behind this class's filters (:meth:`filter` applies), not a stream."""
         return self.stream is None
 
-    def update(self, omega_worm: float, current_drive: float, voltage: float | None = None,
-               theta: float | None = None, seq: int | None = None) -> LiveEstimate:
-        """Feed one sample: measured worm speed [rad/s] and drive current [A]; for a streaming
-        estimator also the drive voltage applied during this sample's period [V] and the encoder
+    def update(self, omega_worm: float, current_drive: float, *, voltage_drive: float | None = None,
+               theta_worm: float | None = None, seq: int | None = None) -> Estimate:
+        """Feed one sample: measured worm speed [rad/s] and drive current [A]; by name (RigSample's fields), for a
+        streaming estimator also the drive voltage applied during this sample's period [V] and the encoder
         angle [rad] (None: no encoder); seq: the sample's RigSample seq (None: take it as the next)."""
+        voltage, theta = voltage_drive, theta_worm
         if self.stream is not None:
             if seq is not None:
                 self.follow(seq)
-            est = self.stream.update(math.nan if voltage is None else voltage, current_drive, omega_worm, theta)
-            return LiveEstimate(est.torque, est.uncertainty, est.flags, est.omega_worm, est.current_drive)
+            return self.stream.update(omega_worm=omega_worm, current_drive=current_drive,
+                                      voltage_drive=math.nan if voltage is None else voltage, theta_worm=theta)
         f = self.filter(omega_worm, current_drive, theta, seq)
         if f.theta is not None:  # the gear ripple taken out at this angle (extended_model)
             result = self.estimator.estimate(f.omega, f.current, theta_worm=f.theta)
         else:
             result = self.estimator.estimate(f.omega, f.current)
         other = math.nan if result.other is None else float(result.other)
-        return self.judge(LiveEstimate(float(result.torque), float(result.uncertainty), int(result.flags) | f.flags,
+        return self.judge(Estimate(float(result.torque), float(result.uncertainty), int(result.flags) | f.flags,
                                        f.omega, f.current, other))
 
-    def judge(self, raw: LiveEstimate) -> LiveEstimate:
+    def judge(self, raw: Estimate) -> Estimate:
         """Step 4 of the module docstring for one mapped sample (a map's, :meth:`update` or
         :func:`estimate_filtered`; every mapped sample of the stream in order): a standing worm's estimate is
         the last moving one, held (STANDSTILL, its uncertainty growing: branches.Hold); a moving one takes the
@@ -374,11 +358,11 @@ class LiveEstimator:
             self.hold.start(*start)
             torque, spread = self.hold.step()
             flags = (raw.flags & ~int(EstimateFlags.AMBIGUOUS)) | int(EstimateFlags.STANDSTILL)
-            return LiveEstimate(torque, spread, flags, raw.omega_worm, raw.current_drive)
+            return Estimate(torque, spread, flags, raw.omega_worm, raw.current_drive)
         if self.hold.keeps():  # after a stop, motion that has not lasted yet (branches.Hold.keeps)
             torque, spread = self.hold.step()
             flags = (raw.flags & ~int(EstimateFlags.AMBIGUOUS)) | int(EstimateFlags.STANDSTILL)
-            return LiveEstimate(torque, spread, flags, raw.omega_worm, raw.current_drive)
+            return Estimate(torque, spread, flags, raw.omega_worm, raw.current_drive)
         self.hold.end()
         if raw.flags & EstimateFlags.AMBIGUOUS and not math.isfinite(raw.other):  # a map that names no candidate
             self._moving = (raw.torque, raw.uncertainty)
@@ -400,7 +384,7 @@ class LiveEstimator:
         if choice.outside:
             flags |= int(EstimateFlags.OUT_OF_CALIBRATION)
         self._moving = (choice.load, raw.uncertainty)
-        return LiveEstimate(choice.load, spread, flags, raw.omega_worm, raw.current_drive,
+        return Estimate(choice.load, spread, flags, raw.omega_worm, raw.current_drive,
                             choice.other if choice.ambiguous else math.nan)
 
     def filter(self, omega_worm: float, current_drive: float, theta: float | None = None,
@@ -433,4 +417,4 @@ class LiveEstimator:
 
 
 __all__ = ["INPUT_FILTER_STAGES", "MAX_GAP", "NOISE_TIME_CONSTANT", "TRANSIENT_MEMORY", "ChangeGatedLowPass",
-           "Filtered", "LiveEstimate", "LiveEstimator", "estimate_filtered"]
+           "Filtered", "LiveEstimator", "estimate_filtered"]

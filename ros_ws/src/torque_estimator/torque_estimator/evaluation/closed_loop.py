@@ -122,7 +122,7 @@ def run_scenario(rig: Rig, scenario: tuple[Segment, ...], modes: tuple[str, ...]
         stamp = sim.time
         for i, estimate in live.items():
             est = estimate.update(float(m.omega_worm[i]), float(m.current_drive[i]),
-                                  float(m.voltage_drive[i]), float(m.theta_worm[i]))
+                                  voltage_drive=float(m.voltage_drive[i]), theta_worm=float(m.theta_worm[i]))
             rec["tau_estimated"][k, i] = est.torque
             estimates[i], flags[i] = est.torque, est.flags
         truth = sim.applied_load_torque

@@ -74,8 +74,8 @@ def run_observers(rig: Rig, speed: Callable[[float], np.ndarray], load: Callable
         omega_true = sim.plant.state.omega_worm.copy()  # at the tick the sensors latch
         m = sim.sample()
         for j, obs in enumerate(observers):
-            est = obs.update(float(m.voltage_drive[j]), float(m.current_drive[j]), float(m.omega_worm[j]),
-                             float(m.theta_worm[j]))
+            est = obs.update(omega_worm=float(m.omega_worm[j]), current_drive=float(m.current_drive[j]),
+                             voltage_drive=float(m.voltage_drive[j]), theta_worm=float(m.theta_worm[j]))
             out["tau_est"][k, j], out["uncertainty"][k, j] = est.torque, est.uncertainty
             out["flags"][k, j], out["jump"][k, j] = est.flags, est.jump
         out["t"][k] = t

@@ -85,7 +85,8 @@ def stream(rig: Rig, estimator: BuiltEstimator, speed: Callable[[float], float],
         sim.command(voltage_drive=controller.update(dt, speed(t), m.omega_worm).voltage)
         for i, estimator_i in enumerate(live):
             e = estimator_i.update(float(m.omega_worm[i]), float(m.current_drive[i]),
-                                   float(m.voltage_drive[i]) if voltage else math.nan, float(m.theta_worm[i]))
+                                   voltage_drive=float(m.voltage_drive[i]) if voltage else math.nan,
+                                   theta_worm=float(m.theta_worm[i]))
             out["tau_est"][k, i], out["flags"][k, i] = e.torque, e.flags
         out["t"][k] = t
         out["tau_true"][k] = sim.applied_load_torque

@@ -24,10 +24,11 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 
+from worm_model.rig_data.estimate import Estimate
 from worm_model.rig_data.joint_states import JointConversion, JointStateReader
 
 from torque_estimator.estimation.base import EstimateFlags
-from torque_estimator.estimation.live import Filtered, LiveEstimate, LiveEstimator, estimate_filtered
+from torque_estimator.estimation.live import Filtered, LiveEstimator, estimate_filtered
 from torque_estimator.estimation.settings import BuiltEstimator, build_estimator
 from torque_estimator.joints.settings import JointSetup
 
@@ -77,11 +78,11 @@ class JointEstimators:
 
     def update(self, stamp_ns: int, names: Sequence[str], position: Sequence[float], velocity: Sequence[float],
                effort: Sequence[float], voltage: Mapping[str, float] | None = None, estimate: bool = True
-               ) -> list[tuple[int, LiveEstimate] | None]:
+               ) -> list[tuple[int, Estimate] | None]:
         """One message (header stamp [ns], its arrays; ``voltage`` [V] by joint name where known): per joint,
         (seq, estimate) of its sample, or None where the message gave it none (refused: the reader counts
         why) or ``estimate`` is False and the joint's estimator is a map (filtered only: module docstring)."""
-        out: list[tuple[int, LiveEstimate] | None] = []
+        out: list[tuple[int, Estimate] | None] = []
         filtered: dict[int, tuple[int, Filtered]] = {}
         judged = self.judged
         for k, sample in enumerate(self.reader.read(stamp_ns, names, position, velocity, effort, voltage)):
@@ -100,8 +101,9 @@ class JointEstimators:
                     filtered[k] = (sample.seq, f)
                 continue
             voltage_k = sample.voltage_drive if math.isfinite(sample.voltage_drive) else None
-            out[k] = (sample.seq, self._count(k, live.update(sample.omega_worm, sample.current_drive, voltage_k,
-                                                             sample.theta_worm, sample.seq)))
+            out[k] = (sample.seq, self._count(k, live.update(sample.omega_worm, sample.current_drive,
+                                                             voltage_drive=voltage_k, theta_worm=sample.theta_worm,
+                                                             seq=sample.seq)))
             judged[k] = (out[k][1].flags, out[k][1].torque)
             self.restarted[k] = live.restarts != restarts
         if filtered:
@@ -116,7 +118,7 @@ class JointEstimators:
                     judged[k] = (est.flags, est.torque)
         return out
 
-    def _count(self, k: int, est: LiveEstimate) -> LiveEstimate:
+    def _count(self, k: int, est: Estimate) -> Estimate:
         if est.flags:
             counts = self.flag_counts[k]
             for bit, name in self._flag_bits:

@@ -185,7 +185,8 @@ class EstimatorNode(Node):
         omega, current, voltage, theta = batch.omega_worm, batch.current_drive, batch.voltage_drive, batch.theta_worm
         restarts = self.estimator.restarts
         for k in range(n):
-            est = self.estimator.update(omega[k], current[k], voltage[k], theta[k], batch.first_seq + k)
+            est = self.estimator.update(omega[k], current[k], voltage_drive=voltage[k], theta_worm=theta[k],
+                                        seq=batch.first_seq + k)
             if self.estimator.restarts != restarts:
                 self.topics.restart(0)
             self.topics.observe(0, est.flags, est.torque)

@@ -156,7 +156,7 @@ def run_estimator(data: MeasuredData, make_live: Callable[[], LiveEstimator], pr
     for k in range(n):
         if k and runs[k] != runs[k - 1]:
             core = make_live()
-        est = core.update(omega[k], current[k], volts[k], theta[k])
+        est = core.update(omega[k], current[k], voltage_drive=volts[k], theta_worm=theta[k])
         torque[k], spread[k], flags[k] = est.torque, est.uncertainty, est.flags
         if progress is not None and k % 2000 == 0:
             progress(k)

@@ -320,8 +320,8 @@ def replay(bag: Path | str, params: Mapping[str, Mapping[str, Any]], estimators:
                     if est_seqs is None or last_seq in est_seqs:
                         for s in batch:
                             for name, core in cores.items():
-                                e = core.update(s.omega_worm, s.current_drive, s.voltage_drive, s.theta_worm,
-                                                int(s.seq))
+                                e = core.update(s.omega_worm, s.current_drive, voltage_drive=s.voltage_drive,
+                                                theta_worm=s.theta_worm, seq=int(s.seq))
                                 est_out[name].add(int(s.seq), {"torque": e.torque, "uncertainty": e.uncertainty,
                                                                "flags": e.flags, "omega_worm": e.omega_worm,
                                                                "current_drive": e.current_drive})

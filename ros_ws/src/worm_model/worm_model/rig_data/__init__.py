@@ -9,7 +9,10 @@
                    that read EPOS exports
 ``plausibility``   rig data and calibration points against the rig: sample rate, units, angle
 ``bags``           RigSample bags <-> MeasuredData (``bag export`` / ``bag import``)
-``samples``        the rig's sample streams as recorded (one per message or batched), in order
+``samples``        the rig's sample streams as recorded (one per message or batched), in order;
+                   :class:`~worm_model.rig_data.samples.RigSample`, the one record of a sample
+``estimate``       :class:`~worm_model.rig_data.estimate.Estimate`, the one record of a sample's
+                   load estimate, from the estimators to the topics
 ``joint_states``   a robot's sensor_msgs/JointState as rig samples: joints by name, motor or
                    output side, effort as current or motor torque, stamps checked and counted
 =================  ==============================================================

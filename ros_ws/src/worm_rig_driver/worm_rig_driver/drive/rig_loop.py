@@ -41,6 +41,7 @@ from enum import IntEnum
 from typing import Any, Protocol
 
 from worm_model.physics.parameters import Rig
+from worm_model.rig_data.estimate import Estimate
 from worm_model.rig_data.samples import RigSample
 
 from worm_rig_driver.drive.speed_loop import PiGains, PiLoop
@@ -100,14 +101,14 @@ class RigFeedforward(Protocol):
     at the worm [N m] (positive turns the worm positively) to add to the PI output for the period that
     follows, at worm speed set-point ``setpoint`` [rad/s]: 0 when the estimate is unusable. Both run in the
     rig's sample thread, so they must take microseconds, not milliseconds. ``observe`` returns the sample's
-    load estimate (torque_estimator's LiveEstimate: tau_d, uncertainty, flags, the filtered speed and
+    load estimate (worm_model.rig_data.estimate.Estimate: tau_d, uncertainty, flags, the filtered speed and
     current), which the rig publishes as the graph's estimate (nodes.rig_topics); ``method`` names its
     estimator.
     """
 
     method: str
 
-    def observe(self, sample: RigSample, seq: int) -> Any: ...
+    def observe(self, sample: RigSample, seq: int) -> Estimate: ...
 
     def torque(self, setpoint: float) -> float: ...
 

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import re
 from collections.abc import Sequence
-from typing import Protocol
 
 from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
@@ -31,23 +30,13 @@ from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from worm_msgs.msg import TorqueEstimate
 
+from worm_model.rig_data.estimate import Estimate
 from worm_model.ros.qos import STREAM
 
 from worm_rig_driver.robot.standard_outputs import StandardEffort
 
 #: what a ROS name token is (a joint name becomes one in the per-joint topics)
 _TOKEN = re.compile(r"^[A-Za-z][A-Za-z0-9_]*$")
-
-
-class Estimate(Protocol):
-    """One sample's estimate (torque_estimator's LiveEstimate): tau_d and its uncertainty [N m], the
-    EstimateFlags bits, the filtered worm speed [rad/s] and drive current [A] it is at."""
-
-    torque: float
-    uncertainty: float
-    flags: int
-    omega_worm: float
-    current_drive: float
 
 
 def joint_topic_problem(name: str) -> str:

@@ -75,6 +75,7 @@ import numpy as np
 
 from worm_model.physics.dynamics import inertia_at_flank_factor
 from worm_model.physics.parameters import Rig
+from worm_model.rig_data.estimate import Estimate
 
 from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.estimation.momentum.bounds import steady_variance
@@ -82,7 +83,7 @@ from torque_estimator.estimation.momentum.discrete import (N_STATES, OMEGA, RIPP
                                                            Period, load_variance)
 from torque_estimator.estimation.observer.glr import StepDetector
 from torque_estimator.estimation.branches import LoadPrior
-from torque_estimator.estimation.observer.kalman import MAX_SKIP, RESTART_NIS, Branches, ObserverEstimate
+from torque_estimator.estimation.observer.kalman import MAX_SKIP, RESTART_NIS, Branches
 from torque_estimator.estimation.observer.noise import LoadProcess, NoiseFigures
 from torque_estimator.estimation.observer.static_map import StaticLoadMap
 
@@ -260,10 +261,12 @@ class MomentumObserver:
             self.detector.clear()
 
     # --- public ---------------------------------------------------------------------------------
-    def update(self, voltage: float, current: float, omega: float, theta: float | None = None) -> ObserverEstimate:
-        """Feed one sample: ``voltage`` is not read (any value, NaN included); i [A], tacho ω [rad/s], encoder θ
-        [rad] (the floored count × lsb; None or non-finite: no encoder). Returns the estimate at this
-        sample; never raises for NaN/inf (INVALID_INPUT)."""
+    def update(self, *, omega_worm: float, current_drive: float, voltage_drive: float = math.nan,
+               theta_worm: float | None = None) -> Estimate:
+        """Feed one sample by name: ``voltage_drive`` is not read (any value, NaN included); ``current_drive`` i [A],
+        ``omega_worm`` tacho ω [rad/s], ``theta_worm`` encoder θ [rad] (the floored count × lsb; None or
+        non-finite: no encoder). Returns the estimate at this sample; never raises for NaN/inf (INVALID_INPUT)."""
+        current, omega, theta = current_drive, omega_worm, theta_worm
         self.samples += 1
         if not (_finite(current) and _finite(omega)):
             return self._invalid()
@@ -301,7 +304,7 @@ class MomentumObserver:
         self._phi_prev = phi
         return self._estimate(jump is not None, with_encoder=theta is not None)
 
-    def _estimate(self, jump: bool, extra_flags: int = 0, with_encoder: bool = True) -> ObserverEstimate:
+    def _estimate(self, jump: bool, extra_flags: int = 0, with_encoder: bool = True) -> Estimate:
         """The estimate at the filtered state, with its flags (module docstring)."""
         omega, tau = float(self.x[OMEGA]), float(self.x[TAU])
         self._at_x = self._at_x or self.map.mesh(omega, tau)
@@ -313,7 +316,7 @@ class MomentumObserver:
             extra_flags |= EstimateFlags.TRANSIENT
         tau, u, flags = self.branches.report(omega, tau, variance, self._at_x, (self.torque_limit, self.speed_limit),
                                              extra_flags, self.still, self)
-        return ObserverEstimate(tau, u, flags, omega, self.current, self._at_x[0], jump)
+        return Estimate(tau, u, flags, omega, self.current, disturbance=self._at_x[0], jump=jump)
 
     def _resumed(self) -> None:
         """Moving again after a stop (observer.kalman.Branches): the load as unknown as at the start, TRANSIENT
@@ -336,10 +339,10 @@ class MomentumObserver:
         self.p_reference *= ratio * ratio  # the other arm's steady variance, by the same slopes
         return float(self.P[TAU, TAU]), mesh
 
-    def _invalid(self) -> ObserverEstimate:
+    def _invalid(self) -> Estimate:
         bad = int(EstimateFlags.INVALID_INPUT)
         if not self.initialised:
-            return ObserverEstimate(math.nan, math.nan, bad, math.nan, math.nan, math.nan)
+            return Estimate(math.nan, math.nan, bad, math.nan, math.nan)
         self.skip(1)
         return self._estimate(False, bad)
 

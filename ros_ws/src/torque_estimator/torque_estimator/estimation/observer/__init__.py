@@ -29,10 +29,10 @@ from torque_estimator.estimation.observer.bounds import (equivalent_window, jump
 from torque_estimator.estimation.observer.discrete import discretise
 from torque_estimator.estimation.observer.estimator import ObserverEstimator
 from torque_estimator.estimation.observer.kalman import (MAX_SKIP, RESTART_NIS, STANDSTILL, LoadObserver,
-                                                         ObserverEstimate, interval_measurement)
+                                                         interval_measurement)
 from torque_estimator.estimation.observer.noise import LoadProcess, NoiseFigures
 from torque_estimator.estimation.observer.static_map import StaticLoadMap
 
-__all__ = ["MAX_SKIP", "RESTART_NIS", "STANDSTILL", "LoadObserver", "LoadProcess", "NoiseFigures", "ObserverEstimate",
+__all__ = ["MAX_SKIP", "RESTART_NIS", "STANDSTILL", "LoadObserver", "LoadProcess", "NoiseFigures",
            "ObserverEstimator", "StaticLoadMap", "discretise", "equivalent_window", "interval_measurement",
            "jump_bound", "linearised", "predicted_noise", "steady_filter", "steady_state_bound"]

@@ -43,7 +43,6 @@ No ROS; numpy + scipy.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg.lapack
@@ -51,6 +50,7 @@ import scipy.linalg.lapack
 from worm_model.physics.dynamics import inertia_at_flank_factor
 from worm_model.physics.parameters import Rig
 from worm_model.physics.resolution import standstill_speed
+from worm_model.rig_data.estimate import Estimate
 
 from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.estimation.branches import BranchTracker, Choice, Hold, LoadPrior, hold_drift
@@ -74,34 +74,6 @@ STANDSTILL = 1e-3
 RESTART_NIS = 1e4
 #: Lost samples (:meth:`LoadObserver.skip`) predicted over; more, and the filter starts again.
 MAX_SKIP = 100
-
-
-@dataclass(frozen=True)
-class ObserverEstimate:
-    """One sample's estimate.
-
-    Attributes:
-        torque: τ̂_d [N·m] on the gear shaft (positive opposing positive worm rotation).
-        uncertainty: 1σ [N·m] (the filter's; in the V: reaches the other branch).
-        flags: EstimateFlags bits.
-        omega_worm [rad/s], current_drive [A]: the filtered speed and current.
-        disturbance: T_dist(ω̂, τ̂_d) [N·m] on the worm (lumped motor-side disturbance).
-        jump: True if a load step was detected at this sample.
-    """
-
-    torque: float
-    uncertainty: float
-    flags: int
-    omega_worm: float
-    current_drive: float
-    disturbance: float
-    jump: bool = False
-
-    def with_torque(self, torque: float) -> "ObserverEstimate":
-        """This estimate with τ̂_d [N·m] replaced (what dataclasses.replace gives, at a fifth of its cost:
-        the streams call it on every sample)."""
-        return ObserverEstimate(torque, self.uncertainty, self.flags, self.omega_worm, self.current_drive,
-                                self.disturbance, self.jump)
 
 
 _SQRT2 = math.sqrt(2.0)
@@ -400,10 +372,13 @@ class LoadObserver:
         return np.array([z - x[THETA]] + nu), np.array([_UNIT[THETA]] + rows), R
 
     # --- public -----------------------------------------------------------------------------
-    def update(self, voltage: float, current: float, omega: float, theta: float | None = None) -> ObserverEstimate:
-        """Feed one sample: V [V] applied from this tick on, i [A], tacho ω [rad/s], encoder θ [rad]
-        (the floored count × lsb, as RigSample.theta_worm; None: no encoder). Returns the
-        estimate at this sample; never raises for NaN/inf (flagged INVALID_INPUT)."""
+    def update(self, *, omega_worm: float, current_drive: float, voltage_drive: float = math.nan,
+               theta_worm: float | None = None) -> Estimate:
+        """Feed one sample by name: ``voltage_drive`` V [V] applied from this tick on, ``current_drive`` i [A],
+        ``omega_worm`` tacho ω [rad/s], ``theta_worm`` encoder θ [rad] (the floored count × lsb, as
+        RigSample.theta_worm; None: no encoder). Returns the estimate at this sample; never raises for NaN/inf
+        (flagged INVALID_INPUT)."""
+        voltage, current, omega, theta = voltage_drive, current_drive, omega_worm, theta_worm
         self.samples += 1
         for v in (voltage, current, omega) if theta is None else (voltage, current, omega, theta):
             if not (isinstance(v, (int, float)) and math.isfinite(v)):
@@ -442,7 +417,7 @@ class LoadObserver:
         self._predict(voltage, None if self._flipped else mesh)
         return estimate
 
-    def _estimate(self, jump: bool, extra_flags: int, mesh: tuple | None = None) -> ObserverEstimate:
+    def _estimate(self, jump: bool, extra_flags: int, mesh: tuple | None = None) -> Estimate:
         """The estimate at the filtered state; mesh: StaticLoadMap.mesh there if the caller has it."""
         x = self.x
         omega, tau = float(x[OMEGA]), float(x[TAU])
@@ -456,7 +431,7 @@ class LoadObserver:
         standing = abs(self._measured_speed) <= self.standstill and abs(omega) <= 2.0 * self.standstill
         tau, u, flags = self.branches.report(omega, tau, variance, mesh, (self.torque_limit, self.speed_limit),
                                              extra_flags, standing, self)
-        return ObserverEstimate(tau, u, flags, omega, float(x[CURRENT]), mesh[0], jump)
+        return Estimate(tau, u, flags, omega, float(x[CURRENT]), disturbance=mesh[0], jump=jump)
 
     def _resumed(self) -> None:
         """Moving again after a stop (Branches): the load as unknown as at the start (its variance the torque
@@ -501,10 +476,10 @@ class LoadObserver:
         self.convergence.start()
         self.branches.reset()
 
-    def _invalid(self, voltage) -> ObserverEstimate:
+    def _invalid(self, voltage) -> Estimate:
         bad = int(EstimateFlags.INVALID_INPUT)
         if not self.initialised:
-            return ObserverEstimate(math.nan, math.nan, bad, math.nan, math.nan, math.nan)
+            return Estimate(math.nan, math.nan, bad, math.nan, math.nan)
         self.detector.clear()
         est = self._estimate(False, bad)
         v = float(voltage) if isinstance(voltage, (int, float)) and math.isfinite(voltage) else self.voltage
@@ -513,5 +488,5 @@ class LoadObserver:
         return est
 
 
-__all__ = ["MAX_SKIP", "RESTART_NIS", "STANDSTILL", "Branches", "LoadObserver", "ObserverEstimate",
+__all__ = ["MAX_SKIP", "RESTART_NIS", "STANDSTILL", "Branches", "LoadObserver",
            "interval_measurement", "judged"]

@@ -10,10 +10,11 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from worm_model.rig_data.estimate import Estimate
+
 from torque_estimator.estimation.base import EstimateStream
 from torque_estimator.estimation.calibration_bias import CalibrationBias
 from torque_estimator.estimation.extended_model import SensorCorrection
-from torque_estimator.estimation.observer.kalman import ObserverEstimate
 
 
 class CorrectedStream:
@@ -25,9 +26,11 @@ class CorrectedStream:
         self.correction = correction
         self._gain = 1.0 / (1.0 + correction.drive_gain)
 
-    def update(self, voltage: float, current: float, omega: float, theta: float | None = None) -> ObserverEstimate:
+    def update(self, *, omega_worm: float, current_drive: float, voltage_drive: float = math.nan,
+               theta_worm: float | None = None) -> Estimate:
         c = self.correction
-        est = self.stream.update(voltage, (current - c.drive_offset) * self._gain, omega, theta)
+        est = self.stream.update(omega_worm=omega_worm, current_drive=(current_drive - c.drive_offset) * self._gain,
+                                 voltage_drive=voltage_drive, theta_worm=theta_worm)
         torque = est.torque - (c.load_gain * est.torque + c.load_offset)
         return est.with_torque(torque)
 
@@ -45,8 +48,10 @@ class BiasedStream:
         self.stream = stream
         self.bias = bias
 
-    def update(self, voltage: float, current: float, omega: float, theta: float | None = None) -> ObserverEstimate:
-        est = self.stream.update(voltage, current, omega, theta)
+    def update(self, *, omega_worm: float, current_drive: float, voltage_drive: float = math.nan,
+               theta_worm: float | None = None) -> Estimate:
+        est = self.stream.update(omega_worm=omega_worm, current_drive=current_drive, voltage_drive=voltage_drive,
+                                 theta_worm=theta_worm)
         if not math.isfinite(est.torque):
             return est
         return est.with_torque(est.torque + self.bias(est.omega_worm, est.torque))
