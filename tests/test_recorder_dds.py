@@ -26,9 +26,10 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from worm_msgs.msg import RigSample
 
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from worm_model.bags.writer import BagWriter, read_bag_counts, read_messages
-from worm_rig_driver.nodes.recorder_node import TopicRecorder
+from worm_rig_driver.nodes.recorder_node import TAKE_BATCH, TopicRecorder
 
 TOPIC = '/rig/sample'
 DISCOVERED = '/probe/rig_sample'  # recorded by discovery (not excluded)
@@ -210,3 +211,45 @@ def test_topic_recorder_records_under_the_events_executor(publisher_node: Node, 
         recorder.close()
         executor.shutdown()
     assert [m.seq for _, m in read_messages(tmp_path / 'bag', TOPIC)] == list(range(200))
+
+
+def test_topic_recorder_takes_the_queue_and_stamps_dds_receive_times(publisher_node: Node, tmp_path: Path) -> None:
+    """A callback writes what its subscription holds, up to TAKE_BATCH more messages, and every message is
+    stamped with the time DDS received it (the message info's), not the time it was written: messages all
+    acknowledged by the recorder's reader before the executor ran carry stamps from before it ran, between
+    their publication stamp and that moment."""
+    n = 2 * TAKE_BATCH + 50
+    executor = SingleThreadedExecutor(context=publisher_node.context)
+    executor.add_node(publisher_node)
+    recorder = TopicRecorder(publisher_node, BagWriter(tmp_path / 'bag', 'mcap'))
+    publisher = publisher_node.create_publisher(RigSample, TOPIC, QoSProfile(
+        history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE))
+    written_per_pass = []
+    try:
+        recorder.subscribe(TOPIC)
+        deadline = time.monotonic() + DISCOVERY_TIMEOUT_S
+        while publisher.get_subscription_count() == 0 and time.monotonic() < deadline:
+            recorder.discover()
+            time.sleep(0.05)
+        assert publisher.get_subscription_count() == 1, 'the recorder did not subscribe'
+        for seq in range(n):
+            msg = RigSample(seq=seq)
+            msg.header.stamp = publisher_node.get_clock().now().to_msg()
+            publisher.publish(msg)
+        assert publisher.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S)), 'the reader did not ack'
+        before_spin = time.time_ns()  # every message is in the subscription's queue now
+        deadline = time.monotonic() + ACK_TIMEOUT_S
+        while (done := recorder.counts.get(TOPIC, 0)) < n and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+            if (now := recorder.counts.get(TOPIC, 0)) > done:
+                written_per_pass.append(now - done)
+    finally:
+        recorder.close()
+        executor.remove_node(publisher_node)
+        executor.shutdown()
+    received = list(read_messages(tmp_path / 'bag', TOPIC))
+    assert [m.seq for _, m in received] == list(range(n))
+    assert written_per_pass == [1 + TAKE_BATCH, 1 + TAKE_BATCH, n - 2 * (1 + TAKE_BATCH)]
+    published = [m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for _, m in received]
+    assert all(p <= t <= before_spin for p, (t, _) in zip(published, received)), 'stamp not the receive time'
+    assert 'recorder: lost nothing' in recorder.loss_report()[1][-1]

@@ -3,12 +3,21 @@ topics, their classes and offered QoS, the loss report), :mod:`~worm_rig_driver.
 folder) and :mod:`worm_model.bags.writer` (the bag).
 
 Node ``recorder``. It subscribes with ``raw=True`` and writes the CDR bytes as
-received, stamped with the node clock's receive time (ns), like
-``ros2 bag record``. On SIGINT or SIGTERM it writes the messages already
-queued, closes the bag (``metadata.yaml`` written), logs the message count of
-every topic and exits with code 0 (1 on a bag error while recording). Bad
-parameters (an invalid topic name, an output that exists) are refused before
-the bag is created: one line, exit code 2, nothing left behind.
+received, stamped with their receive time (ns), like ``ros2 bag record``: when
+DDS received them (the message info's ``received_timestamp``, system time),
+rising per topic, or the node clock's time when written under simulated time.
+Each callback writes what its subscription has queued, and the main loop
+pauses :data:`GATHER_S` after each callback, so that one executor pass takes
+several messages of each topic: the pass costs more CPU than writing, and a
+recorder that needs less CPU is left behind its streams (losing messages, and
+holding the backlog's memory in its DDS queues afterwards) on a busier machine
+only.
+
+On SIGINT or SIGTERM it writes the messages already queued, closes the bag
+(``metadata.yaml`` written), logs the message count of every topic and exits
+with code 0 (1 on a bag error while recording). Bad parameters (an invalid
+topic name, an output that exists) are refused before the bag is created: one
+line, exit code 2, nothing left behind.
 
 Parameters:
     output (string): bag directory to create; must not exist, unless it holds
@@ -73,7 +82,7 @@ from types import FrameType
 from typing import Any, Final
 
 import rclpy
-from rclpy.exceptions import ParameterException
+from rclpy.exceptions import InvalidHandle, ParameterException
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.node import Node
@@ -113,6 +122,12 @@ from worm_rig_driver.recording.recorder import (
 DEFAULT_QUEUE_DEPTH: Final[int] = 10000
 SPIN_TIMEOUT_S: Final[float] = 0.1
 """Longest wait of the main loop before it checks for a stop signal."""
+GATHER_S: Final[float] = 0.005
+"""Pause of the main loop after each callback: messages gather in the subscriptions' queues, and one executor
+pass (whose wait set costs more than writing a message) then takes several of each (:data:`TAKE_BATCH`). The
+stamps are DDS's receive times, not the write's, so they do not move by it."""
+TAKE_BATCH: Final[int] = 100
+"""Most messages one subscription's callback takes from its queue (the others' turn comes after)."""
 DRAIN_QUIET_S: Final[float] = 0.2
 """On stop, keep writing queued messages until none arrived for this long ..."""
 DRAIN_LIMIT_S: Final[float] = 2.0
@@ -184,6 +199,8 @@ class TopicRecorder:
         self._discovery_timer: Timer | None = None
         self._flush_timer: Timer | None = None
         self._lock = threading.Lock()
+        self._last_stamp: dict[str, int] = {}
+        """Topic -> the last stamp written [ns]."""
 
     @property
     def counts(self) -> Mapping[str, int]:
@@ -299,21 +316,65 @@ class TopicRecorder:
             )
 
     def _on_message(self, handle: TopicHandle, data: bytes, info: Mapping[str, Any] | None) -> None:
-        """Write one raw message, stamped with the receive time; account for its sequence numbers.
+        """Write one raw message and then what else its subscription holds (:meth:`_take_queued`).
 
         ``info`` has no default on purpose: rclpy passes the message info only
         to a callback that cannot be called with the message alone.
         """
+        if self._record(handle, data, info):
+            self._take_queued(handle)
+
+    def _take_queued(self, handle: TopicHandle) -> None:
+        """Write up to :data:`TAKE_BATCH` more messages queued on ``handle``'s subscription, taken here.
+
+        Why: an executor pass (rclpy rebuilds and waits on the wait set of every subscription, timer,
+        service and event) costs more than writing a message, and it hands over one message per
+        subscription; with :data:`GATHER_S` this takes the messages that gathered meanwhile. Only with
+        message info (the standard executors): the EventsExecutor counts the messages it was told of
+        and would look for these.
+        """
+        subscription = self._subscriptions.get(handle.topic)
+        if subscription is None:
+            return
         try:
-            self.writer.write(handle, self.node.get_clock().now().nanoseconds, data)
+            with subscription.handle:
+                for _ in range(TAKE_BATCH):
+                    taken = subscription.handle.take_message(subscription.msg_type, subscription.raw)
+                    if taken is None or not self._record(handle, *taken):
+                        return
+        except InvalidHandle:  # destroyed by close() in another thread (a multi-threaded executor)
+            return
+
+    def _record(self, handle: TopicHandle, data: bytes, info: Mapping[str, Any] | None) -> bool:
+        """Write one raw message, stamped with the receive time; account for its sequence numbers.
+
+        Returns:
+            Whether the bag took it (False: the bag is closed, the message counted as dropped).
+        """
+        try:
+            self.writer.write(handle, self._receive_time(handle.topic, info), data)
         except BagClosedError:
             self.dropped_after_close += 1
-            return
+            return False
         self.sequences.add(handle.topic, data)
         self.deliveries.add(handle.topic, info)
+        return True
+
+    def _receive_time(self, topic: str, info: Mapping[str, Any] | None) -> int:
+        """The message's receive time [ns]: while the node's clock is system time, when DDS received it (its
+        info's ``received_timestamp``), or 1 ns after the topic's previous stamp where that is later (DDS
+        hands over the messages of several publishers of one topic, /rosout, in an order their receive
+        times can contradict by a fraction of a millisecond, and a bag's stamps rise in its storage
+        order); else (simulated time, or no receive time from the middleware) the node clock's time now."""
+        clock = self.node.get_clock()
+        received = info.get('received_timestamp') if info else None
+        if not (isinstance(received, int) and received > 0) or getattr(clock, 'ros_time_is_active', False):
+            return clock.now().nanoseconds
+        stamp = self._last_stamp[topic] = max(received, self._last_stamp.get(topic, -1) + 1)
+        return stamp
 
     def _on_message_without_info(self, handle: TopicHandle, data: bytes) -> None:
-        self._on_message(handle, data, None)
+        self._record(handle, data, None)
 
     def loss_report(self) -> tuple[int, list[str]]:
         """Messages the recorder lost (DDS numbers), one line per topic and check, and a verdict
@@ -479,6 +540,7 @@ def main(args: list[str] | None = None) -> int:
         recording = True
         while not stop.is_set():
             executor.spin_once(timeout_sec=SPIN_TIMEOUT_S)
+            time.sleep(GATHER_S)  # messages gather meanwhile: the next pass takes several per subscription
         drain(executor, node.recorder)
     except KeyboardInterrupt:
         print('recorder: interrupted', file=sys.stderr)
