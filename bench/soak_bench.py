@@ -7,8 +7,10 @@
 The graph of sim_graph.yaml (the rig's load observer, with the calibration written first, feeds forward and
 is the graph's torque_estimate) runs as a rig computer runs it (graph.runner.rig_computer: sim_node in a
 process of its own, model_node and controller_node together in another, both at SCHED_FIFO 40), and the
-recorder beside it as a user starts it (`ros2 run worm_rig_driver recorder --ros-args -p output:=BAG`:
-every topic of the graph, the simulator's truth included, which is what makes sim_node publish it).
+recorder beside it as a user starts it on a rig computer (`chrt -f 30 ros2 run worm_rig_driver recorder
+--ros-args -p output:=BAG`: below the graph's priority, as docs/bags-and-tools.md advises; --recorder-priority 0
+starts it without chrt; every topic of the graph, the simulator's truth included, which is what makes sim_node
+publish it).
 This process drives a seeded command profile through controller_node's set-point and the rig's load
 command: every window opens with a reference hold (150 rad/s against +0.15 N m, the graph benchmark's
 point), then set-point changes, load steps (resistive: opposing the rotation), reversals and idle spells
@@ -70,6 +72,7 @@ from pathlib import Path
 from graph_bench import cpu_seconds, percentile  # bench/ is on sys.path: the script's folder
 from soak_chaos import KINDS as FAULT_KINDS
 from torque_estimator.graph.runner import rig_computer
+from worm_rig_driver.drive.realtime import realtime_permitted
 
 REPO = Path(__file__).resolve().parents[1]
 GRAPH_FILE = REPO / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
@@ -209,11 +212,18 @@ class Processes:
         return row
 
 
-def start_recorder(bag: Path, log: Path) -> subprocess.Popen:
-    """The recorder as a user starts it: every topic of the graph into ``bag``."""
+#: SCHED_FIFO priority of the recorder (``chrt -f``), below the graph's 40, as docs/bags-and-tools.md advises on a
+#: rig computer; 0 (or a machine that does not permit it): normal scheduling. --recorder-priority changes it.
+RECORDER_PRIORITY = 30
+
+
+def start_recorder(bag: Path, log: Path, priority: int = RECORDER_PRIORITY) -> subprocess.Popen:
+    """The recorder as a user starts it on a rig computer: every topic of the graph into ``bag``, at SCHED_FIFO
+    ``priority`` (0: normal scheduling)."""
     from worm_model.ros.ament import find_executable
 
-    return subprocess.Popen([str(find_executable("recorder")), "--ros-args", "-p", f"output:={bag}"],
+    prefix = ["chrt", "-f", str(priority)] if priority else []
+    return subprocess.Popen([*prefix, str(find_executable("recorder")), "--ros-args", "-p", f"output:={bag}"],
                             stdout=open(log, "ab"), stderr=subprocess.STDOUT)
 
 
@@ -247,11 +257,16 @@ def run(args: argparse.Namespace, work: Path) -> dict:
     chaos = None
     if args.chaos:  # first: it may move this process into a network namespace before any thread starts
         from soak_chaos import Chaos
-        chaos = Chaos(args.seed, duration, work, start_recorder, args.faults)
+
+        def recorder_at_priority(bag: Path, log: Path) -> subprocess.Popen:
+            return start_recorder(bag, log, args.recorder_priority)
+
+        chaos = Chaos(args.seed, duration, work, recorder_at_priority, args.faults)
     try:
         graph = Graph(GRAPH_FILE, overrides, work / "logs", **rig_computer(GRAPH_FILE),
                       **(chaos.graph_options(GRAPH_FILE) if chaos else {}))
         record = {"minutes": args.minutes, "window": args.window, "seed": args.seed, "chaos": bool(chaos),
+                  "recorder_priority": args.recorder_priority,
                   "steps": [asdict(s) for s in steps], "events": [], "bags": [], "bag_sizes": [], "diagnostics": {}}
         procs = Processes()
         recorder = None
@@ -270,7 +285,7 @@ def run(args: argparse.Namespace, work: Path) -> dict:
             try:
                 graph.start()
                 bag = work / "bag"
-                recorder = start_recorder(bag, work / "recorder.log")
+                recorder = start_recorder(bag, work / "recorder.log", args.recorder_priority)
                 record["bags"].append(bag.name)
                 if chaos is not None:
                     chaos.start_station()
@@ -615,6 +630,10 @@ def main(argv: list[str] | None = None) -> int:
                              "process of the graph and of the recorder, a CPU hog burst, a DDS cut where allowed")
     parser.add_argument("--faults", default=",".join(FAULT_KINDS), metavar="KIND[,KIND]",
                         help=f"with --chaos, the kinds of fault injected (default all: {','.join(FAULT_KINDS)})")
+    parser.add_argument("--recorder-priority", type=int, default=RECORDER_PRIORITY, metavar="PRIORITY",
+                        help=f"SCHED_FIFO priority of the recorder, 1-99 below the graph's 40 (`chrt -f`; default "
+                             f"{RECORDER_PRIORITY}, as on a rig computer); 0: normal scheduling, as a user who "
+                             "starts it without chrt")
     parser.add_argument("--work", type=Path, default=None,
                         help="folder for the run's calibration, logs, bags and soak.json (must not exist; "
                              "default: a new temporary folder, kept)")
@@ -633,6 +652,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--minutes {args.minutes:g}: must be a positive number of minutes")
     if not (args.window >= 10 and math.isfinite(args.window)):
         parser.error(f"--window {args.window:g}: must be at least 10 s")
+    if not 0 <= args.recorder_priority <= 99:
+        parser.error(f"--recorder-priority {args.recorder_priority}: must be 0 (normal scheduling) to 99")
     args.faults = tuple(k for k in args.faults.split(",") if k)
     if unknown := [k for k in args.faults if k not in FAULT_KINDS] or not args.faults:
         parser.error(f"--faults {','.join(args.faults)}: not kinds of fault {unknown or ''} (the kinds: "
@@ -641,9 +662,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--work {args.work}: exists already; name a new folder")
     os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(100, 230)))
     os.environ.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    if args.recorder_priority and not realtime_permitted(args.recorder_priority):
+        info(f"SCHED_FIFO {args.recorder_priority} is not permitted here: the recorder runs at normal priority")
+        args.recorder_priority = 0
     work = args.work or Path(tempfile.mkdtemp(prefix="soak_bench_"))
     work.mkdir(parents=True, exist_ok=True)
-    info(f"domain {os.environ['ROS_DOMAIN_ID']}, work dir {work}")
+    info(f"domain {os.environ['ROS_DOMAIN_ID']}, work dir {work}, recorder "
+         f"{f'SCHED_FIFO {args.recorder_priority}' if args.recorder_priority else 'at normal priority'}")
     try:
         record = run(args, work)
         figures, table, verdicts = analyse(record, work)

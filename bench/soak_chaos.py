@@ -11,7 +11,7 @@ or for half the spacing after the last one):
   kill_rig       kill -9 of sim_node (the rig and its estimator)
   kill_recorder  kill -9 of the recorder
   cpu_hog        HOG_PROCESSES processes spinning at normal priority for HOG_SECONDS (the graph's run at
-                 SCHED_FIFO 40, the recorder and this process do not)
+                 SCHED_FIFO 40 and the recorder at 30 unless --recorder-priority 0; this process does not)
   dds_cut        the link between the rig computer's network namespace (the graph, its recorder, this
                  process) and a workstation's (a second recorder, of /rig/samples and /torque_estimate)
                  down for CUT seconds; the two hosts are two network namespaces joined by a veth pair

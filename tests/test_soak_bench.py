@@ -149,6 +149,7 @@ def test_a_short_soak_prints_every_figure_and_a_verdict_per_target(tmp_path: Pat
 
 def test_bad_options_are_one_line_and_exit_2(tmp_path: Path) -> None:
     for args, named in ((["--minutes", "0"], "--minutes"), (["--window", "5"], "--window"),
+                        (["--recorder-priority", "100"], "--recorder-priority"),
                         (["--work", str(tmp_path)], "--work"), (["--analyse", str(tmp_path)], "--analyse")):
         done = subprocess.run([sys.executable, str(BENCH / "soak_bench.py"), *args], capture_output=True,
                               text=True, timeout=60)
