@@ -29,7 +29,8 @@ from observer_bench import update_cpu_us  # bench/, beside this script
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import CalibrationDatabase
-from torque_estimator.estimation.momentum import MomentumEstimator, linear_noise_bound, predicted_noise
+from torque_estimator.estimation.momentum import linear_noise_bound, predicted_noise
+from torque_estimator.estimation.observer.streams import WithoutEncoder
 from torque_estimator.estimation.settings import BuiltEstimator, EstimatorSettings, build_estimator
 from torque_estimator.evaluation.held_out import held_out_setpoints
 from torque_estimator.evaluation.observer_study import held_out_streaming, perturbed_rig
@@ -37,18 +38,6 @@ from torque_estimator.evaluation.transient import STEP_SPEED, ensemble_noise, tr
 from worm_model.physics.parameters import Rig, load_rig
 
 RANGE = 0.495  # [N m] the paper grid's calibrated range
-
-
-class _WithoutEncoder:
-    """The estimator's streams fed no encoder angle."""
-
-    def __init__(self, estimator: MomentumEstimator) -> None:
-        self.estimator = estimator
-
-    def stream(self, period: float):
-        inner = self.estimator.stream(period)
-        return type("Stream", (), {"update": lambda _s, **sample: inner.update(**{**sample, "theta_worm": None}),
-                                   "skip": lambda _s, n: inner.skip(n)})()
 
 
 def momentum(model: Rig, database: CalibrationDatabase | None = None) -> BuiltEstimator:
@@ -67,7 +56,7 @@ def main() -> int:
     f = transient_figures(rig, built, RANGE)
     print(f"momentum_step90: {f.step90_ms:g} ms\nmomentum_overshoot: {f.overshoot_pct:.1f} %\n"
           f"momentum_ramp_err: {f.ramp_err_pct:.2f} %\nmomentum_reversal_err: {f.reversal_err_pct:.2f} %", flush=True)
-    blind = transient_figures(rig, replace(built, estimator=_WithoutEncoder(estimator)), RANGE)
+    blind = transient_figures(rig, replace(built, estimator=WithoutEncoder(estimator)), RANGE)
     print(f"momentum_step90_no_encoder: {blind.step90_ms:g} ms", flush=True)
     print(f"momentum_noise: {ensemble_noise(rig, built):.2e} N m\n"
           f"momentum_noise_predicted: {predicted_noise(rig, STEP_SPEED, 0.0, estimator.bandwidth):.2e} N m\n"

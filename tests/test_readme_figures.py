@@ -29,6 +29,7 @@ from torque_estimator.demo.run_analysis import load_step_responses
 from torque_estimator.estimation.observer import ObserverEstimator, jump_bound, steady_state_bound
 from torque_estimator.estimation.momentum import DEFAULT_BANDWIDTH as MOMENTUM_DEFAULT_BANDWIDTH
 from torque_estimator.estimation.momentum import linear_noise_bound
+from torque_estimator.estimation.observer.streams import WithoutEncoder
 from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.evaluation.closed_loop import run_scenario
 from torque_estimator.evaluation.evaluate import momentum_noise_line
@@ -132,14 +133,8 @@ def test_the_momentum_observer(database) -> None:
     built = build_estimator(EstimatorSettings("momentum"))
     plain = built.estimator
     assert transient_figures(RIG, built, database.torque_range).step90_ms == int(with_encoder)
-
-    class Blind:  # the same streams fed no encoder angle
-        def stream(self, period):
-            inner = plain.stream(period)
-            return type("S", (), {"update": lambda _s, **sample: inner.update(**{**sample, "theta_worm": None}),
-                                  "skip": lambda _s, n: inner.skip(n)})()
-
-    assert transient_figures(RIG, replace(built, estimator=Blind()), database.torque_range).step90_ms == int(without)
+    blind = replace(built, estimator=WithoutEncoder(plain))
+    assert transient_figures(RIG, blind, database.torque_range).step90_ms == int(without)
     mean, worst = stated(text, r"stream is off by ([\d.]+) % on average and ([\d.]+) % at most without a calibration")
     speeds, torques = held_out_setpoints(GRID, 17, 1)
     est, truth = held_out_streaming(RIG, speeds, torques, estimator=plain)

@@ -22,6 +22,7 @@ from torque_estimator.estimation.momentum import (DEFAULT_BANDWIDTH, MomentumEst
                                                   linear_noise_bound, predicted_noise, steady_filter)
 from torque_estimator.estimation.momentum.bounds import linearised
 from torque_estimator.estimation.observer import NoiseFigures, StaticLoadMap
+from torque_estimator.estimation.observer.streams import WithoutEncoder
 from torque_estimator.estimation.registry import METHODS, make_estimator
 from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.evaluation.held_out import held_out_setpoints, measure_held_out, score
@@ -33,28 +34,6 @@ RANGE = 0.495  # [N m] the paper grid's calibrated range
 #: the momentum observer as estimator_node builds it (no calibration)
 MOMENTUM = build_estimator(EstimatorSettings("momentum"))
 GRID = CalibrationGrid.paper(RIG)
-
-
-class WithoutEncoder:
-    """An estimator's streams fed no encoder angle (a drive that reports current and velocity alone)."""
-
-    def __init__(self, estimator) -> None:
-        self.estimator = estimator
-
-    def stream(self, period):
-        inner = self.estimator.stream(period)
-
-        class Stream:
-            def update(self, **sample):
-                return inner.update(**{**sample, "theta_worm": None})
-
-            def skip(self, samples):
-                inner.skip(samples)
-
-        return Stream()
-
-    def estimate(self, omega, current):
-        return self.estimator.estimate(omega, current)
 
 
 def test_the_registry_row_and_the_builder() -> None:

@@ -199,6 +199,7 @@ class TopicRecorder:
         self._discovery_timer: Timer | None = None
         self._flush_timer: Timer | None = None
         self._lock = threading.Lock()
+        self._clock = node.get_clock()  # one object for the node's life; use_sim_time switches its time source
         self._last_stamp: dict[str, int] = {}
         """Topic -> the last stamp written [ns]."""
 
@@ -366,7 +367,7 @@ class TopicRecorder:
         hands over the messages of several publishers of one topic, /rosout, in an order their receive
         times can contradict by a fraction of a millisecond, and a bag's stamps rise in its storage
         order); else (simulated time, or no receive time from the middleware) the node clock's time now."""
-        clock = self.node.get_clock()
+        clock = self._clock
         received = info.get('received_timestamp') if info else None
         if not (isinstance(received, int) and received > 0) or getattr(clock, 'ros_time_is_active', False):
             return clock.now().nanoseconds

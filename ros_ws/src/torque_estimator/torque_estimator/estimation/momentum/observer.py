@@ -266,29 +266,28 @@ class MomentumObserver:
         """Feed one sample by name: ``voltage_drive`` is not read (any value, NaN included); ``current_drive`` i [A],
         ``omega_worm`` tacho ω [rad/s], ``theta_worm`` encoder θ [rad] (the floored count × lsb; None or
         non-finite: no encoder). Returns the estimate at this sample; never raises for NaN/inf (INVALID_INPUT)."""
-        current, omega, theta = current_drive, omega_worm, theta_worm
         self.samples += 1
-        if not (_finite(current) and _finite(omega)):
+        if not (_finite(current_drive) and _finite(omega_worm)):
             return self._invalid()
-        current, omega = float(current), float(omega)
-        theta = float(theta) if _finite(theta) else None
+        current_drive, omega_worm = float(current_drive), float(omega_worm)
+        theta_worm = float(theta_worm) if _finite(theta_worm) else None
         if not self.initialised:
-            self._initialise(current, omega, theta)
-            return self._estimate(False, with_encoder=theta is not None)
+            self._initialise(current_drive, omega_worm, theta_worm)
+            return self._estimate(False, with_encoder=theta_worm is not None)
         omega_before, current_before = float(self.x[OMEGA]), self.current
-        phi = self._predict(current, omega)
-        nu, h, R = self._measurement(current, omega, theta)
+        phi = self._predict(current_drive, omega_worm)
+        nu, h, R = self._measurement(current_drive, omega_worm, theta_worm)
         PhT = self.P @ h.T
         s_inv = _inverse(h @ PhT + R)
         if not float(nu @ s_inv @ nu) <= RESTART_NIS:  # (also NaN) not this rig's continuation: start again
             self.restarts += 1
-            self._initialise(current, omega, theta)
-            return self._estimate(False, with_encoder=theta is not None)
+            self._initialise(current_drive, omega_worm, theta_worm)
+            return self._estimate(False, with_encoder=theta_worm is not None)
         K = PhT @ s_inv
         xf = self.x + K @ nu
         Pf = self.P - K @ PhT.T
         jump = None
-        if not self._model_holds(current_before, current, omega_before, float(xf[OMEGA])):
+        if not self._model_holds(current_before, current_drive, omega_before, float(xf[OMEGA])):
             self.hold_off = self._hold_samples
             if self.detector is not None:
                 self.detector.clear()
@@ -302,7 +301,7 @@ class MomentumObserver:
             xf, Pf = xf + jump.signature * jump.size, Pf + np.outer(jump.signature, jump.signature) / jump.information
         self.x, self.P = xf, 0.5 * (Pf + Pf.T)
         self._phi_prev = phi
-        return self._estimate(jump is not None, with_encoder=theta is not None)
+        return self._estimate(jump is not None, with_encoder=theta_worm is not None)
 
     def _estimate(self, jump: bool, extra_flags: int = 0, with_encoder: bool = True) -> Estimate:
         """The estimate at the filtered state, with its flags (module docstring)."""

@@ -378,18 +378,18 @@ class LoadObserver:
         ``omega_worm`` tacho ω [rad/s], ``theta_worm`` encoder θ [rad] (the floored count × lsb, as
         RigSample.theta_worm; None: no encoder). Returns the estimate at this sample; never raises for NaN/inf
         (flagged INVALID_INPUT)."""
-        voltage, current, omega, theta = voltage_drive, current_drive, omega_worm, theta_worm
         self.samples += 1
-        for v in (voltage, current, omega) if theta is None else (voltage, current, omega, theta):
+        inputs = (voltage_drive, current_drive, omega_worm)
+        for v in inputs if theta_worm is None else (*inputs, theta_worm):
             if not (isinstance(v, (int, float)) and math.isfinite(v)):
-                return self._invalid(voltage)
-        voltage, current, omega = float(voltage), float(current), float(omega)
-        theta = None if theta is None else float(theta)
-        self._measured_speed = omega
+                return self._invalid(voltage_drive)
+        voltage_drive, current_drive, omega_worm = float(voltage_drive), float(current_drive), float(omega_worm)
+        theta_worm = None if theta_worm is None else float(theta_worm)
+        self._measured_speed = omega_worm
         if not self.initialised:
-            self._initialise(current, omega, theta)
+            self._initialise(current_drive, omega_worm, theta_worm)
         for restarted in (False, True):
-            nu, h, R = self._measurement(current, omega, theta, voltage)
+            nu, h, R = self._measurement(current_drive, omega_worm, theta_worm, voltage_drive)
             x, P = self.x, self.P
             PhT = P @ h.T
             S = h @ PhT + R
@@ -400,7 +400,7 @@ class LoadObserver:
             self.restarts += 1
             self.detector.clear()
             self._phi_prev = None
-            self._initialise(current, omega, theta)
+            self._initialise(current_drive, omega_worm, theta_worm)
         K = PhT @ s_inv
         xf = x + K @ nu
         Pf = P - K @ PhT.T  # K S K' = P H' S⁻¹ H P (P symmetric)
@@ -413,8 +413,8 @@ class LoadObserver:
         self.x, self.P = xf, 0.5 * (Pf + Pf.T)
         mesh = self.map.mesh(float(xf[OMEGA]), float(xf[TAU]))  # for both the estimate and the prediction
         estimate = self._estimate(jump is not None, 0, mesh)
-        self.voltage = voltage
-        self._predict(voltage, None if self._flipped else mesh)
+        self.voltage = voltage_drive
+        self._predict(voltage_drive, None if self._flipped else mesh)
         return estimate
 
     def _estimate(self, jump: bool, extra_flags: int, mesh: tuple | None = None) -> Estimate:

@@ -1,6 +1,7 @@
-"""The observer's stream, corrected: for a model file's identified sensor errors, and for a calibration's bias.
+"""The observer's stream, corrected: for a model file's identified sensor errors, and for a calibration's bias;
+and any estimator's streams fed no encoder angle.
 
-Both wrap a stream (a :class:`~torque_estimator.estimation.observer.kalman.LoadObserver`, or another
+The stream wrappers wrap a stream (a :class:`~torque_estimator.estimation.observer.kalman.LoadObserver`, or another
 wrapper) and are streams themselves (:class:`~torque_estimator.estimation.base.EstimateStream`:
 ``update`` and ``skip``); other attributes (``load``, ``jumps``, ``restarts``, ...) are the wrapped
 observer's. ObserverEstimator.stream stacks them. Units SI; τ_d [N·m] on the gear shaft. No ROS.
@@ -63,4 +64,32 @@ class BiasedStream:
         return getattr(self.stream, name)
 
 
-__all__ = ["BiasedStream", "CorrectedStream"]
+class EncoderlessStream:
+    """A stream fed no encoder angle, whatever its samples carry: a drive that reports current and speed alone."""
+
+    def __init__(self, stream: EstimateStream) -> None:
+        self.stream = stream
+
+    def update(self, *, omega_worm: float, current_drive: float, voltage_drive: float = math.nan,
+               theta_worm: float | None = None) -> Estimate:
+        return self.stream.update(omega_worm=omega_worm, current_drive=current_drive, voltage_drive=voltage_drive)
+
+    def skip(self, samples: int) -> None:
+        self.stream.skip(samples)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.stream, name)
+
+
+class WithoutEncoder:
+    """An estimator whose streams are fed no encoder angle (:class:`EncoderlessStream`): what the estimator
+    does on a drive without an angle, measured on samples that have one."""
+
+    def __init__(self, estimator: Any) -> None:
+        self.estimator = estimator
+
+    def stream(self, sample_period: float) -> EncoderlessStream:
+        return EncoderlessStream(self.estimator.stream(sample_period))
+
+
+__all__ = ["BiasedStream", "CorrectedStream", "EncoderlessStream", "WithoutEncoder"]
