@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.optimize import brentq
 
 import math
 from collections.abc import Callable
@@ -57,6 +56,10 @@ def steady_worm_speed(rig: Rig, voltage: float, tau_load: float) -> float:
         raise ValueError("voltage 0: no steady speed to seek (the worm stands still)")
     top = 1.5 * abs(voltage) / rig.drive_motor.back_emf_constant
     lo, hi = (1e-3, top) if voltage > 0 else (-top, -1e-3)
+    # here, not at the top: scipy.optimize costs 0.2-0.4 s to import, which every process that reads rig data
+    # (the recorder among them) would pay at start-up without ever seeking a steady speed
+    from scipy.optimize import brentq
+
     return float(brentq(lambda w: torque_surplus(rig, voltage, tau_load, w), lo, hi, xtol=1e-12, rtol=1e-13))
 
 
