@@ -29,7 +29,8 @@ from worm_msgs.msg import RigSample
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.experimental import EventsExecutor
 from worm_model.bags.writer import BagWriter, read_bag_counts, read_messages
-from worm_rig_driver.nodes.recorder_node import TAKE_BATCH, TopicRecorder
+from worm_rig_driver.nodes import recorder_node
+from worm_rig_driver.nodes.recorder_node import FIRST_DISCOVERY_PERIOD_S, TAKE_BATCH, TopicRecorder
 
 TOPIC = '/rig/sample'
 DISCOVERED = '/probe/rig_sample'  # recorded by discovery (not excluded)
@@ -253,3 +254,29 @@ def test_topic_recorder_takes_the_queue_and_stamps_dds_receive_times(publisher_n
     published = [m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for _, m in received]
     assert all(p <= t <= before_spin for p, (t, _) in zip(published, received)), 'stamp not the receive time'
     assert 'recorder: lost nothing' in recorder.loss_report()[1][-1]
+
+
+def test_discovery_is_fast_at_first_then_at_its_period(publisher_node: Node, tmp_path: Path,
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A recorder searches the graph every FIRST_DISCOVERY_PERIOD_S at first (a restarted recorder records
+    as soon as DDS has found the publishers), then at its discovery_period; each search subscribes to what
+    it finds. Judged by the timer's period and the searches counted, not by how long they took."""
+    monkeypatch.setattr(recorder_node, 'FIRST_DISCOVERY_S', 0.5)
+    executor = SingleThreadedExecutor(context=publisher_node.context)
+    executor.add_node(publisher_node)
+    recorder = TopicRecorder(publisher_node, BagWriter(tmp_path / 'bag', 'mcap'))
+    searches = []
+    monkeypatch.setattr(recorder, 'discover', lambda: searches.append(time.monotonic()))
+    try:
+        recorder.start_discovery(5.0)
+        timer = recorder._discovery_timer
+        assert timer.timer_period_ns == int(FIRST_DISCOVERY_PERIOD_S * 1e9)
+        first = time.monotonic()
+        while timer.timer_period_ns != int(5.0 * 1e9) and time.monotonic() < first + DISCOVERY_TIMEOUT_S:
+            executor.spin_once(timeout_sec=0.05)
+        assert timer.timer_period_ns == int(5.0 * 1e9), 'still searching fast'
+        assert searches and searches[-1] >= first + 0.45  # searching fast until FIRST_DISCOVERY_S had passed
+    finally:
+        recorder.close()
+        executor.remove_node(publisher_node)
+        executor.shutdown()

@@ -41,7 +41,8 @@ Parameters:
         absolute name is that topic; a relative one, that topic in any
         namespace (every rig of a graph of namespaced drives).
     discovery_period (double, s): how often the graph is searched for the
-        topics' publishers (and, when recording all, for new topics).
+        topics' publishers (and, when recording all, for new topics); every
+        0.1 s for the first 3 s.
     queue_depth (integer): KEEP_LAST depth of each subscription (default
         10000): a 1 kHz stream survives a 10 s stall of the recorder's
         executor (a starved CPU) before DDS overwrites unread messages. At
@@ -128,6 +129,11 @@ pass (whose wait set costs more than writing a message) then takes several of ea
 stamps are DDS's receive times, not the write's, so they do not move by it."""
 TAKE_BATCH: Final[int] = 100
 """Most messages one subscription's callback takes from its queue (the others' turn comes after)."""
+FIRST_DISCOVERY_PERIOD_S: Final[float] = 0.1
+FIRST_DISCOVERY_S: Final[float] = 3.0
+"""For its first FIRST_DISCOVERY_S the recorder searches the graph every FIRST_DISCOVERY_PERIOD_S (as ``ros2 bag
+record``'s 100 ms polling), then every ``discovery_period``: a recorder started beside a running graph (a restart)
+records from a tenth of a second after DDS discovery has found the publishers, not up to a period later."""
 DRAIN_QUIET_S: Final[float] = 0.2
 """On stop, keep writing queued messages until none arrived for this long ..."""
 DRAIN_LIMIT_S: Final[float] = 2.0
@@ -253,10 +259,19 @@ class TopicRecorder:
                     self.node.get_logger().error(f'Not recording {topic}: {err}')
 
     def start_discovery(self, period_s: float, flush_period_s: float = 1.0) -> None:
-        """Call :meth:`discover` every ``period_s`` seconds on the node's executor, and put what was
+        """Call :meth:`discover` every ``period_s`` seconds on the node's executor (every
+        FIRST_DISCOVERY_PERIOD_S for the first FIRST_DISCOVERY_S, where that is shorter), and put what was
         recorded on disk every ``flush_period_s`` (a recorder killed loses at most that much)."""
         if self._discovery_timer is None:
-            self._discovery_timer = self.node.create_timer(period_s, self.discover)
+            fast_until = time.monotonic() + FIRST_DISCOVERY_S
+
+            def tick() -> None:
+                self.discover()
+                timer = self._discovery_timer
+                if timer is not None and timer.timer_period_ns < period_s * 1e9 and time.monotonic() >= fast_until:
+                    timer.timer_period_ns = int(period_s * 1e9)
+
+            self._discovery_timer = self.node.create_timer(min(period_s, FIRST_DISCOVERY_PERIOD_S), tick)
             self._flush_timer = self.node.create_timer(flush_period_s, self.writer.flush)
 
     def close(self) -> None:
@@ -416,7 +431,8 @@ class RecorderNode(Node):
             'per-sample copy of its rig/samples)',
         )
         period: float = self._parameter(
-            'discovery_period', 1.0, '[s] period of the graph search for publishers and new topics',
+            'discovery_period', 1.0, '[s] period of the graph search for publishers and new topics (every 0.1 s '
+            'for the first 3 s)',
             floating_point_range=[FloatingPointRange(from_value=0.05, to_value=60.0)],
         )
         depth: int = self._parameter(
