@@ -19,7 +19,7 @@ import pytest
 from worm_msgs.msg import SpeedCommand
 
 from torque_estimator.graph.runner import Graph
-from torque_estimator.identification.recording import journal_paths
+from torque_estimator.session.recording import journal_paths
 from worm_model.physics.parameters import load_rig
 from worm_model.rig_data.reader import read_rig_data
 from worm_model.ros.ament import find_executable

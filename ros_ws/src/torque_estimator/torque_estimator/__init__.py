@@ -20,6 +20,10 @@ helpers beside the CLIs that talk to a live graph):
                     be fed forward, and when it is too old), ``rig_feedforward`` (the
                     estimator the rig runs beside its speed PI; the PI itself is
                     ``worm_rig_driver.drive``)
+``session``         a session with the rig, what calibration, identification and the
+                    health check share: the client node and its waits
+                    (``rig_session_node``), the timeline's ``recording`` and its
+                    journal, the ``resume`` rule, the rig's ``topics``
 ``calibration``     making a calibration: grid and batch run on the simulator
                     (``batch``), point by point on a live graph (``live``,
                     ``calibration_node``), the resumable ``journal``, the steady-state

@@ -9,7 +9,7 @@ from worm_model.physics.parameters import load_rig
 
 from torque_estimator.identification.excitation import (MAX_DURATION, default_excitation, sampled, setpoints,
                                                         total_duration)
-from torque_estimator.identification.recording import ExcitationRun, Journal, run_settings
+from torque_estimator.session.recording import ExcitationRun, Journal, run_settings
 
 RIG = load_rig()
 

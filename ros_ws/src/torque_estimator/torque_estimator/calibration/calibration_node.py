@@ -17,7 +17,7 @@ from collections.abc import Callable
 from worm_msgs.msg import RigSamples
 
 from torque_estimator.calibration.live import PointByPoint
-from torque_estimator.calibration.rig_session_node import RigClient, await_setpoint, measure_until, rig_session
+from torque_estimator.session.rig_session_node import RigClient, await_setpoint, measure_until, rig_session
 
 
 class CalibrationClient(RigClient):

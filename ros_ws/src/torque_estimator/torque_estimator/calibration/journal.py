@@ -48,6 +48,7 @@ from worm_model.files.writing import write_text_atomically
 
 from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.errors import JournalError
+from torque_estimator.session.resume import normalised, settings_problem
 
 FORMAT: Final = "worm_torque_calibration_journal"
 VERSION: Final = 1
@@ -69,38 +70,6 @@ def default_journal_path(database_path: str | os.PathLike[str]) -> Path:
     """Where a calibration writing ``database_path`` keeps its journal: ``<database_path>.partial``."""
     path = Path(database_path)
     return path.with_name(path.name + ".partial")
-
-
-def _normalised(value: Any) -> Any:
-    """The value as JSON gives it back (tuples -> lists, numpy -> Python), for comparing settings."""
-    return json.loads(json.dumps(value, default=_json_default))
-
-
-def _json_default(value: Any) -> Any:
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    raise TypeError(f"not JSON-serialisable: {type(value).__name__}")
-
-
-def _first_difference(old: Any, new: Any, where: str = "settings") -> str | None:
-    """Dotted path of the first place two JSON values differ, None if equal."""
-    if isinstance(old, dict) and isinstance(new, dict):
-        for key in sorted(set(old) | set(new)):
-            if key not in old or key not in new:
-                return f"{where}.{key}"
-            found = _first_difference(old[key], new[key], f"{where}.{key}")
-            if found:
-                return found
-        return None
-    return None if old == new else where
-
-
-def _lookup(doc: Any, dotted: str) -> Any:
-    for key in dotted.split(".")[1:]:
-        doc = doc.get(key, "(absent)") if isinstance(doc, dict) else "(absent)"
-    return doc
 
 
 def _point_problem(point: dict[str, Any]) -> str:
@@ -134,7 +103,7 @@ class CalibrationJournal:
     def __init__(self, path: Path | None, settings: dict[str, Any], n_points: int,
                  started: str | None = None, resumed: int = 0) -> None:
         self.path = path
-        self.settings = _normalised(settings)
+        self.settings = normalised(settings)
         self.n_points = n_points
         self.started = started or datetime.now(timezone.utc).isoformat(timespec="seconds")
         self.resumed = resumed
@@ -163,11 +132,9 @@ class CalibrationJournal:
             raise JournalError(f"{path} holds an interrupted calibration: pass --resume to continue it, "
                                "or delete it to start over")
         journal = cls.load(path, n_points, drop_bad_points)
-        wanted = _normalised(settings)
-        differs = _first_difference(journal.settings, wanted)
+        differs = settings_problem(journal.settings, normalised(settings))
         if differs:
-            raise JournalError(f"journal {path} was taken with other settings: {differs} is "
-                               f"{_lookup(journal.settings, differs)!r} there, {_lookup(wanted, differs)!r} now; "
+            raise JournalError(f"journal {path} was taken with other settings: {differs}; "
                                "repeat the interrupted command's options, or delete the journal to start over")
         journal.resumed += 1
         return journal

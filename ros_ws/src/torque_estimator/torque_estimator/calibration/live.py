@@ -32,11 +32,7 @@ from torque_estimator.calibration.batch import CalibrationGrid, grid_settings
 from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.calibration.journal import CalibrationJournal
 from torque_estimator.calibration.operating_points import SteadyStateCriterion, SteadyStateDetector
-
-#: Topics of the graph a live calibration uses (recorded in the journal's settings).
-TOPICS = {"samples": "rig/samples", "speed_command": "rig/speed_command",
-          "speed_setpoint": "controller/speed_setpoint", "load_command": "rig/load_command"}
-
+from torque_estimator.session.topics import TOPICS  # recorded in the journal's settings
 
 @dataclass(frozen=True)
 class Point:
@@ -131,4 +127,4 @@ class PointByPoint:
                                            f"controller_node, sample period {self.sample_period:g} s")
 
 
-__all__ = ["Point", "PointByPoint", "TOPICS", "live_settings"]
+__all__ = ["Point", "PointByPoint", "live_settings"]

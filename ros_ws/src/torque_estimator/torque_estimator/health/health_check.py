@@ -199,7 +199,7 @@ def _record_live(args, rig, timeline) -> tuple[MeasuredData, tuple | None]:
     """The live path: the oil's temperature before, the reference run, after; the ROS shells are imported here."""
     from torque_estimator.health.check_node import listen_temperature  # noqa: PLC0415
     from torque_estimator.identification.identify_node import run_live  # noqa: PLC0415
-    from torque_estimator.identification.recording import ExcitationRun, Journal, run_settings  # noqa: PLC0415
+    from torque_estimator.session.recording import ExcitationRun, Journal, run_settings  # noqa: PLC0415
 
     before = listen_temperature(args.temperature_topic, args.health_topic, 2.0)
     run = ExcitationRun(timeline, Journal(run_settings(timeline, {}, "live")), 1.0 / rig.sensors.sample_rate_hz)

@@ -4,8 +4,6 @@ Map (dependencies point up this list; rclpy only in ``identify_node``):
 
 ================  ============================================================
 ``excitation``    the timeline of speed and load set-points (<= 90 s of rig time)
-``recording``     walking the timeline on the rig's sample clock, recording every
-                  sample, the resumable journal
 ``simulated``     the excitation on the simulated rig in-process (tests, evaluate, bench)
 ``steady``        the road of a record held at speeds: one point a run, the base
                   unknowns and the terms a cross-fitted selection accepts

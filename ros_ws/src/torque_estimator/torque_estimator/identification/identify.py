@@ -55,7 +55,7 @@ from torque_estimator.identification.excitation import (DEFAULT_DURATION, MAX_DU
                                                         total_duration)
 from torque_estimator.identification.fit import identify
 from torque_estimator.identification.writing import write_identified
-from torque_estimator.identification.recording import ExcitationRun, Journal, journal_paths, run_settings
+from torque_estimator.session.recording import ExcitationRun, Journal, journal_paths, run_settings
 
 PROG = "identify"
 EXIT_INTERRUPTED = 130

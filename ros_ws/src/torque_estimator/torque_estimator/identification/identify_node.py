@@ -14,8 +14,8 @@ from collections.abc import Callable
 
 from worm_msgs.msg import RigSamples
 
-from torque_estimator.calibration.rig_session_node import RigClient, await_setpoint, measure_until, rig_session
-from torque_estimator.identification.recording import ExcitationRun
+from torque_estimator.session.rig_session_node import RigClient, await_setpoint, measure_until, rig_session
+from torque_estimator.session.recording import ExcitationRun
 
 #: a set-point is published again once it moved by this much (speed [rad/s], load [N m])
 RESEND = (0.05, 2e-4)

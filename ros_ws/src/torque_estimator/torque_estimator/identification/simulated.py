@@ -3,7 +3,7 @@
 The rig (worm_rig_driver's SimulatedRig, effects switched on in the simulator only) is held by
 the rig's own speed loop (worm_rig_driver.drive: the PI every sample, as sim_node runs it) at
 the timeline's speed set-point while the load motors apply its load; every sample goes to an
-:class:`~torque_estimator.identification.recording.ExcitationRun`.  Deterministic for a seed.
+:class:`~torque_estimator.session.recording.ExcitationRun`.  Deterministic for a seed.
 Used by the tests, ``make evaluate`` and ``make bench``; no ROS.
 """
 from __future__ import annotations
@@ -15,7 +15,7 @@ from worm_model.rig_data.schema import MeasuredData
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, PiGains, PiLoop
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
-from torque_estimator.identification.recording import ExcitationRun, Journal, run_settings
+from torque_estimator.session.recording import ExcitationRun, Journal, run_settings
 
 
 def record_on_simulator(rig: Rig, timeline, *, effects=None, seed: int = 0, gains: PiGains = DEFAULT_GAINS,

@@ -5,14 +5,15 @@ the set-points in force for the next sample (:meth:`ExcitationRun.setpoints`) an
 every sample the rig sends (:meth:`ExcitationRun.add`).  Segment k lasts
 round(end_k / T) - round(start_k / T) samples (T the sample period), so the timeline's
 rig time is the same whoever drives it: the simulator in this process
-(``identification.simulated``) or the ROS shell (``identify_node``) over the graph.
+(``identification.simulated``, the health check's simulated run) or a ROS shell over the graph
+(``identify_node``, the health check's live run).
 
 Journal (resumable like ``calibrate``): after every finished segment its samples are
 appended to ``<out>.partial.csv`` (the ``worm_rig_data`` CSV schema, worm_model.rig_data)
 and synced, then ``<out>.partial.json`` is rewritten atomically with the settings (the
 timeline, the rig file's values, the source), the segments done and the CSV's length in
 bytes at that point.  A run stopped at any instant (Ctrl-C, SIGTERM, SIGKILL) leaves every
-finished segment; ``--resume`` checks the settings, cuts the CSV back to the committed
+finished segment; ``--resume`` checks the settings (session.resume), cuts the CSV back to the committed
 length (a half-written segment is dropped) and goes on with the next segment.  Its
 samples continue the time axis after a gap of RESUME_GAP, so the reader sees a new *run*
 there (filters restart, no derivative across it).  Samples with a NaN/inf required channel
@@ -31,8 +32,9 @@ import numpy as np
 
 from worm_model.rig_data.schema import MeasuredData, read_rig_csv
 from worm_model.errors import RigDataError
-from torque_estimator.estimation.database import write_text_atomically
+from worm_model.files.writing import write_text_atomically
 from torque_estimator.errors import JournalError
+from torque_estimator.session.resume import normalised, settings_problem
 
 FORMAT: Final = "worm_torque_identification_journal"
 VERSION: Final = 1
@@ -78,7 +80,7 @@ class Journal:
         Raises:
             JournalError: a journal exists and resume is False, it cannot be read, or its settings differ.
         """
-        settings = json.loads(json.dumps(settings))
+        settings = normalised(settings)
         if out is None:
             return cls(settings)
         state_path, csv_path = journal_paths(out)
@@ -95,11 +97,9 @@ class Journal:
             doc = json.loads(state_path.read_text(encoding="utf-8"))
             if doc.get("format") != FORMAT or doc.get("version") != VERSION:
                 raise ValueError(f"not a {FORMAT} v{VERSION} file")
-            if doc["settings"] != settings:
-                changed = sorted(k for k in set(doc["settings"]) | set(settings)
-                                 if doc["settings"].get(k) != settings.get(k))
-                raise ValueError(f"taken with other settings ({', '.join(changed)}); use the same options, or "
-                                 "delete the journal to start afresh")
+            if differs := settings_problem(doc["settings"], settings):
+                raise ValueError(f"taken with other settings: {differs}; repeat the interrupted command's "
+                                 "options, or delete the journal to start afresh")
             journal = cls(settings, state_path, csv_path, int(doc["segments_done"]), int(doc["rows"]),
                           int(doc["size"]), float(doc["t_next"]), int(doc.get("resumed", 0)) + 1)
             with csv_path.open("r+b") as handle:  # drop a half-written segment

@@ -30,8 +30,8 @@ from worm_msgs.msg import LoadCommand, RigSamples, SpeedCommand
 
 from worm_model.ros.qos import COMMAND, STREAM
 
-from torque_estimator.calibration.live import TOPICS
 from torque_estimator.errors import LiveRigError
+from torque_estimator.session.topics import TOPICS
 
 
 class RigClient(Node):

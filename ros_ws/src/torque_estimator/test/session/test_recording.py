@@ -7,7 +7,7 @@ import pytest
 from worm_model.physics.parameters import load_rig
 
 from torque_estimator.identification.excitation import default_excitation
-from torque_estimator.identification.recording import RESUME_GAP, ExcitationRun, Journal, journal_paths, run_settings
+from torque_estimator.session.recording import RESUME_GAP, ExcitationRun, Journal, journal_paths, run_settings
 from torque_estimator.errors import JournalError
 
 RIG = load_rig()
@@ -32,7 +32,7 @@ def test_interrupted_run_resumes_with_the_finished_segments(tmp_path) -> None:
     assert run.journal.segments_done == 2
     with pytest.raises(JournalError, match="--resume"):
         Journal.open(out, settings, resume=False)
-    with pytest.raises(JournalError, match="other settings"):
+    with pytest.raises(JournalError, match=r"other settings: settings\.(\w+\.)*\w+ is .+ there, .+ now"):
         Journal.open(out, run_settings(default_excitation(RIG, 5.0), {}, "live"), resume=True)
     journal = Journal.open(out, settings, resume=True)  # "the process died": the half segment is dropped
     assert journal.segments_done == 2 and journal.rows == first_two and journal.resumed == 1
