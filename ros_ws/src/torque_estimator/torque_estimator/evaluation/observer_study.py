@@ -3,9 +3,9 @@ bench/observer_bench.py. Plain numpy; no ROS.
 
 Every experiment runs n rigs side by side in one SimulatedRig (one per seed or operating
 point, each with its own sensor noise), each held by the PI speed controller
-(speed_controller.DEFAULT_GAINS, no feedforward unless said), and one LoadObserver per
-rig fed what the rig measures each sample (voltage_drive, current_drive, omega_worm,
-theta_worm). The simulator runs the rig file's true parameters; the observer may run a
+(speed_controller.DEFAULT_GAINS, no feedforward unless said), and one stream of the estimator
+per rig (the shipped observer as estimator_node builds it, unless another is given) fed what
+the rig measures each sample (voltage_drive, current_drive, omega_worm, theta_worm). The simulator runs the rig file's true parameters; the observer may run a
 perturbed copy (:func:`perturbed_rig`). Torques in N m on the gear shaft, positive
 opposing positive worm rotation; times in s unless named _ms.
 """
@@ -19,7 +19,7 @@ import numpy as np
 from worm_model.physics.parameters import Rig
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
-from torque_estimator.estimation.observer import LoadObserver, LoadProcess, ObserverEstimator
+from torque_estimator.estimation.observer import ObserverEstimator
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, SpeedController
 
 #: Load-loop time constant [s] that makes the simulator's load a true step (its default is the
@@ -44,15 +44,15 @@ def perturbed_rig(rig: Rig, mu: float = 1.0, kt: float = 1.0, inertia: float = 1
 
 def run_observers(rig: Rig, speed: Callable[[float], np.ndarray], load: Callable[[float], np.ndarray], n: int,
                   duration: float, *, seed: int = 0, observer_rig: Rig | None = None,
-                  load_process: LoadProcess | None = None, load_time_constant: float | None = None,
-                  observer_options: dict | None = None, substeps: int = 2,
+                  load_time_constant: float | None = None, substeps: int = 2,
                   estimator: ObserverEstimator | None = None) -> dict[str, np.ndarray]:
     """Run n rigs for ``duration`` under speed(t) and load(t) set-points (each -> shape (n,)).
 
     substeps: the simulator's integration steps per sample (its default 2 is coarse in a
     reversal, where the worm accelerates at ~30000 rad/s²).
     estimator: streams from ``estimator.stream`` (its model, sensor correction and calibration
-    bias) instead of plain LoadObservers of ``observer_rig``.
+    bias) instead of the shipped observer's (ObserverEstimator, as estimator_node builds it) on
+    ``observer_rig`` (default ``rig``: the observer's model is the plant's).
     Returns arrays (samples, n): t [s] (the sample's tick), tau_true (applied load over the
     period starting at that tick), tau_est, uncertainty, flags, omega_true, jump (bool).
     """
@@ -61,9 +61,8 @@ def run_observers(rig: Rig, speed: Callable[[float], np.ndarray], load: Callable
         sim.plant.load_current_time_constant = load_time_constant
     dt = sim.sample_period
     controller = SpeedController(rig, DEFAULT_GAINS, n=n)
-    observers = [estimator.stream(dt) if estimator is not None else
-                 LoadObserver(observer_rig or rig, dt, load=load_process, **(observer_options or {}))
-                 for _ in range(n)]
+    estimator = estimator if estimator is not None else ObserverEstimator(rig=observer_rig or rig)
+    observers = [estimator.stream(dt) for _ in range(n)]
     steps = int(round(duration / dt))
     out = {name: np.zeros((steps, n)) for name in ("t", "tau_true", "tau_est", "uncertainty", "omega_true")}
     out["flags"] = np.zeros((steps, n), dtype=np.int64)
@@ -115,14 +114,12 @@ def _first(fraction: np.ndarray, level: float = 0.9) -> float:
 
 def step_response(rig: Rig, *, seeds: int = 12, seed: int = 0, speed: float = 150.0, before: float = 0.0,
                   after: float = 0.2, settle: float = 0.6, observe: float = 0.2, ideal_step: bool = True,
-                  observer_rig: Rig | None = None, load_process: LoadProcess | None = None,
-                  observer_options: dict | None = None) -> StepResponse:
+                  observer_rig: Rig | None = None) -> StepResponse:
     """Step the load from ``before`` to ``after`` at ``settle`` s, speed held at ``speed``."""
     k_step = int(round(settle * rig.sensors.sample_rate_hz))
     run = run_observers(rig, lambda t: np.full(seeds, speed),
                         lambda t: np.full(seeds, after if t >= settle - 1e-9 else before), seeds, settle + observe,
-                        seed=seed, observer_rig=observer_rig, load_process=load_process,
-                        load_time_constant=IDEAL_STEP if ideal_step else None, observer_options=observer_options)
+                        seed=seed, observer_rig=observer_rig, load_time_constant=IDEAL_STEP if ideal_step else None)
     change = after - before
     fraction = (run["tau_est"][k_step:] - before) / change
     mean = fraction.mean(axis=1)
