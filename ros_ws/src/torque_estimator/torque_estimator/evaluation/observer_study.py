@@ -5,9 +5,10 @@ Every experiment runs n rigs side by side in one SimulatedRig (one per seed or o
 point, each with its own sensor noise), each held by the PI speed controller
 (speed_controller.DEFAULT_GAINS, no feedforward unless said), and one stream of the estimator
 per rig (the shipped observer as estimator_node builds it, unless another is given) fed what
-the rig measures each sample (voltage_drive, current_drive, omega_worm, theta_worm). The simulator runs the rig file's true parameters; the observer may run a
-perturbed copy (:func:`perturbed_rig`). Torques in N m on the gear shaft, positive
-opposing positive worm rotation; times in s unless named _ms.
+the rig measures each sample (voltage_drive, current_drive, omega_worm, theta_worm). The
+simulator runs the rig file's true parameters; the observer may run a perturbed copy
+(:func:`perturbed_rig`). Torques in N m on the gear shaft, positive opposing positive worm
+rotation; times in s unless named _ms.
 """
 from __future__ import annotations
 
