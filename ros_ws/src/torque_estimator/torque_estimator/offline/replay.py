@@ -85,6 +85,7 @@ from torque_estimator.estimation.settings import (ALL_OPTIONS, INPUT_OPTIONS, RI
                                                   build_estimator)
 from torque_estimator.joints.settings import JOINT_STATE_ESTIMATOR_OPTIONS
 from torque_estimator.graph.runner import default_graph_file, parse_overrides
+from worm_rig_driver.drive.rig_node_options import RIG_NODE_OPTIONS
 from worm_model.cli.progress import ProgressBar
 
 #: The nodes' parameter defaults, for what the file leaves out: the rows each node declares (model_node:
@@ -97,9 +98,8 @@ NODE_DEFAULTS: dict[str, dict[str, Any]] = {
                                   + JOINT_STATE_ESTIMATOR_OPTIONS)},
 }
 #: The rig nodes whose feedforward estimator may be the graph's live estimator, and what replay reads of them
-#: (sim_node.py, driver_node.py; their other parameters are ignored here).
-RIG_DEFAULTS: dict[str, Any] = {"rig_file": "", "feedforward_estimator": "", "feedforward_calibration": "",
-                                "publish_estimate": True}
+#: (worm_rig_driver.drive.rig_node_options; their other parameters are ignored here).
+RIG_DEFAULTS: dict[str, Any] = defaults(RIG_NODE_OPTIONS)
 RIG_NODES = ("sim_node", "driver_node")
 #: sample channels checked against the rig's envelope before they reach a core
 PLAUSIBLE_CHANNELS = ("omega_worm", "current_drive", "tau_load", "voltage_drive")

@@ -35,7 +35,7 @@ from worm_msgs.msg import RigSample as RigSampleMsg
 
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
-from worm_model.ros.parameters import declare
+from worm_model.ros.parameters import declare, declare_option
 from worm_model.physics.parameters import load_rig
 from worm_model.rig_data.samples import RigSample
 
@@ -44,6 +44,7 @@ from worm_rig_driver.link.core import CommandLimits, LinkConfig, LinkCore, LinkS
 from worm_rig_driver.protocol.scaling import RigScaling
 from worm_rig_driver.link.serial_link import SUPPORTED_BAUDS, SerialLink
 from worm_rig_driver.drive.realtime import make_realtime
+from worm_rig_driver.drive.rig_node_options import RIG_FILE
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 from worm_rig_driver.nodes.rig_topics import (RigEstimate, RigTopics, declare_rig_feedforward, log_refusal,
@@ -65,7 +66,7 @@ class DriverNode(Node):
                              "not a serial device (e.g. /dev/ttyACM0 or a /dev/serial/by-id/... link)")
         baud = declare(self, "baud", table.BAUD, f"Line rate [bit/s]; the firmware uses {table.BAUD}.",
                        low=min(SUPPORTED_BAUDS), high=max(SUPPORTED_BAUDS))
-        rig_file = declare(self, "rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
+        rig_file = declare_option(self, RIG_FILE)
         rate = declare(self, "stream_rate_hz", table.SAMPLE_RATE_HZ,
                        f"Telemetry rate [Hz]: 0 or a divisor of {table.SAMPLE_RATE_HZ}.", low=0,
                        high=table.SAMPLE_RATE_HZ)

@@ -55,12 +55,13 @@ from worm_msgs.msg import RigSample as RigSampleMsg
 from worm_model.physics.parameters import Rig
 from worm_model.rig_data.samples import FIELDS, RigSample
 from worm_model.ros.commands import subscribe_command
-from worm_model.ros.parameters import declare
+from worm_model.ros.parameters import declare, declare_option
 from worm_model.ros.qos import STREAM
 
 from worm_rig_driver.drive.command_owner import CommandOwner
 from worm_rig_driver.drive.feedforward_plugin import load_rig_feedforward
 from worm_rig_driver.errors import FeedforwardUnavailable
+from worm_rig_driver.drive.rig_node_options import FEEDFORWARD_CALIBRATION, FEEDFORWARD_ESTIMATOR, PUBLISH_ESTIMATE
 from worm_rig_driver.drive.rig_loop import RigFeedforward, voltage_problem
 from worm_rig_driver.drive.rig_loop import SpeedCommand as LoopCommand
 from worm_rig_driver.nodes.estimate_topics import EstimateTopics
@@ -190,14 +191,8 @@ def declare_rig_feedforward(node: Node, rig: Rig, sample_period: float) -> RigFe
     Raises:
         ValueError: it cannot be built (one line naming the parameter; run_node exits 2 with it).
     """
-    method = declare(node, "feedforward_estimator", "",
-                     "Load-torque estimator run beside the speed loop on every sample, whose feedforward drives "
-                     "the very next period for speed commands with feedforward_at_rig (the controller_node "
-                     "parameter of that name): a method of torque_estimator (observer, knn, extended_model). "
-                     "Empty: none; commands bring their own feedforward_torque.")
-    calibration = declare(node, "feedforward_calibration", "",
-                          "Calibration database of that estimator (the file `calibrate` writes); empty: none "
-                          "(observer and extended_model work from the rig file alone).")
+    method = declare_option(node, FEEDFORWARD_ESTIMATOR)
+    calibration = declare_option(node, FEEDFORWARD_CALIBRATION)
     if not method:
         return None
     try:
@@ -222,11 +217,7 @@ class RigEstimate:
     """
 
     def __init__(self, node: Node, rig: Rig, feedforward: RigFeedforward | None, frame_id: str) -> None:
-        publish = declare(node, "publish_estimate", True,
-                          "Publish the feedforward estimator's estimate of each batch's newest sample as the "
-                          "graph's estimate: torque_estimate (worm_msgs/TorqueEstimate), torque_estimate/"
-                          "joint_states and torque_estimate/wrench, as estimator_node does (nothing without "
-                          "feedforward_estimator). False: leave those topics to an estimator_node.")
+        publish = declare_option(node, PUBLISH_ESTIMATE)
         joint_name = declare(node, "joint_name", "gear", "Name of the joint in torque_estimate/joint_states.")
         wrench_frame = declare(node, "wrench_frame", "gear_output",
                                "frame_id of torque_estimate/wrench: its z axis is the output shaft, positive "

@@ -44,10 +44,11 @@ from worm_model.physics.parameters import load_rig
 from worm_model.rig_data.samples import SIM_TRUTHS_TOPIC, TRUTH_FIELDS
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
-from worm_model.ros.parameters import declare
+from worm_model.ros.parameters import declare, declare_option
 from worm_model.ros.qos import STREAM
 
 from worm_rig_driver.drive.realtime import make_realtime
+from worm_rig_driver.drive.rig_node_options import RIG_FILE
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 from worm_rig_driver.nodes.rig_topics import (RigEstimate, RigTopics, declare_rig_feedforward, log_refusal,
@@ -64,7 +65,7 @@ class SimNode(Node):
 
     def __init__(self) -> None:
         super().__init__("sim_node")
-        rig_file = declare(self, "rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
+        rig_file = declare_option(self, RIG_FILE)
         seed = declare(self, "seed", 0, "Seed of the sensor noise (same seed, same commands -> same samples).",
                        low=0, high=2**31 - 1)
         effects_file = declare(self, "effects_file", "",
