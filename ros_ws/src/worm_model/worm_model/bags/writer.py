@@ -25,7 +25,9 @@ Raises:
 from __future__ import annotations
 
 import threading
+from array import array
 from collections.abc import Iterator, Mapping, Sequence
+from io import SEEK_END, BytesIO
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Final, Literal
@@ -82,6 +84,37 @@ class TopicHandle:
     type_hash: str
     """RIHS01 hash of the embedded definition (``RIHS01_<hex>``)."""
     connection: Connection
+
+
+class _ChunkIndexes:
+    """The MCAP writer's chunk index records, held as bytes in one buffer.
+
+    rosbags' McapWriter keeps one record per closed chunk (a BytesIO) for the summary it writes at close:
+    ~320 bytes of memory each for ~190 bytes of record (13 topics). The recorder closes a chunk every
+    second (:meth:`BagWriter.flush`), so that was 1.16 MB an hour of a recorder's resident set that only
+    the bag's close gives back; here ~200 bytes a chunk (0.7 MB an hour). The writer only appends,
+    counts and iterates (its close); iterating gives each record back as a BytesIO positioned at its
+    end, as the writer made it.
+    """
+
+    def __init__(self) -> None:
+        self._data = bytearray()
+        self._ends = array('Q')
+
+    def append(self, record: BytesIO) -> None:
+        self._data += record.getbuffer()
+        self._ends.append(len(self._data))
+
+    def __len__(self) -> int:
+        return len(self._ends)
+
+    def __iter__(self) -> Iterator[BytesIO]:
+        start = 0
+        for end in self._ends:
+            record = BytesIO(self._data[start:end])
+            record.seek(0, SEEK_END)
+            yield record
+            start = end
 
 
 class BagWriter(ClosesOnExit):
@@ -149,6 +182,8 @@ class BagWriter(ClosesOnExit):
         except (WriterError, OSError) as err:
             msg = f'Cannot create bag {self.path}: {err}'
             raise BagRecordingError(msg) from err
+        if isinstance(getattr(writer.storage, 'chunks', None), list) and not writer.storage.chunks:  # MCAP
+            writer.storage.chunks = _ChunkIndexes()
         self._writer = writer
 
     @property
