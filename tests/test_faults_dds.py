@@ -137,7 +137,15 @@ def test_killed_rig_restarts_and_the_graph_follows(graph) -> None:
     # 1.5 s of rig time (its samples), however long the probe takes to receive them
     assert s.spin_until(lambda: len(s.samples) >= 1500 and len(s.estimates) > 100, START_TIMEOUT), (
         f"{len(s.samples)} samples, {len(s.estimates)} estimates after the restart; logs in {g.log_dir}")
-    assert abs(sum(x.omega_worm for x in s.samples[-200:]) / 200 - 150.0) < 3.0, "the controller did not take it"
+
+    def held() -> float:  # the mean speed of the last 200 samples
+        return sum(x.omega_worm for x in s.samples[-200:]) / 200
+
+    # then the speed held at the set-point over 200 samples: on a machine whose load starves the controller
+    # for longer than the rig's watchdog allows, the rig stops itself for a while (its fault behaviour, not
+    # this one); the controller takes it back within the timeout, or never has
+    assert s.spin_until(lambda: abs(held() - 150.0) < 3.0, START_TIMEOUT), (
+        f"the controller did not take it: {held():.1f} rad/s over the last 200 samples; logs in {g.log_dir}")
     assert len(s.estimates) > 100 and s.commands[-1].feedforward_torque > 0
 
 
