@@ -6,7 +6,7 @@ COMMAND), as the rig's sample clock walks the timeline; reads /rig/samples (RigS
 and /rig/speed_command (SpeedCommand).  The rig (sim_node or driver_node) is held by its own
 speed loop on the set-points controller_node sends, as in operation and as ``calibrate --live``.
 Recording starts with the first sample after controller_node's speed commands carry the first
-set-point.  Timeline, samples and journal: identification.recording (no ROS there).
+set-point.  Timeline, samples and journal: session.recording (no ROS there).
 """
 from __future__ import annotations
 

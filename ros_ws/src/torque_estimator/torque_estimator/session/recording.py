@@ -5,16 +5,16 @@ the set-points in force for the next sample (:meth:`ExcitationRun.setpoints`) an
 every sample the rig sends (:meth:`ExcitationRun.add`).  Segment k lasts
 round(end_k / T) - round(start_k / T) samples (T the sample period), so the timeline's
 rig time is the same whoever drives it: the simulator in this process
-(``identification.simulated``, the health check's simulated run) or a ROS shell over the graph
-(``identify_node``, the health check's live run).
+(``identification.simulated``) or the ROS shell over the graph (``identify_node``, which the
+health check's live reference run uses too).
 
 Journal (resumable like ``calibrate``): after every finished segment its samples are
 appended to ``<out>.partial.csv`` (the ``worm_rig_data`` CSV schema, worm_model.rig_data)
 and synced, then ``<out>.partial.json`` is rewritten atomically with the settings (the
 timeline, the rig file's values, the source), the segments done and the CSV's length in
 bytes at that point.  A run stopped at any instant (Ctrl-C, SIGTERM, SIGKILL) leaves every
-finished segment; ``--resume`` checks the settings (session.resume), cuts the CSV back to the committed
-length (a half-written segment is dropped) and goes on with the next segment.  Its
+finished segment; ``--resume`` checks the settings (session.resume), cuts the CSV back to the
+committed length (a half-written segment is dropped) and goes on with the next segment.  Its
 samples continue the time axis after a gap of RESUME_GAP, so the reader sees a new *run*
 there (filters restart, no derivative across it).  Samples with a NaN/inf required channel
 are skipped and counted (they still count as rig time).
