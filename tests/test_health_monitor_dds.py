@@ -102,8 +102,9 @@ def test_a_lubricant_loss_raises_warn_within_3_5_s_of_rig_time(monitor_graph: Gr
     warned = [rig_time(m) for m in health if rig_time(m) > LOSS_AT and m.level >= GearboxHealth.LEVEL_WARN]
     assert warned and warned[0] - LOSS_AT <= 3.5, (warned[:1], LOSS_AT)
     assert warned[0] - LOSS_AT > 0.0
-    # /diagnostics carries the same level, with the figures, as the monitor raised it
+    # /diagnostics carries the same level, with the figures, as the monitor raised it: published with the WARN
+    # health message, so within the same bound (and the 0.2 s of rig time its arrival is read against)
     diag_warn = [(t - origin[0]) * 1e-9 for t, level in statuses if level >= int.from_bytes(DiagnosticStatus.WARN,
                                                                                           "little")]
-    assert diag_warn and diag_warn[0] - LOSS_AT <= 2.0 + 0.2, diag_warn[:1]
+    assert diag_warn and 0.0 < diag_warn[0] - LOSS_AT <= 3.5 + 0.2, (diag_warn[:1], warned[:1])
     assert not monitor_graph.failed(), monitor_graph.failed()
