@@ -34,7 +34,7 @@ from torque_estimator.estimation.base import TorqueEstimator
 from torque_estimator.estimation.database import CalibrationDatabase, load_database
 from torque_estimator.errors import CalibrationError
 from torque_estimator.estimation.live import LiveEstimator
-from worm_model.cli.node_options import Option
+from worm_model.cli.node_options import RIG_FILE, Option
 
 from torque_estimator.estimation.registry import MAP_OPTIONS, METHODS, method
 
@@ -43,7 +43,7 @@ SETTINGS_OPTIONS: tuple[Option, ...] = (
     Option("method", "knn", "Estimator: knn (the paper's k-NN map over a calibration), extended_model (inverts the "
            "identified model), observer (Kalman filter on the model, Eqs 28-30, fed the voltage too), momentum "
            "(momentum observer on the model: current and speed only, no voltage).", choices=tuple(METHODS)),
-    Option("rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig."),
+    RIG_FILE,
     Option("calibration_file", "",
            "Calibration database (JSON written by `calibrate`); knn needs one; the observer, momentum and "
            "extended_model can do without one (their ranges then come from the rig file), and with one the observer "

@@ -30,7 +30,8 @@ from worm_model.physics.parameters import load_rig
 from worm_model.rig_data.samples import batch_problem
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
-from worm_model.ros.parameters import declare
+from worm_model.cli.node_options import RIG_FILE
+from worm_model.ros.parameters import declare, declare_option
 from worm_model.ros.qos import STREAM
 
 LEVELS = {"OK": (GearboxHealth.LEVEL_OK, OK), "WARN": (GearboxHealth.LEVEL_WARN, WARN),
@@ -40,7 +41,7 @@ LEVELS = {"OK": (GearboxHealth.LEVEL_OK, OK), "WARN": (GearboxHealth.LEVEL_WARN,
 class HealthMonitorNode(Node):
     def __init__(self) -> None:
         super().__init__("health_monitor")
-        rig_file = declare(self, "rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
+        rig_file = declare_option(self, RIG_FILE)
         trend_file = declare(self, "trend_file", "",
                              "The gearbox's trend (worm_gearbox_health_trend, written by health_check): its latest "
                              "check is the reference; empty = the rig file's values over the load motors' range.")

@@ -51,7 +51,8 @@ from worm_model.physics.parameters import load_rig
 from worm_model.physics.steady_state import make_balancing_torque_float
 from worm_model.ros.diagnostics import OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
-from worm_model.ros.parameters import declare
+from worm_model.cli.node_options import RIG_FILE
+from worm_model.ros.parameters import declare, declare_option
 from worm_model.ros.commands import subscribe_command
 from worm_model.ros.qos import STREAM
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
@@ -68,7 +69,7 @@ SOURCES = {"torque_estimate": (TorqueEstimate, "torque_estimate"),
 class ControllerNode(Node):
     def __init__(self) -> None:
         super().__init__("controller_node")
-        rig_file = declare(self, "rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
+        rig_file = declare_option(self, RIG_FILE)
         self.kp = declare(self, "kp", DEFAULT_GAINS.kp, "Proportional gain of the rig's speed PI [N m s/rad].",
                           low=0.0, high=10.0)
         self.ki = declare(self, "ki", DEFAULT_GAINS.ki, "Integral gain of the rig's speed PI [N m/rad].",

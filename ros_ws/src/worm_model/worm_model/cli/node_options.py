@@ -31,9 +31,13 @@ class Option:
         return [] if self.default == STRING_ARRAY else self.default
 
 
+#: the rig file every node that models a rig declares (one row, so its name, default and words agree)
+RIG_FILE = Option("rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
+
+
 def defaults(rows: Iterable[Option]) -> dict[str, Any]:
     """name -> the value each row's parameter holds when nothing sets it."""
     return {row.name: row.value for row in rows}
 
 
-__all__ = ["STRING_ARRAY", "Option", "defaults"]
+__all__ = ["RIG_FILE", "STRING_ARRAY", "Option", "defaults"]

@@ -4,7 +4,7 @@ worm_model.rig_data.joint_states.JOINT_STATE_OPTIONS. No ROS.
 """
 from __future__ import annotations
 
-from worm_model.cli.node_options import STRING_ARRAY, Option
+from worm_model.cli.node_options import RIG_FILE, STRING_ARRAY, Option
 
 #: what model_node reads
 MODEL_NODE_INPUTS: tuple[str, ...] = ("rig_samples", "joint_state")
@@ -13,7 +13,7 @@ MODEL_NODE_INPUTS: tuple[str, ...] = ("rig_samples", "joint_state")
 MODEL_NODE_OPTIONS: tuple[Option, ...] = (
     Option("input", "rig_samples", "What the forces are computed from: rig_samples (rig/samples) or joint_state (a "
            "robot's sensor_msgs/JointState).", choices=MODEL_NODE_INPUTS),
-    Option("rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig."),
+    RIG_FILE,
     Option("use_acceleration", True, "Use the worm acceleration (Eqs 19-20); false = quasi-static (a_w = 0)."),
     Option("acceleration_filter", 0.01, "Time constant [s] of the low-pass on speed and acceleration.",
            low=0.0, high=1.0),

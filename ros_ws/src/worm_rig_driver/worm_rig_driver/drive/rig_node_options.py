@@ -5,9 +5,8 @@ leaves out. No ROS.
 """
 from __future__ import annotations
 
-from worm_model.cli.node_options import Option
+from worm_model.cli.node_options import RIG_FILE, Option
 
-RIG_FILE = Option("rig_file", "", "Rig parameter YAML (worm_model format); empty = bundled NMRV030 rig.")
 FEEDFORWARD_ESTIMATOR = Option(
     "feedforward_estimator", "",
     "Load-torque estimator run beside the speed loop on every sample, whose feedforward drives the very next "
