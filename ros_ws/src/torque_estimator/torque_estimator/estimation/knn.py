@@ -55,7 +55,6 @@ from typing import Callable, Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial import cKDTree
 
 from torque_estimator.estimation.database import CalibrationDatabase
 from torque_estimator.estimation.base import EstimateFlags, TorqueEstimates
@@ -88,6 +87,9 @@ class _Side:
 
     def __init__(self, features: NDArray[np.float64], tau: NDArray[np.float64],
                  tau_var: NDArray[np.float64]) -> None:
+        # imported at first use: scipy.spatial takes ~0.2 s to import, paid at start by every executable
+        from scipy.spatial import cKDTree
+
         self.tree = cKDTree(features)
         self.tau = tau
         self.tau_var = tau_var

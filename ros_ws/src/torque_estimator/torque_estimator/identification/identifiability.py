@@ -33,7 +33,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import norm
 
 from worm_model.physics.parameters import Rig
 from worm_model.residuals.free import TOLERANCES, get_value
@@ -204,6 +203,9 @@ def assess(names: Sequence[str], jacobian: np.ndarray, residual: np.ndarray, dec
                     corr[i, j] = 1.0 if i == j else float(np.sign(v[i] * v[j]))
     # a parameter the data do not move at all (a zero column): unbounded
     sd = np.where(np.linalg.norm(J, axis=0) > 0, sd, np.inf)
+    # imported at first use: scipy.stats takes ~0.4 s to import, paid at start by every executable
+    from scipy.stats import norm
+
     z = float(norm.ppf(0.5 + CONFIDENCE / 2.0))
     return Assessment.of(names, {n: float(z * s) for n, s in zip(names, sd)}, corr, declared, at_bound, values)
 

@@ -55,7 +55,6 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from worm_model.physics.friction import friction_coefficient, sliding_velocity
 from worm_model.physics.parameters import Rig
@@ -422,6 +421,9 @@ def fit(rig: Rig, points: SteadyPoints, structure: Sequence[str] = (), *, curren
             x0[j] = s * shaft
             starts.append(x0)
     best = None
+    # imported at first use: scipy.optimize takes ~0.4 s to import, paid at start by every executable
+    from scipy.optimize import least_squares
+
     for x0 in starts:
         span = np.where(np.isfinite(high - low), high - low, np.abs(x0) + 1.0)
         x0 = np.clip(x0, low + 1e-6 * span, high - 1e-6 * span)

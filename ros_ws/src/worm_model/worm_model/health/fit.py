@@ -35,7 +35,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from worm_model.health.model import NAMES, HealthParameters, TemperatureLaw, gear_drag, input_torque
 from worm_model.health.points import Points
@@ -131,6 +130,9 @@ def fit_points(points: Points, rig: Rig, reference: HealthParameters, priors: Pr
 
     def residuals(x: np.ndarray) -> np.ndarray:
         return np.concatenate([(points.torque - model(theta0 + width * x)) / sigma, x])
+
+    # imported at first use: scipy.optimize takes ~0.4 s to import, paid at start by every executable
+    from scipy.optimize import least_squares
 
     solution = least_squares(residuals, np.zeros(len(theta0)), method="trf", xtol=1e-10, ftol=1e-10, gtol=1e-10,
                              max_nfev=200)

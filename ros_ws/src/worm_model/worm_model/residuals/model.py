@@ -32,7 +32,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import filtfilt
 
 from worm_model.physics.efficiency import flank_factor
 from worm_model.physics.friction import friction_coefficient
@@ -104,6 +103,9 @@ def zero_phase_derivative(t: FloatArray, x: FloatArray, run: np.ndarray,
     (time constant [s]) before and after a central difference, but each run forward and
     backward (scipy filtfilt), so the derivative is not delayed against the current.
     """
+    # imported at first use: scipy.signal takes ~0.4 s to import, paid at start by every executable
+    from scipy.signal import filtfilt
+
     out = np.zeros(len(x))
     for r in np.unique(run):
         idx = np.flatnonzero(run == r)

@@ -31,7 +31,6 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.stats import chi2
 
 from worm_model.physics.parameters import Rig
 
@@ -105,6 +104,9 @@ class LoadProcess:
 
     def threshold(self) -> float:
         """h: the step detector's statistic above which a jump is declared (χ²₁ at false_alarm / window)."""
+        # imported at first use: scipy.stats takes ~0.4 s to import, paid at start by every executable
+        from scipy.stats import chi2
+
         return float(chi2.isf(self.false_alarm / max(self.window, 1), 1))
 
 

@@ -6,7 +6,6 @@ from collections.abc import Mapping
 from typing import ClassVar
 
 import numpy as np
-from scipy.signal import lfilter
 
 from worm_model.effects import VOCABULARY
 from worm_model.effects.heat import mesh_heat as heat_of_mesh
@@ -26,6 +25,9 @@ def first_order_lag(t: FloatArray, x: FloatArray, run: np.ndarray, time_constant
     the *declared* model computes) so that what it fits is never the simulator's own arithmetic: a case
     passes because the analysis found the effect, not because both sides ran one function.
     """
+    # imported at first use: scipy.signal takes ~0.4 s to import, paid at start by every executable
+    from scipy.signal import lfilter
+
     y = np.zeros(len(x))
     for r in np.unique(run):
         idx = np.flatnonzero(run == r)

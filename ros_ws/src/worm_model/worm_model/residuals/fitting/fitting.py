@@ -22,8 +22,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.stats import norm
 
 from worm_model.physics.parameters import Rig
 from worm_model.physics.units import FloatArray
@@ -285,6 +283,9 @@ def te_columns(problem: Problem, specs, rig: Rig, state: ModelState) -> FloatArr
 def fit_te(problem: Problem, specs, rig: Rig, state: ModelState) -> tuple[TeFit, list[dict[str, float]],
                                                                              list[dict[str, float]]]:
     """The transmission-error part of a fit: (TeFit, values per TE effect, CI half-widths per TE effect)."""
+    # imported at first use: scipy.stats takes ~0.4 s to import, paid at start by every executable
+    from scipy.stats import norm
+
     sol = te_solve(problem, te_columns(problem, specs, rig, state))
     train, held = problem.te_train, problem.te_held_out
     n_train = int(train.sum())
@@ -319,6 +320,10 @@ def fit(problem: Problem, specs: Sequence[tuple[Effect, dict[str, float]]], prev
         previous: a fit to start from (its rig and effect values).
         guesses: start values per effect name (e.g. from :func:`screen`).
     """
+    # imported at first use: scipy.optimize and scipy.stats take ~0.4 s to import, paid at start by every executable
+    from scipy.optimize import least_squares
+    from scipy.stats import norm
+
     train, held = problem.split.train, problem.split.held_out
     cur = by_signal(specs, "current_drive")
     y = problem.current[train]

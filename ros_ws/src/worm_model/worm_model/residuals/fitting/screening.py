@@ -9,7 +9,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.stats import chi2
 
 from worm_model.physics.parameters import Rig
 
@@ -161,6 +160,9 @@ def grid_interval(candidate: Candidate, n_eff: float, n: int, confidence: float)
     rss = np.array([s for _g, s in candidate.profile])
     values = np.array([g for g, _s in candidate.profile])
     stat = n_eff * np.log(rss / rss.min())
+    # imported at first use: scipy.stats takes ~0.4 s to import, paid at start by every executable
+    from scipy.stats import chi2
+
     inside = values[stat <= chi2.ppf(confidence, 1)]
     return float(inside.min()), float(inside.max())
 
