@@ -26,12 +26,17 @@ evaluate: setup
 test: setup
 	@$(RUN) python -m pytest $(PARALLEL) $(TESTS)
 
-# The system tests: nodes as processes over DDS, the driver over a pty, the firmware in simavr, the demo, the
-# README's commands, Foxglove decoding our bags. Left out: the tests that never touch ROS (residual analysis on
-# the simulator, the README's computed figures, static import/dependency checks, ruff). CI's run on the second
+# The system tests: what can differ from one ROS 2 distribution to the next. Nodes as processes over DDS, the
+# driver over a pty, the firmware in simavr, the demo, the README's commands, the bags and Foxglove decoding them,
+# every executable's refusal of bad options and parameters. Left out: the tests that never touch ROS (residual
+# analysis on the simulator, the foreign plant, the README's computed figures, static import/dependency checks,
+# ruff), and those that drive the same nodes and executables as the ones above through our offline tools and
+# benchmarks (the new-drive page, the tools' file round trip, the soak benchmark). CI's run on the second
 # distribution (.ci/run: make test-system ROS_DISTRO=jazzy).
 NOT_SYSTEM := tests/test_residuals_cases.py tests/test_residuals_sim.py tests/test_readme_figures.py tests/test_docs.py \
-              tests/test_layout.py tests/test_package_deps.py tests/test_lint.py tests/test_bench_scripts.py
+              tests/test_layout.py tests/test_package_deps.py tests/test_lint.py tests/test_bench_scripts.py \
+              tests/test_foreign_plant.py tests/test_effect_vocabulary.py \
+              tests/test_new_drive.py tests/test_tool_round_trip.py tests/test_soak_bench.py
 SYSTEM_TESTS := $(filter-out $(NOT_SYSTEM),$(sort $(wildcard tests/test_*.py)))
 test-system: setup
 	@$(RUN) python -m pytest $(PARALLEL) $(SYSTEM_TESTS) $(TESTS)
