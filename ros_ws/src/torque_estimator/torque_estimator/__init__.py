@@ -23,13 +23,14 @@ helpers beside the CLIs that talk to a live graph):
 ``session``         a session with the rig, what calibration, identification and the
                     health check share: the client node and its waits
                     (``rig_session_node``), the timeline's ``recording`` and its
-                    journal, the ``resume`` rule, the rig's ``topics``
+                    journal, its ROS shell (``recording_node``), the ``resume`` rule,
+                    the rig's ``topics``
 ``calibration``     making a calibration: grid and batch run on the simulator
                     (``batch``), point by point on a live graph (``live``,
                     ``calibration_node``), the resumable ``journal``, the steady-state
                     ``operating_points``, the ``calibrate`` CLI
-``identification``  the fast road: one short excitation (``excitation``, ``recording``,
-                    live over the graph by ``identify_node``, in-process by
+``identification``  the fast road: one short excitation (``excitation``, recorded by session,
+                    live over the graph by session's ``recording_node``, in-process by
                     ``simulated``), the fit of the rig's uncertain parameters and
                     effects (``fit``), the ``identify`` CLI
 ``offline``         the estimators over recorded data: ``estimate`` (any log, scored

@@ -1,6 +1,6 @@
 """The ROS shell of a live ``health_check``'s temperature: what the graph says about the oil, before and after the run.
 
-The run itself is driven by identification.identify_node (the same machinery as ``identify``); this
+The run itself is driven by session.recording_node (the same machinery as ``identify``); this
 only listens, for up to ``timeout`` seconds, for a sensor_msgs/Temperature on the oil's topic (a
 sensor) and for the live monitor's worm_msgs/GearboxHealth (its estimate from the drive's losses).
 """

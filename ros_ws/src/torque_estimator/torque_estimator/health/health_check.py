@@ -198,14 +198,15 @@ def _write_plot(path: Path, *args) -> None:
 def _record_live(args, rig, timeline) -> tuple[MeasuredData, tuple | None]:
     """The live path: the oil's temperature before, the reference run, after; the ROS shells are imported here."""
     from torque_estimator.health.check_node import listen_temperature  # noqa: PLC0415
-    from torque_estimator.identification.identify_node import run_live  # noqa: PLC0415
+    from torque_estimator.session.recording_node import run_live  # noqa: PLC0415
     from torque_estimator.session.recording import ExcitationRun, Journal, run_settings  # noqa: PLC0415
 
     before = listen_temperature(args.temperature_topic, args.health_topic, 2.0)
     run = ExcitationRun(timeline, Journal(run_settings(timeline, {}, "live")), 1.0 / rig.sensors.sample_rate_hz)
     try:
         with ProgressBar(run.total_samples, "reference run [samples]", enabled=not args.quiet) as bar:
-            run_live(run, start_timeout=args.start_timeout, on_tick=lambda: bar.update_to(run.samples_done))
+            run_live(run, "health_check", start_timeout=args.start_timeout,
+                     on_tick=lambda: bar.update_to(run.samples_done))
     except LiveRigError as err:
         print(f"{PROG}: live rig: {err}", file=sys.stderr)
         raise SystemExit(1) from None

@@ -1,7 +1,7 @@
 """The health check's reference run: a few constant speeds per direction, each at a few held loads (no ROS).
 
 A timeline of identification.excitation.Ramp segments, walked by the same machinery as ``identify``
-(session.recording on the rig's sample clock; identify_node over the graph;
+(session.recording on the rig's sample clock; session.recording_node over the graph;
 identification.simulated in this process). At each of ``speeds`` worm speeds per direction the
 load goes through ``loads`` (fractions of what the load motors can make, Rig.max_load_torque),
 snaking up at one speed and down at the next so that no load step is larger than one level;

@@ -1,6 +1,6 @@
 """Identification: the fast road to a working estimator on a new rig (one short run, no grid).
 
-Map (dependencies point up this list; rclpy only in ``identify_node``):
+Map (dependencies point up this list; no rclpy: a live run's ROS shell is session.recording_node):
 
 ================  ============================================================
 ``excitation``    the timeline of speed and load set-points (<= 90 s of rig time)
@@ -13,7 +13,6 @@ Map (dependencies point up this list; rclpy only in ``identify_node``):
 ``fit``           both roads (steady points, or worm_model's residual analysis of a time
                   series), the parameters the record pins, the sensors
 ``writing``       the extended rig file with its ``identification:``, checked readable
-``identify_node`` the ROS shell of a live run (set-points out, /rig/samples in)
 ``identify``      the ``identify`` CLI (live or ``--from`` a log)
 ================  ============================================================
 

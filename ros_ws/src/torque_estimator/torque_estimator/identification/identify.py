@@ -219,7 +219,7 @@ def _main(argv: list[str] | None) -> int:
 
 def _record_live(args, rig):
     """The live path: journal, excitation on the graph; the ROS shell is imported only here."""
-    from torque_estimator.identification.identify_node import run_live  # noqa: PLC0415
+    from torque_estimator.session.recording_node import run_live  # noqa: PLC0415
 
     timeline = default_excitation(rig, args.duration)
     journal = Journal.open(args.out, run_settings(timeline, {}, "live"), args.resume)
@@ -227,7 +227,7 @@ def _record_live(args, rig):
     with ProgressBar(run.total_samples, "excitation [samples]", enabled=not args.quiet) as bar:
         bar.update_to(run.samples_done)
         if not run.finished:
-            run_live(run, start_timeout=args.start_timeout, on_tick=lambda: bar.update_to(run.samples_done))
+            run_live(run, "identify", start_timeout=args.start_timeout, on_tick=lambda: bar.update_to(run.samples_done))
     if run.skipped_samples:
         print(f"{PROG}: skipped {run.skipped_samples} samples with a NaN/inf channel", file=sys.stderr)
     return journal, journal.data(str(journal.csv_path))

@@ -9,5 +9,7 @@ check share when they drive it, so that each keeps only what to measure and what
                     and its resumable journal (identification's excitation, the health check's reference run)
 ``rig_session_node`` the client node on the graph (RigClient) and the session around it: wait for the
                     rig and controller_node, spin, and command the rig to rest on every exit
+``recording_node``  ``recording``'s ROS shell: the timeline's set-points out, /rig/samples in, as a node
+                    named by the session (``identify``, ``health_check``)
 ==================  ===========================================================
 """

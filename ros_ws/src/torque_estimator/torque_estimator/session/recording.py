@@ -5,8 +5,8 @@ the set-points in force for the next sample (:meth:`ExcitationRun.setpoints`) an
 every sample the rig sends (:meth:`ExcitationRun.add`).  Segment k lasts
 round(end_k / T) - round(start_k / T) samples (T the sample period), so the timeline's
 rig time is the same whoever drives it: the simulator in this process
-(``identification.simulated``) or the ROS shell over the graph (``identify_node``, which the
-health check's live reference run uses too).
+(``identification.simulated``) or the ROS shell over the graph (``recording_node``, for ``identify``
+and the health check's live reference run alike).
 
 Journal (resumable like ``calibrate``): after every finished segment its samples are
 appended to ``<out>.partial.csv`` (the ``worm_rig_data`` CSV schema, worm_model.rig_data)

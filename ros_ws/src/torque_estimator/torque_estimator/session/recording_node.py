@@ -1,4 +1,7 @@
-"""The ROS shell of live ``identify``: drive whatever rig is on the graph through the excitation.
+"""The ROS shell of session.recording: drive whatever rig is on the graph through a timeline, recording it.
+
+Live ``identify`` (its excitation) and a live ``health_check`` (its reference run) run here, each as a node of
+its own name.
 
 Publishes the timeline's load torque on /rig/load_command (worm_msgs/LoadCommand) and its worm
 speed on /controller/speed_setpoint (std_msgs/Float64), reliable and latched (worm_model.ros.qos
@@ -21,11 +24,11 @@ from torque_estimator.session.recording import ExcitationRun
 RESEND = (0.05, 2e-4)
 
 
-class IdentifyClient(RigClient):
+class RecordingClient(RigClient):
     """Commands the timeline's set-points and feeds the rig's samples to an ExcitationRun."""
 
-    def __init__(self, run: ExcitationRun) -> None:
-        super().__init__("identify")
+    def __init__(self, run: ExcitationRun, name: str) -> None:
+        super().__init__(name)
         self.run = run
         self.recording = False
         self.sent: tuple[float, float] | None = None
@@ -55,9 +58,9 @@ class IdentifyClient(RigClient):
         self.publish_setpoints(speed, torque)
 
 
-def run_live(run: ExcitationRun, *, start_timeout: float = 30.0, ack_timeout: float = 5.0,
+def run_live(run: ExcitationRun, name: str, *, start_timeout: float = 30.0, ack_timeout: float = 5.0,
              stall_timeout: float = 5.0, on_tick: Callable[[], None] | None = None) -> None:
-    """Record every pending segment of ``run`` on the rig of the current ROS graph.
+    """Record every pending segment of ``run`` on the rig of the current ROS graph, as node ``name``.
 
     Raises:
         LiveRigError: no rig, no controller, or the rig stopped sending (the journal keeps every
@@ -65,7 +68,7 @@ def run_live(run: ExcitationRun, *, start_timeout: float = 30.0, ack_timeout: fl
         KeyboardInterrupt: Ctrl-C or SIGTERM (turned into it between two executor steps).
     On every exit the load torque and the speed set-point are commanded to 0: the rig is left stopped.
     """
-    with rig_session(lambda: IdentifyClient(run), start_timeout=start_timeout, on_tick=on_tick) as (
+    with rig_session(lambda: RecordingClient(run, name), start_timeout=start_timeout, on_tick=on_tick) as (
             node, spin_until):
         first = run.setpoints()
         if first is not None:
@@ -75,4 +78,4 @@ def run_live(run: ExcitationRun, *, start_timeout: float = 30.0, ack_timeout: fl
             measure_until(node, spin_until, lambda: run.finished, stall_timeout,
                           f"segment {run.segment} of {len(run.timeline)}")
 
-__all__ = ["IdentifyClient", "run_live"]
+__all__ = ["RecordingClient", "run_live"]
