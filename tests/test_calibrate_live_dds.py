@@ -22,31 +22,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from worm_msgs.msg import SpeedCommand
 
 from torque_estimator.calibration.batch import CalibrationGrid, calibrate_simulated
 from torque_estimator.estimation.database import load_database
 from torque_estimator.calibration.journal import CalibrationJournal, default_journal_path
 from torque_estimator.graph.runner import Graph
 from worm_model.ros.ament import find_executable
+from rig_sessions import last_speed_command, session_graph
 from torque_estimator.calibration.operating_points import SteadyStateCriterion
-from worm_model.ros.qos import STREAM
-from worm_model.ros.testing import probe_node
 from worm_model.physics.parameters import load_rig
 
-GRAPH = """\
-sim_node:
-  ros__parameters:
-    seed: 3
-    batch_size: 5
-    channel_decimation: 10
-    publish_truth: false
-    command_timeout: 0.5
-controller_node:
-  ros__parameters:
-    feedforward: false
-    speed_setpoint: 0.0
-"""
+GRAPH = session_graph(seed=3)
 RIG = load_rig()
 CRITERION = SteadyStateCriterion(window=0.2, settle_time=0.3, timeout=4.0)
 GRID = CalibrationGrid.paper(RIG, n_speeds=2, n_torques=2, speed_min=100.0, speed_max=200.0)  # 4 speeds x 2
@@ -68,17 +54,6 @@ def _points(journal: Path) -> int:
         return 0
 
 
-def _last_speed_command(timeout: float = 10.0) -> SpeedCommand | None:
-    """The next speed command controller_node sends the rig (a probe node in this process)."""
-    got: list[SpeedCommand] = []
-    with probe_node("calibrate_test_probe") as (node, executor):
-        node.create_subscription(SpeedCommand, "/rig/speed_command", got.append, STREAM)
-        deadline = time.monotonic() + timeout
-        while len(got) < 20 and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-    return got[-1] if got else None
-
-
 def test_live_calibration_interrupted_and_resumed(rig_graph: Graph, ros_env: dict[str, str],
                                                   tmp_path: Path) -> None:
     out = tmp_path / "live.json"
@@ -98,7 +73,7 @@ def test_live_calibration_interrupted_and_resumed(rig_graph: Graph, ros_env: dic
     before = CalibrationJournal.load(journal, N_POINTS).points
     assert 3 <= len(before) < N_POINTS, f"{len(before)} points before the interruption"
     # calibrate left the rig at rest: controller_node now holds 0 rad/s
-    last = _last_speed_command()
+    last = last_speed_command("calibrate_test_probe")
     assert last is not None and last.speed_setpoint == 0.0, last
     assert not rig_graph.failed(), rig_graph.failed()
 

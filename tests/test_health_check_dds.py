@@ -19,20 +19,9 @@ from worm_model.health.record import read_trend
 from worm_model.physics.parameters import load_rig
 from worm_model.rig_data.reader import read_rig_data
 from worm_model.ros.ament import find_executable
+from rig_sessions import session_graph
 
-CHECK_GRAPH = """\
-sim_node:
-  ros__parameters:
-    seed: 4
-    batch_size: 5
-    channel_decimation: 10
-    publish_truth: false
-    command_timeout: 0.5
-controller_node:
-  ros__parameters:
-    feedforward: false
-    speed_setpoint: 0.0
-"""
+CHECK_GRAPH = session_graph(seed=4)
 
 @pytest.fixture(scope="module")
 def check_graph(start_graph: Callable[[str, str], Graph]) -> Graph:

@@ -16,29 +16,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from worm_msgs.msg import SpeedCommand
 
 from torque_estimator.graph.runner import Graph
 from torque_estimator.session.recording import journal_paths
 from worm_model.physics.parameters import load_rig
 from worm_model.rig_data.reader import read_rig_data
 from worm_model.ros.ament import find_executable
-from worm_model.ros.qos import STREAM
-from worm_model.ros.testing import probe_node
+from rig_sessions import last_speed_command, session_graph
 
-GRAPH = """\
-sim_node:
-  ros__parameters:
-    seed: 3
-    batch_size: 5
-    channel_decimation: 10
-    publish_truth: false
-    command_timeout: 0.5
-controller_node:
-  ros__parameters:
-    feedforward: false
-    speed_setpoint: 0.0
-"""
+GRAPH = session_graph(seed=3)
 
 
 @pytest.fixture(scope="module")
@@ -51,16 +37,6 @@ def _segments(state: Path) -> int:
         return int(json.loads(state.read_text())["segments_done"])
     except (OSError, ValueError, KeyError):
         return 0
-
-
-def _last_speed_command(timeout: float = 10.0) -> SpeedCommand | None:
-    got: list[SpeedCommand] = []
-    with probe_node("identify_test_probe") as (node, executor):
-        node.create_subscription(SpeedCommand, "/rig/speed_command", got.append, STREAM)
-        deadline = time.monotonic() + timeout
-        while len(got) < 20 and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.05)
-    return got[-1] if got else None
 
 
 def test_live_identification_interrupted_and_resumed(rig_graph: Graph, ros_env: dict[str, str],
@@ -78,7 +54,7 @@ def test_live_identification_interrupted_and_resumed(rig_graph: Graph, ros_env: 
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == 130, err
     assert "--resume" in err and not out.exists()
-    last = _last_speed_command()
+    last = last_speed_command("identify_test_probe")
     assert last is not None and last.speed_setpoint == 0.0, last  # the rig was left stopped
     assert not rig_graph.failed(), rig_graph.failed()
 
@@ -90,5 +66,5 @@ def test_live_identification_interrupted_and_resumed(rig_graph: Graph, ros_env: 
     record = read_rig_data(tmp_path / "identified_record.csv")
     assert len(np.unique(record.run)) == 2 and len(record) == pytest.approx(20000, abs=40)
     assert np.abs(record.omega_worm).max() > 300  # the rig followed the excitation
-    last = _last_speed_command()
+    last = last_speed_command("identify_test_probe")
     assert last is not None and last.speed_setpoint == 0.0, last
