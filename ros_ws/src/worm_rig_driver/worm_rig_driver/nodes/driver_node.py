@@ -33,6 +33,7 @@ from rclpy.node import Node
 from worm_msgs.msg import DriveCommand, LoadCommand, SpeedCommand
 from worm_msgs.msg import RigSample as RigSampleMsg
 
+from worm_model.cli.node_options import RIG_FILE
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
 from worm_model.ros.lifecycle import run_node
 from worm_model.ros.parameters import declare, declare_option
@@ -44,7 +45,6 @@ from worm_rig_driver.link.core import CommandLimits, LinkConfig, LinkCore, LinkS
 from worm_rig_driver.protocol.scaling import RigScaling
 from worm_rig_driver.link.serial_link import SUPPORTED_BAUDS, SerialLink
 from worm_rig_driver.drive.realtime import make_realtime
-from worm_rig_driver.drive.rig_node_options import RIG_FILE
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 from worm_rig_driver.nodes.rig_topics import (RigEstimate, RigTopics, declare_rig_feedforward, log_refusal,

@@ -264,12 +264,14 @@ class TopicRecorder:
         recorded on disk every ``flush_period_s`` (a recorder killed loses at most that much)."""
         if self._discovery_timer is None:
             fast_until = time.monotonic() + FIRST_DISCOVERY_S
+            fast = period_s > FIRST_DISCOVERY_PERIOD_S
 
             def tick() -> None:
+                nonlocal fast
                 self.discover()
-                timer = self._discovery_timer
-                if timer is not None and timer.timer_period_ns < period_s * 1e9 and time.monotonic() >= fast_until:
-                    timer.timer_period_ns = int(period_s * 1e9)
+                if fast and time.monotonic() >= fast_until and self._discovery_timer is not None:
+                    fast = False
+                    self._discovery_timer.timer_period_ns = int(period_s * 1e9)
 
             self._discovery_timer = self.node.create_timer(min(period_s, FIRST_DISCOVERY_PERIOD_S), tick)
             self._flush_timer = self.node.create_timer(flush_period_s, self.writer.flush)
@@ -431,8 +433,8 @@ class RecorderNode(Node):
             'per-sample copy of its rig/samples)',
         )
         period: float = self._parameter(
-            'discovery_period', 1.0, '[s] period of the graph search for publishers and new topics (every 0.1 s '
-            'for the first 3 s)',
+            'discovery_period', 1.0, f'[s] period of the graph search for publishers and new topics (every '
+            f'{FIRST_DISCOVERY_PERIOD_S:g} s for the first {FIRST_DISCOVERY_S:g} s)',
             floating_point_range=[FloatingPointRange(from_value=0.05, to_value=60.0)],
         )
         depth: int = self._parameter(

@@ -40,6 +40,7 @@ from rclpy.time import Time
 from worm_msgs.msg import DriveCommand, LoadCommand, SimTruth, SimTruths, SpeedCommand
 from worm_msgs.msg import RigSample as RigSampleMsg
 
+from worm_model.cli.node_options import RIG_FILE
 from worm_model.physics.parameters import load_rig
 from worm_model.rig_data.samples import SIM_TRUTHS_TOPIC, TRUTH_FIELDS
 from worm_model.ros.diagnostics import ERROR, OK, WARN, Diagnostics
@@ -48,7 +49,6 @@ from worm_model.ros.parameters import declare, declare_option
 from worm_model.ros.qos import STREAM
 
 from worm_rig_driver.drive.realtime import make_realtime
-from worm_rig_driver.drive.rig_node_options import RIG_FILE
 from worm_rig_driver.drive.rig_loop import DriveMode, RigLoop
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS
 from worm_rig_driver.nodes.rig_topics import (RigEstimate, RigTopics, declare_rig_feedforward, log_refusal,
