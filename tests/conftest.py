@@ -14,7 +14,7 @@ import pytest
 
 from torque_estimator.graph.runner import Graph, process_file_name
 
-# the tests' own helper modules (markdown_tables, in_process): importable by name from every test here
+# the tests' own helper modules (markdown_tables, in_process, rig_sessions): importable by name from every test here
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from worm_model.ros.testing import local_domain
 
@@ -64,10 +64,14 @@ def start_graph(ros_env: dict[str, str], tmp_path_factory: pytest.TempPathFactor
     assert not unclean, f"nodes did not exit cleanly (exit codes by log folder): {unclean}{tails}"
 
 
-#: the test files that take minutes each: `make test` runs files two at a time (pytest-xdist, in collection
-#: order), so they start first; started last, they would leave one worker alone at the end
-SLOWEST_FILES = ("tests/test_residuals_cases.py", "tests/test_readme_figures.py", "tests/test_bad_input_probe.py",
-                 "torque_estimator/test/health/test_study.py")
+#: the test files that take a minute or more, the longest first (as measured on a 2-core machine): `make test` runs
+#: files two at a time (pytest-xdist, in collection order), so they start first, longest first; started last, they
+#: would leave one worker alone at the end
+SLOWEST_FILES = ("tests/test_residuals_cases.py", "tests/test_readme_figures.py",
+                 "torque_estimator/test/health/test_study.py", "tests/test_soak_bench.py",
+                 "torque_estimator/test/evaluation/test_datasheet_road.py", "tests/test_bad_input_probe.py",
+                 "tests/test_tool_round_trip.py", "tests/test_residuals_sim.py",
+                 "torque_estimator/test/evaluation/test_identified.py", "tests/test_new_drive.py")
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
