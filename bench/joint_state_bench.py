@@ -16,7 +16,8 @@ permitted. Prints to stdout:
   joint_state_estimator_lost_messages: <n>       JointStates the estimator never got (its per-joint
                                                  seq gaps from the stamps, /diagnostics), the worst joint
   joint_state_estimator_max_abs_diff: <x> N m    largest |published estimate - the same joint's samples
-                                                 through a single-drive LiveEstimator| (the method's own
+                                                 through a single-drive LiveEstimator that filters every
+                                                 sample and maps those published| (the method's own
                                                  figures hold for every joint when this is round-off)
   joint_state_publisher_cpu_cores: <x> cores     the publisher's (the stand-in for joint_state_broadcaster)
 
@@ -98,6 +99,7 @@ def run(args: argparse.Namespace) -> dict[str, float]:
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
     from worm_msgs.msg import TorqueEstimate
 
+    from torque_estimator.estimation.live import estimate_filtered
     from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
     from torque_estimator.graph.runner import RIG_COMPUTER_PRIORITY, Graph
     from torque_estimator.joints.settings import JOINT_STATE_METHOD
@@ -171,18 +173,21 @@ def run(args: argparse.Namespace) -> dict[str, float]:
                          for n in names))
     finally:
         graph.stop()
-    # each joint's published estimates against its samples through one single-drive LiveEstimator
+    # each joint's published estimates against its samples through one single-drive LiveEstimator that filters
+    # every sample and maps the published ones (estimator_node's way on a JointState: joints.estimators)
     built = build_estimator(EstimatorSettings(method))
     worst = 0.0
     index = {base + k * 1_000_000: k for k in range(samples)}
     for j, name in enumerate(names):
+        received = {index.get(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec): m.torque
+                    for m in got[name]}
         live = built.live(1e-3)
-        direct = [live.update(float(sim["omega"][k, j]), float(sim["current"][k, j]),
-                              theta_worm=float(sim["theta"][k, j]), seq=k).torque for k in range(samples)]
-        for m in got[name]:
-            k = index.get(m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec)
-            if k is not None:
-                worst = max(worst, abs(m.torque - direct[k]))
+        for k in range(samples):
+            filtered = live.filter(float(sim["omega"][k, j]), float(sim["current"][k, j]),
+                                   float(sim["theta"][k, j]), k)
+            if k in received:
+                direct = live.judge(estimate_filtered(built.estimator, [filtered])[0]).torque
+                worst = max(worst, abs(received[k] - direct))
         info(f"{name}: {len(got[name])} estimates received")
     figures["max_abs_diff"] = worst
     return figures

@@ -49,15 +49,16 @@ def update_cpu_us(rig: Rig, samples: int = 3000, repeats: int = 3, estimator: St
     inputs = []
     for _ in range(samples):
         m = sim.sample()
-        inputs.append((float(m.voltage_drive[0]) if voltage else math.nan, float(m.current_drive[0]),
-                       float(m.omega_worm[0]), float(m.theta_worm[0])))
+        inputs.append({"voltage_drive": float(m.voltage_drive[0]) if voltage else math.nan,
+                       "current_drive": float(m.current_drive[0]), "omega_worm": float(m.omega_worm[0]),
+                       "theta_worm": float(m.theta_worm[0])})
     clock, per_update = time.process_time, []
     estimator = estimator or build_estimator(EstimatorSettings("observer"), rig=rig).estimator
     for _ in range(repeats):
         update = estimator.stream(1.0 / rig.sensors.sample_rate_hz).update
         for sample in inputs:
             start = clock()
-            update(*sample)
+            update(**sample)
             per_update.append(clock() - start)
     return 1e6 * statistics.median(per_update)
 

@@ -6,6 +6,7 @@ file would print nan and nothing would fail; these tests run the parts that read
 from __future__ import annotations
 
 import importlib.util
+import subprocess
 import sys
 from pathlib import Path
 
@@ -44,3 +45,29 @@ def test_controller_bench_reads_a_graph_with_an_estimator_node(tmp_path: Path) -
     assert params["estimator_node"] == {"method": "knn", "k": 6, "input_filter": 0.005}
     with pytest.raises(SystemExit, match="--set"):
         bench.graph_parameters(graph, ["sim_node.seed=1"])
+
+
+def test_discovery_bench_hears_the_graph(ros_env: dict[str, str]) -> None:
+    """One bare probe started beside the shipped graph learns of /rig/samples, then takes a message of it; the
+    figures are printed in order (known before taken) and the run exits 0."""
+    done = subprocess.run([sys.executable, str(BENCH / "discovery_bench.py"), "--starts", "1"], env=ros_env,
+                          capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    figures = {line.split(":")[0]: float(line.split()[1]) for line in done.stdout.splitlines() if ": " in line}
+    assert set(figures) == {"dds_discovery_p50", "dds_discovery_max", "dds_first_sample_p50", "dds_first_sample_max",
+                            "dds_probe_start_p50"}
+    assert 0 < figures["dds_discovery_p50"] <= figures["dds_first_sample_p50"] < 15, figures
+    assert 0 < figures["dds_probe_start_p50"] < 15, figures
+
+
+def test_the_update_timers_feed_the_streams_by_name() -> None:
+    """observer_bench's timer (momentum_bench times the momentum observer through it) feeds each sample to a stream
+    as the nodes do: a call the streams refuse would leave `make bench` printing nan."""
+    from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
+    from worm_model.physics.parameters import load_rig
+
+    timer = bench_module("observer_bench").update_cpu_us
+    rig = load_rig(None)
+    assert 0 < timer(rig, samples=20, repeats=1) < 1e5
+    momentum = build_estimator(EstimatorSettings("momentum"), rig=rig).estimator
+    assert 0 < timer(rig, samples=20, repeats=1, estimator=momentum, voltage=False) < 1e5

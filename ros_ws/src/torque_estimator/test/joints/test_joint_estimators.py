@@ -12,6 +12,7 @@ from worm_model.physics.parameters import load_rig
 from worm_rig_driver.drive.speed_loop import DEFAULT_GAINS, SpeedController
 from worm_rig_driver.sim.simulated_rig import SimulatedRig
 
+from torque_estimator.estimation.base import EstimateFlags
 from torque_estimator.estimation.settings import EstimatorSettings, build_estimator
 from torque_estimator.joints.estimators import JointEstimators
 from torque_estimator.joints.settings import JOINT_STATE_METHOD, joint_setups, per_joint
@@ -85,3 +86,38 @@ def test_per_joint_files_and_the_voltage_rule() -> None:
     assert [s.voltage_topic for s in joint_setups({"method": "observer"}, ["a"], voltage_topics=["v"])] == ["v"]
     with pytest.raises(ValueError, match="names a joint twice"):
         joint_setups({}, ["a", "a"])
+
+
+def test_a_stop_is_held_as_long_when_only_published_messages_are_estimated() -> None:
+    """estimator_node maps a JointState only every publish_every-th message; the standstill hold counts the
+    stream's samples, not the estimates: a stop of 0.5 s is held, ends, and lets its uncertainty grow as when
+    every message is estimated (within one publishing period: 5 ms)."""
+    every_nth, samples = 5, 1200
+    sim = SimulatedRig(RIG, n=1, seed=5)
+    controller = SpeedController(RIG, DEFAULT_GAINS, n=1)
+    joints = JointEstimators(joint_setups({"method": JOINT_STATE_METHOD}, ["knee"]), 0.001, joint_side="output",
+                             effort_is="current")
+    direct = build_estimator(EstimatorSettings(JOINT_STATE_METHOD)).live(0.001)
+    ratio = RIG.gearbox.ratio
+    standing: dict[str, list[int]] = {"published": [], "every": []}
+    sigma: dict[str, dict[int, float]] = {"published": {}, "every": {}}
+    for k in range(samples):
+        set_point = 0.0 if 300 <= k < 800 else 100.0  # [rad/s] a stop of 0.5 s between two moves
+        sim.command(load_torque=np.array([0.05]))
+        m = sim.sample()
+        omega, current, theta = float(m.omega_worm[0]), float(m.current_drive[0]), float(m.theta_worm[0])
+        want = direct.update(omega, current, theta_worm=theta, seq=k)
+        published = k % every_nth == every_nth - 1
+        got = joints.update(k * NS, ["knee"], [theta * ratio], [omega * ratio], [current], estimate=published)
+        if published:
+            for name, est in (("published", got[0][1]), ("every", want)):
+                if est.flags & EstimateFlags.STANDSTILL:
+                    standing[name].append(k)
+                    sigma[name][k] = est.uncertainty
+        sim.command(voltage_drive=controller.update(sim.sample_period, np.array([set_point]), m.omega_worm).voltage)
+    assert standing["every"] and 300 < standing["every"][0] < 400 and standing["every"][-1] > 800
+    for end in (0, -1):  # the hold's start and its end, one publishing period apart at most
+        assert abs(standing["published"][end] - standing["every"][end]) <= every_nth, standing
+    first, last = standing["every"][0] + every_nth, standing["every"][-1] - every_nth
+    growth = {name: s[last] ** 2 - s[first] ** 2 for name, s in sigma.items()}  # [(N m)^2] the held variance's rise
+    assert growth["every"] > 0 and growth["published"] == pytest.approx(growth["every"], rel=1e-6), growth

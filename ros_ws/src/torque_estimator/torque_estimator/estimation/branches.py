@@ -226,20 +226,21 @@ class Hold:
             self.held = (load, sigma * sigma)
             self.samples = 0
 
-    def step(self) -> tuple[float, float]:
-        """(held load [N m], its sigma [N m]) one sample further into the standstill."""
+    def step(self, samples: int = 1) -> tuple[float, float]:
+        """(held load [N m], its sigma [N m]) ``samples`` further into the standstill (more than one where only
+        some samples are judged: the hold's times are in samples of the stream)."""
         load, variance = self.held
-        self.held = (load, variance + self.variance_rate)
-        self.samples += 1
+        self.held = (load, variance + samples * self.variance_rate)
+        self.samples += samples
         return load, math.sqrt(self.held[1])
 
-    def keeps(self) -> bool:
-        """On a moving sample: whether the hold stays. A stop's hold ends once the motion has lasted RESUME_TIME and
-        STOP_SAMPLES samples in a row (a sample off zero is noise; a start is motion that lasts); any other
-        standstill's (a reversal's pass through zero) at once."""
+    def keeps(self, samples: int = 1) -> bool:
+        """On a moving sample (``samples`` of them since the last judged): whether the hold stays. A stop's hold
+        ends once the motion has lasted RESUME_TIME and STOP_SAMPLES samples in a row (a sample off zero is
+        noise; a start is motion that lasts); any other standstill's (a reversal's pass through zero) at once."""
         if self.held is None or not self.stopped:
             return False
-        self.moving += 1
+        self.moving += samples
         return self.moving < self.resume_samples
 
     def end(self) -> None:

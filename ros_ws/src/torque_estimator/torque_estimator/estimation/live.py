@@ -44,7 +44,10 @@ A disturbance observer in front of a quasi-static map. Per sample (ω_w [rad/s],
    of the last STILL_SAMPLES within the same band of that mean's noise (one noisy sample of a slowly
    moving worm does not stop it); the last moving estimate is then held, flagged STANDSTILL, its
    uncertainty growing (branches.Hold), and after a stop until the worm's motion has lasted
-   (branches.Hold.keeps: a noisy sample off zero does not end it). A moving one where the map found
+   (branches.Hold.keeps: a noisy sample off zero does not end it). The standing test reads every
+   filtered sample's speed and the hold counts every filtered sample, so its times (a stop's, the
+   motion's before it ends, the uncertainty's growth) are the same when only some samples are mapped and
+   judged (estimate_filtered, a JointState's published samples). A moving one where the map found
    two candidate loads (a self-locking drive's V) takes the one the branch tracker tells apart
    (branches.BranchTracker: the load prior, a load that persists across a stop or a reversal);
    AMBIGUOUS is left only where nothing does.
@@ -302,7 +305,8 @@ class LiveEstimator:
         self.tracker = BranchTracker(self.prior)
         self.hold = Hold(hold_drift(self.prior, self.rig.max_load_torque), self.sample_period)
         self._moving: tuple[float, float] | None = None  # the last moving estimate (torque, uncertainty) [N m]
-        self._speeds: deque[float] = deque(maxlen=STILL_SAMPLES)  # the last |omega| [rad/s] judged
+        self._speeds: deque[float] = deque(maxlen=STILL_SAMPLES)  # the last |omega| [rad/s] filtered
+        self._unjudged = 0  # valid samples filtered since the last judged one (they are the hold's time)
 
     def follow(self, seq: int) -> None:
         """The next sample's seq: bridge a gap or start again (module docstring). update(seq=...) calls it."""
@@ -351,16 +355,16 @@ class LiveEstimator:
         candidate the branch tracker tells apart (AMBIGUOUS only where nothing does: branches.BranchTracker)."""
         if raw.flags & EstimateFlags.INVALID_INPUT or not math.isfinite(raw.omega_worm):
             return raw
-        self._speeds.append(abs(raw.omega_worm))
+        steps, self._unjudged = max(1, self._unjudged), 0  # the samples since the last judged: the hold's time
         if self._holds and abs(raw.omega_worm) <= self.standstill and sum(self._speeds) <= self._still_sum:
             self.tracker.stand()
             start = self._moving if self._moving is not None else (raw.torque, raw.uncertainty)
             self.hold.start(*start)
-            torque, spread = self.hold.step()
+            torque, spread = self.hold.step(steps)
             flags = (raw.flags & ~int(EstimateFlags.AMBIGUOUS)) | int(EstimateFlags.STANDSTILL)
             return Estimate(torque, spread, flags, raw.omega_worm, raw.current_drive)
-        if self.hold.keeps():  # after a stop, motion that has not lasted yet (branches.Hold.keeps)
-            torque, spread = self.hold.step()
+        if self.hold.keeps(steps):  # after a stop, motion that has not lasted yet (branches.Hold.keeps)
+            torque, spread = self.hold.step(steps)
             flags = (raw.flags & ~int(EstimateFlags.AMBIGUOUS)) | int(EstimateFlags.STANDSTILL)
             return Estimate(torque, spread, flags, raw.omega_worm, raw.current_drive)
         self.hold.end()
@@ -404,6 +408,8 @@ class LiveEstimator:
                 current = self._inertia_free(current, omega, self.alpha)
             current = self.smooth.update(current)
             self._omega = omega
+            self._speeds.append(abs(omega))  # judge's standing test, which reads every sample (step 4)
+            self._unjudged += 1
         else:  # hold: the estimate of the state as it was
             omega = self._omega
             current = math.nan if self.smooth.value is None else self.smooth.value
