@@ -27,6 +27,9 @@ MOMENTUM_METRICS = tuple(f"momentum_{name}: nan {unit}" for name, unit in (
     ("update_cpu", "us"), ("step90", "ms"), ("overshoot", "%"), ("ramp_err", "%"), ("reversal_err", "%"),
     ("step90_no_encoder", "ms"), ("noise", "N m"), ("noise_predicted", "N m"), ("linear_floor", "N m"),
     ("held_out_mean", "%"), ("held_out_max", "%")))
+DISCOVERY_METRICS = tuple(f"dds_{name}{suffix}: nan s" for suffix in ("_subnet", "_localhost")
+                          for name in ("discovery_p50", "discovery_max", "first_sample_p50", "first_sample_max",
+                                       "probe_start_p50"))
 CONTROLLER_METRICS = tuple(f"loadstep_{name}_{ff}{timing}: nan {unit}" for timing in ("_rig", "", "_graph")
                            for ff in ("ff_off", "ff_on", "ideal")
                            for name, unit in (("peak_dip", "rad/s"), ("settling_time", "s"), ("iae", "rad")))
@@ -60,6 +63,8 @@ def main() -> int:
     ok &= run("core_bench.py", dict(os.environ), ("calibration_grid_time: nan s",), timeout=600)
     ok &= run("identify_bench.py", dict(os.environ), ("calibration_rig_time: nan s", "identification_rig_time: nan s",
                                                       "identification_fit_time: nan s"), timeout=300)
+    # DDS's own wait before a process started beside the graph hears it (the floor under a respawn)
+    ok &= run("discovery_bench.py", env, DISCOVERY_METRICS, timeout=300)
     ok &= run("serial_bench.py", dict(os.environ), SERIAL_METRICS, timeout=300)
     # The 5 minutes at 1 kHz is `python bench/recorder_bench.py`; make bench records 60 s.
     ok &= run("recorder_bench.py", env, RECORDER_METRICS, timeout=240, args=("--duration", "60"))

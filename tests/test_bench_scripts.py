@@ -50,14 +50,14 @@ def test_controller_bench_reads_a_graph_with_an_estimator_node(tmp_path: Path) -
 def test_discovery_bench_hears_the_graph(ros_env: dict[str, str]) -> None:
     """One bare probe started beside the shipped graph learns of /rig/samples, then takes a message of it; the
     figures are printed in order (known before taken) and the run exits 0."""
-    done = subprocess.run([sys.executable, str(BENCH / "discovery_bench.py"), "--starts", "1"], env=ros_env,
-                          capture_output=True, text=True, timeout=120)
+    done = subprocess.run([sys.executable, str(BENCH / "discovery_bench.py"), "--starts", "1", "--ranges",
+                           "LOCALHOST"], env=ros_env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr[-2000:]
     figures = {line.split(":")[0]: float(line.split()[1]) for line in done.stdout.splitlines() if ": " in line}
-    assert set(figures) == {"dds_discovery_p50", "dds_discovery_max", "dds_first_sample_p50", "dds_first_sample_max",
-                            "dds_probe_start_p50"}
-    assert 0 < figures["dds_discovery_p50"] <= figures["dds_first_sample_p50"] < 15, figures
-    assert 0 < figures["dds_probe_start_p50"] < 15, figures
+    assert set(figures) == {f"dds_{name}_localhost" for name in ("discovery_p50", "discovery_max", "first_sample_p50",
+                                                                 "first_sample_max", "probe_start_p50")}
+    assert 0 < figures["dds_discovery_p50_localhost"] <= figures["dds_first_sample_p50_localhost"] < 15, figures
+    assert 0 < figures["dds_probe_start_p50_localhost"] < 15, figures
 
 
 def test_the_update_timers_feed_the_streams_by_name() -> None:
