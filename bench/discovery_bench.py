@@ -30,7 +30,6 @@ import argparse
 import math
 import os
 import random
-import signal
 import subprocess
 import sys
 import tempfile
@@ -41,7 +40,7 @@ HERE = Path(__file__).resolve().parent
 GRAPH_FILE = HERE.parent / "ros_ws" / "src" / "torque_estimator" / "config" / "sim_graph.yaml"
 TOPIC = "/rig/samples"
 POLL_S = 0.010  # [s] the probe's graph polling period
-PROBE_LIMIT_S = 15.0  # [s] a probe that hears nothing for this long reports nan
+PROBE_LIMIT_S = 15.0  # [s] a probe that hears nothing for this long reports nan (counted inf: late)
 SETTLE_S = 8.0  # [s] the graph runs this long before the first probe
 GAP_S = 0.5  # [s] between probes
 METRICS = ("discovery", "first_sample", "probe_start")
@@ -80,28 +79,26 @@ def probe(started: float) -> int:
     return 0
 
 
-def percentile(values: list[float], q: float) -> float:
-    """The q-th percentile [0-100] (nearest rank); a probe that heard nothing counts as infinitely late."""
-    ranked = sorted(v if math.isfinite(v) else math.inf for v in values)
-    return ranked[min(len(ranked) - 1, int(round(q / 100 * (len(ranked) - 1))))]
+def late(values: list[float]) -> list[float]:
+    """The probes' times with one that heard nothing counted as infinitely late."""
+    return [v if math.isfinite(v) else math.inf for v in values]
 
 
 def measure(starts: int, discovery_range: str, transports: str | None) -> dict[str, list[float]]:
     """Per figure, each probe's time [s] (module docstring), the graph and the probes on ``discovery_range``."""
-    from worm_model.ros.ament import find_executable
+    from torque_estimator.graph.runner import Graph
 
     work = Path(tempfile.mkdtemp(prefix="discovery_bench_"))
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE=discovery_range)
-    graph = subprocess.Popen([str(find_executable("run_graph")), str(GRAPH_FILE), "--log-dir", str(work / "logs")],
-                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = discovery_range  # the graph's (Graph takes this environment)
+    env = dict(os.environ)
     if transports:
         env["FASTDDS_BUILTIN_TRANSPORTS"] = transports
     times: dict[str, list[float]] = {name: [] for name in METRICS}
-    try:
+    with Graph(GRAPH_FILE, {}, work / "logs") as graph:
         info(f"{discovery_range}: graph of {GRAPH_FILE.name} starting; {starts} probes after {SETTLE_S:g} s")
         time.sleep(SETTLE_S)
-        if graph.poll() is not None:
-            raise RuntimeError(f"run_graph ended with {graph.returncode} (logs: {work / 'logs'})")
+        if graph.failed():
+            raise RuntimeError(f"the graph's processes ended: {graph.failed()} (logs: {work / 'logs'})")
         for k in range(starts):
             done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--probe", f"{time.time():.6f}"],
                                   env=env, capture_output=True, text=True, timeout=PROBE_LIMIT_S + 30)
@@ -112,13 +109,6 @@ def measure(starts: int, discovery_range: str, transports: str | None) -> dict[s
             info(f"probe {k + 1}/{starts}: start {start:.2f} s, {TOPIC} known {known:.2f} s, "
                  f"first message {first:.2f} s after rclpy.init")
             time.sleep(GAP_S)
-    finally:
-        os.killpg(graph.pid, signal.SIGINT)
-        try:
-            graph.wait(30)
-        except subprocess.TimeoutExpired:
-            os.killpg(graph.pid, signal.SIGKILL)
-            graph.wait()
     return times
 
 
@@ -142,6 +132,10 @@ def main(argv: list[str] | None = None) -> int:
     if not ranges or set(ranges) - set(RANGES):
         parser.error(f"--ranges: each of {', '.join(RANGES)}, got {args.ranges!r}")
     os.environ.setdefault("ROS_DOMAIN_ID", str(random.randint(100, 230)))
+    # graph_bench's nearest rank, imported here (bench/ is on sys.path: the scripts run from it), not where a probe
+    # would pay for its imports before rclpy.init
+    from graph_bench import percentile
+
     code = 0
     for discovery_range in ranges:
         try:
@@ -151,9 +145,9 @@ def main(argv: list[str] | None = None) -> int:
             times, code = {name: [math.nan] for name in METRICS}, 1
         suffix = f"_{discovery_range.lower()}"
         for name in ("discovery", "first_sample"):
-            print(f"dds_{name}_p50{suffix}: {percentile(times[name], 50):.2f} s", flush=True)
-            print(f"dds_{name}_max{suffix}: {percentile(times[name], 100):.2f} s", flush=True)
-        print(f"dds_probe_start_p50{suffix}: {percentile(times['probe_start'], 50):.2f} s", flush=True)
+            print(f"dds_{name}_p50{suffix}: {percentile(late(times[name]), 50):.2f} s", flush=True)
+            print(f"dds_{name}_max{suffix}: {percentile(late(times[name]), 100):.2f} s", flush=True)
+        print(f"dds_probe_start_p50{suffix}: {percentile(late(times['probe_start']), 50):.2f} s", flush=True)
     return code
 
 
