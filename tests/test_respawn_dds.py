@@ -128,20 +128,38 @@ def come_back(graph: Graph, probe: Probe, name: str, old_pid: int) -> None:
     assert code == -signal.SIGKILL and waited >= RESPAWN_DELAY, graph.last_exit
 
 
-def bag_info(bag: Path) -> tuple[dict[str, int], list[str]]:
-    """`bag info`'s counts per topic and its sequence-check lines."""
-    done = subprocess.run([str(find_executable("bag")), "info", str(bag)], capture_output=True, text=True,
-                          timeout=120)
+def bag_info(bag: Path, until: float = 0.0) -> tuple[dict[str, int], list[str]]:
+    """`bag info`'s counts per topic and its sequence-check lines (a failure may be retried until the
+    monotonic time ``until``: a recorder's file before its first flush is not yet readable)."""
+    while True:
+        done = subprocess.run([str(find_executable("bag")), "info", str(bag)], capture_output=True, text=True,
+                              timeout=120)
+        if done.returncode == 0 or time.monotonic() > until:
+            break
+        time.sleep(0.5)
     assert done.returncode == 0, done.stderr
     counts = {m[1]: int(m[2]) for m in re.finditer(r"Topic: (/\S+) \| Type: \S+ \| Count: (\d+)", done.stdout)}
     checks = re.findall(r"(/\S+: seq .*)", done.stdout)
     return counts, checks
 
 
+def flushed(bag: Path, probe: Probe) -> tuple[dict[str, int], list[str]]:
+    """`bag info` of a bag being recorded once its flushed part holds >= 100 sample batches and 20 commands
+    (the recorder flushes every second; a recorder just started may wait seconds for DDS discovery to match
+    the rig's publisher, so the wait is on the bag's counts, not a time)."""
+    deadline = time.monotonic() + START_TIMEOUT
+    while True:
+        counts, checks = bag_info(bag, until=deadline)
+        enough = counts.get("/rig/samples", 0) >= 100 and counts.get("/rig/speed_command", 0) >= 20
+        if enough or time.monotonic() > deadline:
+            return counts, checks
+        probe.spin_for(1.0)
+
+
 def test_the_recorder_comes_back_in_a_new_bag_beside_the_killed_one(running: tuple[Graph, Probe]) -> None:
     graph, probe = running
     bag = graph.log_dir.parent / "bag"
-    probe.spin_for(2.5)  # the recorder flushes every second
+    flushed(bag, probe)
     old_pid, _ = kill(graph, "recorder")
     before = sorted((p.name, p.stat().st_size) for p in bag.iterdir())
     counts, checks = bag_info(bag)
@@ -151,8 +169,7 @@ def test_the_recorder_comes_back_in_a_new_bag_beside_the_killed_one(running: tup
     come_back(graph, probe, "recorder", old_pid)
     assert probe.spin_until(lambda: recorder_log(graph).count("Recording /") == 4, START_TIMEOUT), recorder_log(graph)
     assert f"Recording into {bag}.1 (mcap): {bag} holds a recording that stopped" in recorder_log(graph)
-    probe.spin_for(2.5)
-    counts, checks = bag_info(Path(f"{bag}.1"))  # while it records: what it has flushed
+    counts, checks = flushed(Path(f"{bag}.1"), probe)  # while it records: what it has flushed
     assert counts.get("/rig/samples", 0) >= 100 and counts.get("/rig/speed_command", 0) >= 20, counts
     assert checks and all(line.endswith("lost 0") for line in checks), checks
     assert sorted((p.name, p.stat().st_size) for p in bag.iterdir()) == before, "the killed bag was touched"

@@ -252,6 +252,26 @@ def test_a_flushed_bag_is_readable_without_close(tmp_path: Path, storage: str) -
     assert os.path.getsize(next((tmp_path / 'killed').iterdir())) > 0
 
 
+def test_a_bag_before_its_first_flush_says_so(tmp_path: Path) -> None:
+    """A recorder's MCAP file before its first flush holds nothing: reading it names why in one line; once
+    the magic and header are there (an MCAP writer's start) it reads as no messages, not as damage."""
+    import shutil
+
+    from mcap.writer import Writer
+
+    writer = BagWriter(tmp_path / 'bag', 'mcap')
+    writer.add_topic('/rig/sample', 'worm_msgs/msg/RigSample')
+    shutil.copytree(tmp_path / 'bag', tmp_path / 'opened')  # as a `bag info` sees it while recording
+    writer.close()
+    with pytest.raises(BagReadError, match="0 bytes, less than an MCAP file's magic and header"):
+        read_bag_counts(tmp_path / 'opened')
+    started = tmp_path / 'started'
+    started.mkdir()
+    with (started / 'started.mcap').open('wb') as stream:
+        Writer(stream).start(profile='ros2', library='test')
+    assert read_bag_counts(started) == {}
+
+
 def test_a_chunk_a_second_for_an_hour_costs_under_30_kilobytes(tmp_path: Path) -> None:
     """The recorder closes a chunk every second (flush); the writer keeps each chunk's index for the summary it
     writes at close. Kept in an unnamed file in the bag's folder (writer._ChunkIndexes), a chunk costs 8 bytes

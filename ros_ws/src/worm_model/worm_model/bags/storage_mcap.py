@@ -27,6 +27,9 @@ from worm_model.bags.storage import MessageDefinition, StorageTopic
 
 __all__ = ['McapFile']
 
+#: the magic (8 bytes) and the smallest header record (opcode, length, two empty strings: 17 bytes)
+_HEAD_BYTES = 8 + 17
+
 
 class McapFile:
     """A rosbag2 MCAP storage file (profile ``ros2``), any rosbag2 version.
@@ -61,14 +64,20 @@ class McapFile:
             self._read_summary()
         except (McapError, OSError, ValueError, EOFError, struct.error) as err:
             self.stream.close()
-            msg = f'Cannot read MCAP storage file {path}: {err!r}'
+            size = path.stat().st_size if path.exists() else 0
+            if size < _HEAD_BYTES:  # the file a recorder opened and has not flushed into yet
+                msg = (f'Cannot read MCAP storage file {path}: it holds {size} bytes, less than an MCAP '
+                       "file's magic and header: a recorder that has not flushed yet leaves it so")
+            else:
+                msg = f'Cannot read MCAP storage file {path}: {err!r}'
             raise BagReadError(msg) from err
 
     def _read_summary(self) -> None:
         reader = SeekingReader(self.stream)
         try:
             summary = reader.get_summary()
-        except (McapError, EOFError, ValueError, struct.error):
+        except (McapError, EOFError, ValueError, struct.error, OSError):
+            # OSError: a file shorter than a footer, whose seek to it goes before the start
             summary = None
         if summary is not None:
             self.seekable = True
