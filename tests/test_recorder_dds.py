@@ -187,6 +187,33 @@ def test_records_discovered_topics_and_stops_on_sigterm(
     assert f'Recording {TOPIC} ' not in recorder.output()
 
 
+def test_a_stop_signal_while_it_subscribes_closes_the_bag(ros_env: dict[str, str], tmp_path: Path,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """A recorder stopped while it subscribes to the topics it found (twenty took 13 s on a loaded CI host)
+    stops as on any stop, its bag closed with what it has: the subscribing runs on the executor, where a
+    signal asks the loop to end, not during start, where a signal ends the process at once (exit 130, the
+    bag left unclosed). Here the SIGINT comes from inside the first subscription (the recorder's own
+    /parameter_events), in this process, through recorder_node.main."""
+    subscribe = TopicRecorder._try_subscribe
+    interrupted: list[str] = []
+
+    def subscribe_and_interrupt(recorder: TopicRecorder, topic: str) -> bool:
+        if not interrupted:
+            interrupted.append(topic)
+            os.kill(os.getpid(), signal.SIGINT)
+        return subscribe(recorder, topic)
+    monkeypatch.setattr(TopicRecorder, '_try_subscribe', subscribe_and_interrupt)
+    handlers = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        code = recorder_node.main(['recorder', '--ros-args', '-p', f'output:={tmp_path / "bag"}'])
+    finally:
+        for signum, handler in handlers.items():
+            signal.signal(signum, handler)
+    assert interrupted and code == 0, (interrupted, code)
+    assert (tmp_path / 'bag' / 'metadata.yaml').exists(), 'the bag was not closed'
+    assert interrupted[0] in read_bag_counts(tmp_path / 'bag')
+
+
 def test_topic_recorder_records_under_the_events_executor(publisher_node: Node, tmp_path: Path) -> None:
     """The demo records with a TopicRecorder spun by rclpy's EventsExecutor, which cannot deliver
     message info: with message_info=False every message still reaches the bag."""

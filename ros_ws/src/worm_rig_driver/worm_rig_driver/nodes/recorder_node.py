@@ -232,11 +232,17 @@ class TopicRecorder:
             self.wanted.setdefault(topic, type_name)
             return self._try_subscribe(topic)
 
+    def want(self, topic: str, type_name: str | None = None) -> None:
+        """Record ``topic`` from the next :meth:`discover` on (``type_name`` as for :meth:`subscribe`)."""
+        with self._lock:
+            self.wanted.setdefault(topic, type_name)
+
     def subscribe_all(self, exclude: Sequence[str] = DEFAULT_EXCLUDE) -> None:
-        """Record every (non-hidden) topic of the graph but ``exclude``, now and as they appear."""
+        """Record every (non-hidden) topic of the graph but ``exclude``, from the next :meth:`discover` on
+        (the discovery timer's first tick): subscribing to a graph's topics can take seconds on a loaded
+        machine, and the caller may want it done where a stop request is heard."""
         self.record_all = True
         self.excluded = set(exclude)
-        self.discover()
 
     def discover(self) -> None:
         """Subscribe to wanted topics whose publishers have appeared.
@@ -458,9 +464,11 @@ class RecorderNode(Node):
         self.recorder = TopicRecorder(self, writer, queue_depth=depth)
         zstd = ', zstd chunks' if compression == 'zstd' else ''
         self.get_logger().info(f'Recording into {path} ({storage}{zstd})' + (f': {moved}' if moved else ''))
+        # Subscribed on the executor by discovery, not here: with twenty topics on a loaded machine that took
+        # 13 s, and a stop signal during start ends the process at once, leaving the bag unclosed.
         if topics:
             for topic in topics:
-                self.recorder.subscribe(self.resolve_topic_name(topic))  # a bag holds full names
+                self.recorder.want(self.resolve_topic_name(topic))  # a bag holds full names
         else:
             self.recorder.subscribe_all(exclude)
         self.recorder.start_discovery(period)
