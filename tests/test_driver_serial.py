@@ -23,7 +23,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -53,6 +53,7 @@ class Probe:
         self.channels: dict[str, int] = {"currents": 0, "joints": 0, "encoders": 0}
         self.encoders: list[EncoderCounts] = []
         self.diagnostics: dict[str, str] = {}
+        self.messages: dict[str, tuple[int, str]] = {}  # the last (level, message) of every node on /diagnostics
         self.node.create_subscription(RigSample, "/rig/sample", self.samples.append, PROBE_QOS)
         self.node.create_subscription(MotorCurrents, "/rig/currents", lambda m: self._count("currents"), PROBE_QOS)
         self.node.create_subscription(JointState, "/rig/joint_states", lambda m: self._count("joints"), PROBE_QOS)
@@ -66,6 +67,8 @@ class Probe:
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for status in msg.status:
+            level = int.from_bytes(status.level, "little") if isinstance(status.level, bytes) else status.level
+            self.messages[status.name] = (level, status.message)
             if status.name == "driver_node":
                 self.diagnostics = {kv.key: kv.value for kv in status.values}
                 self.diagnostics["_level"] = str(int.from_bytes(status.level, "little")
@@ -248,9 +251,12 @@ def test_a_rig_with_another_protocol_is_refused(probe: Probe, tmp_path: Path) ->
             process = subprocess.Popen([sys.executable, "-m", "worm_rig_driver.nodes.driver_node", "--ros-args",
                                         "-r", "__node:=driver_node_old", "-p", f"port:={other.link}"],
                                        stdout=out, stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + START_TIMEOUT
-        while "incompatible firmware" not in log.read_text() and time.monotonic() < deadline:
-            time.sleep(0.1)
+        # the refusal as a user sees it on /diagnostics, which also says the node is built and running (a
+        # stop signal while it is still being built ends it with 130, as every node here)
+        refused = (int.from_bytes(DiagnosticStatus.ERROR, "little"), "firmware speaks another protocol version")
+        running = probe.spin_until(lambda: probe.messages.get("driver_node_old") == refused
+                                   or process.poll() is not None, START_TIMEOUT)
+        assert running and process.poll() is None, (probe.messages, log.read_text())
         assert stop_process(process) == 0, log.read_text()
     finally:
         other.close()
