@@ -36,10 +36,13 @@ def test_demo_runs_end_to_end(tmp_path: Path) -> None:
     assert (held_out[1], held_out[2]) == ("0.72", "2.13"), held_out[0]
     live = re.search(r"live estimation error \(steady parts\):\s+mean ([\d.]+) %, worst segment ([\d.]+) %", summary)
     assert live, summary
-    # live (timing-dependent): the observer's steady error, mean / worst segment. Runs seen with one core held by a
-    # CPU hog: 0.19-0.27 / 0.36-0.61 % (with the calibration's bias, 12 neighbours); 0.25 / 0.73 % once in CI
-    # before it. Offline, the same scenario gives 0.43 % at worst (the assistive segment).
-    assert float(live[1]) < 0.4 and float(live[2]) < 0.9, live[0]
+    # live (timing-dependent): the observer's steady error, mean / worst segment. The worst is the assistive
+    # segment, whose bias (+0.56 to +0.93 % in the runs below) changes from run to run by more than its
+    # estimates' spread within the run (0.12-0.21 % sd over 120): the live run's history, not noise.
+    # Runs seen with one core held by a CPU hog: 0.19-0.32 / 0.36-0.77 %; with three hogs on the two cores
+    # 0.27-0.29 / 0.67-0.93 %; in CI 0.25 / 0.73 % and 0.31 / 0.93 %: the bound is their mean + 3 sd.
+    # Offline, the same scenario gives 0.43 % at worst (the assistive segment).
+    assert float(live[1]) < 0.4 and float(live[2]) < 1.1, live[0]
     # those figures leave out the estimates flagged untrusted (what the standard outputs do not carry): in the
     # steady parts, the observer's step detector at the rig's false-alarm rate (1e-3 a sample) flags a few
     # (0-9 of 720-1440 in the feedforward-on runs seen, one of them a -1.36 N m spike at a constant 0.2 N m load)
@@ -53,7 +56,10 @@ def test_demo_runs_end_to_end(tmp_path: Path) -> None:
     # what the README says of the load steps (about two thirds off the IAE, close to half off the worst dip),
     # with the feedforward at the rig and the rig in its own process (graph.runner.rig_computer), read on the
     # true speed at every sample (/sim/truth_samples): over seven runs, three with a CPU hog on one core, the
-    # IAE fell to 0.32-0.35 of it; the off dip 4.82-5.10 rad/s, its IAE 2.31-2.36 rad.
+    # IAE fell to 0.32-0.35 of it; the off dip 4.82-5.10 rad/s, its IAE 2.31-2.36 rad. A step's window ends
+    # where the rig took the next set-point (the samples' command_seq), not at that command's stamp, and a gap
+    # in the record adds nothing (run_analysis.recorded_load_steps); once in CI before both, the on run's
+    # steps summed 13.46 rad with a 2.73 rad/s dip (its bag not kept).
     assert 4.0 < dip_off < 5.5 and 2.0 < iae_off < 2.8, steps
     assert iae_on < 0.4 * iae_off, steps
     # The worst dip (the reversed 0.4 N m step) is where the step detector fires, a matter of the noise at

@@ -32,7 +32,7 @@ from worm_model.cli.progress import ProgressBar
 from worm_model.cli.errors import run_tool
 from worm_model.cli.options import Parser, existing_file, integer, output_path
 from worm_model.files.writing import Output, atomic_dir, check_output
-from torque_estimator.demo.run_analysis import analyse_run, recorded_load_steps, steady_spans
+from torque_estimator.demo.run_analysis import analyse_run, recorded_load_steps, setpoints_in_force, steady_spans
 from torque_estimator.evaluation.scenario import DEMO_SCENARIO
 from torque_estimator.demo.scenario_node import live_run
 
@@ -46,7 +46,12 @@ def load_run(bag: Path, start_stamp: float) -> dict:
 
     The truth (applied load, mode, true worm speed) is every sample's, from /sim/truth_samples; a bag
     recorded before sim_node published it has /sim/truth only (every channel_decimation-th sample), read
-    then instead ("truth_every_sample" says which). "flags" are the estimates' TorqueEstimate flags."""
+    then instead ("truth_every_sample" says which). "flags" are the estimates' TorqueEstimate flags.
+
+    The set-point at each sample is the one the rig was holding: each sample names the speed command in force
+    (RigSamples command_seq, that command's sample_seq), so a command the busy graph delivered late counts
+    from where the rig took it, not from its stamp. Samples before the first command, or naming one the bag
+    lacks, take the command stamped last before them."""
     from worm_model.bags.reader import BagReader
     from worm_model.bags.writer import read_messages
     from worm_model.rig_data.samples import SIM_TRUTHS_TOPIC, batch_stamps_ns, recorded_name, unbatch
@@ -54,29 +59,32 @@ def load_run(bag: Path, start_stamp: float) -> dict:
     def stamp(header) -> float:
         return header.stamp.sec + header.stamp.nanosec * 1e-9 - start_stamp
 
-    samples = [(stamp(s.header), s.omega_worm) for _, m in read_messages(bag, "/rig/samples") for s in unbatch(m)]
-    commands = [(stamp(m.header), m.speed_setpoint) for _, m in read_messages(bag, "/rig/speed_command")]
+    samples = [(stamp(s.header), s.omega_worm, s.seq, s.command_seq)
+               for _, m in read_messages(bag, "/rig/samples") for s in unbatch(m)]
+    commands = [(stamp(m.header), m.speed_setpoint, m.sample_seq) for _, m in read_messages(bag, "/rig/speed_command")]
     estimates = [(stamp(m.header), m.torque, m.flags) for _, m in read_messages(bag, "/torque_estimate")]
     truths = recorded_name(SIM_TRUTHS_TOPIC)  # the graph runs without a namespace
     with BagReader(bag) as reader:
         every_sample = truths in reader.topics
     if every_sample:
-        truth = [(ns * 1e-9 - start_stamp, tau, mode, omega) for _, m in read_messages(bag, truths)
-                 for ns, tau, mode, omega in zip(batch_stamps_ns(m, len(m.tau_load)), m.tau_load, m.mode,
-                                                 m.omega_worm)]
+        truth = [(ns * 1e-9 - start_stamp, tau, mode, omega, m.first_seq + k) for _, m in read_messages(bag, truths)
+                 for k, (ns, tau, mode, omega) in enumerate(zip(batch_stamps_ns(m, len(m.tau_load)), m.tau_load,
+                                                                m.mode, m.omega_worm))]
     else:
-        truth = [(stamp(m.header), m.tau_load, m.mode, m.omega_worm) for _, m in read_messages(bag, "/sim/truth")]
+        truth = [(stamp(m.header), m.tau_load, m.mode, m.omega_worm, m.seq)
+                 for _, m in read_messages(bag, "/sim/truth")]
     s, c, e, tr = (np.array(x, dtype=float) for x in (samples, commands, estimates, truth))
+    setpoints = setpoints_in_force(s[:, 0], s[:, 3], c[:, 0], c[:, 1], c[:, 2])
     keep = s[:, 0] >= 0
-    t_cmd_order = np.argsort(c[:, 0])
-    idx = np.clip(np.searchsorted(c[t_cmd_order, 0], s[keep, 0], side="right") - 1, 0, len(c) - 1)
     in_run = lambda a: a[(a[:, 0] >= 0) & (a[:, 0] <= sum(x.duration for x in DEMO_SCENARIO))]  # noqa: E731
     e, tr = in_run(e), in_run(tr)
-    idx_truth = np.clip(np.searchsorted(c[t_cmd_order, 0], tr[:, 0], side="right") - 1, 0, len(c) - 1)
-    return {"t_speed": s[keep, 0], "omega": s[keep, 1], "setpoint": c[t_cmd_order, 1][idx],
+    # the truth's samples are the rig's (same seq): each takes its sample's set-point
+    order = np.argsort(s[:, 2])
+    at = np.clip(np.searchsorted(s[order, 2], tr[:, 4]), 0, len(s) - 1)
+    return {"t_speed": s[keep, 0], "omega": s[keep, 1], "setpoint": setpoints[keep],
             "t_est": e[:, 0], "estimate": e[:, 1], "flags": e[:, 2].astype(int),
             "t_truth": tr[:, 0], "truth": tr[:, 1], "modes": tr[:, 2],
-            "omega_truth": tr[:, 3], "setpoint_truth": c[t_cmd_order, 1][idx_truth],
+            "omega_truth": tr[:, 3], "setpoint_truth": setpoints[order][at],
             "truth_every_sample": every_sample}
 
 

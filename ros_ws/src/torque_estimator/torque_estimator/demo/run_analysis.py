@@ -85,6 +85,32 @@ def load_step_responses(scenario, t, omega, setpoint, band_fraction: float = 0.0
     return responses
 
 
+def setpoints_in_force(t_samples, command_seq, t_commands, setpoints, command_sample_seq) -> np.ndarray:
+    """The speed set-point [rad/s] the rig held at each of its samples, from the record alone.
+
+    Each rig sample names the speed command in force (RigSamples command_seq: the sample_seq of that
+    SpeedCommand, 0 for none), which is exact whatever the transit: a command stamped at t and taken by
+    the rig at the next sample after it arrived counts from there. A sample naming no command, or one the
+    record lacks, takes the command stamped last before it (the set-point the graph had asked for).
+
+    Args:
+        t_samples, command_seq: each sample's time [s] and the command it names.
+        t_commands, setpoints, command_sample_seq: each recorded SpeedCommand's stamp [s], speed_setpoint
+            [rad/s] and sample_seq.
+    """
+    t_samples, named = np.asarray(t_samples, float), np.asarray(command_seq, float)
+    t_commands, setpoints = np.asarray(t_commands, float), np.asarray(setpoints, float)
+    by_stamp = np.argsort(t_commands, kind="stable")
+    last = np.clip(np.searchsorted(t_commands[by_stamp], t_samples, side="right") - 1, 0, len(t_commands) - 1)
+    result = setpoints[by_stamp][last]
+    by_seq = np.argsort(np.asarray(command_sample_seq, float), kind="stable")
+    seqs = np.asarray(command_sample_seq, float)[by_seq]
+    at = np.clip(np.searchsorted(seqs, named), 0, len(seqs) - 1)
+    found = (named > 0) & (seqs[at] == named)
+    result[found] = setpoints[by_seq][at[found]]
+    return result
+
+
 @dataclass
 class RecordedLoadStep:
     """One load step as a live run recorded it (times [s] on the run's own clock)."""
@@ -117,7 +143,9 @@ def recorded_load_steps(t_load, load, t_speed, omega, setpoint, *, settle: float
     t_speed, error = np.asarray(t_speed, float), np.abs(np.asarray(omega, float) - np.asarray(setpoint, float))
     if len(t_load) < 2 or len(t_speed) < 2:
         return []
-    dt = np.diff(t_speed, append=t_speed[-1])
+    # each sample stands for one sample period: a gap in the record (batches not recorded, or the rig's
+    # time dilated while its simulation stood still) adds nothing to the IAE
+    period = float(np.median(np.diff(t_speed)))  # [s]
 
     def events(t, x, tol):
         changes = t[:-1][np.abs(np.diff(x)) > tol]
@@ -139,7 +167,7 @@ def recorded_load_steps(t_load, load, t_speed, omega, setpoint, *, settle: float
         steps.append(RecordedLoadStep(
             time=float(t0), load_before=float(np.interp(t0 - 0.02, t_load, load)),
             load_after=float(np.interp(min(t0 + 0.05, end), t_load, load)), end=end,
-            peak_dip=float(error[first].max()), iae=float(np.sum(error[window] * dt[window]))))
+            peak_dip=float(error[first].max()), iae=float(error[window].sum() * period)))
     return steps
 
 
@@ -167,7 +195,7 @@ def analyse_run(scenario, t_speed, omega, setpoint, t_est, estimate, t_truth, tr
     """
     after_first = t_speed >= scenario[0].duration
     error = omega - setpoint
-    dt = np.diff(t_speed, prepend=t_speed[0])
+    period = float(np.median(np.diff(t_speed)))  # [s] each sample stands for one (recorded_load_steps)
     starts = segment_starts(scenario)
     dips = []
     for k in load_steps(scenario):
@@ -187,7 +215,7 @@ def analyse_run(scenario, t_speed, omega, setpoint, t_est, estimate, t_truth, tr
     return RunMetrics(
         speed_rms_error=float(np.sqrt(np.mean(error[after_first] ** 2))),
         peak_dip=float(np.nanmax(dips)) if dips else float("nan"),
-        iae=float(np.sum(np.abs(error[after_first]) * dt[after_first])),
+        iae=float(np.abs(error[after_first]).sum() * period),
         estimate_mae_pct=float(100 * np.mean(abs_err[steady]) / torque_range),
         estimate_max_pct=float(100 * np.max(seg_means) / torque_range),
         modes_seen=tuple(sorted(set(int(m) for m in modes))),
