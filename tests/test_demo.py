@@ -37,8 +37,9 @@ def test_demo_runs_end_to_end(tmp_path: Path) -> None:
     live = re.search(r"live estimation error \(steady parts\):\s+mean ([\d.]+) %, worst segment ([\d.]+) %", summary)
     assert live, summary
     # live (timing-dependent): the observer's steady error, mean / worst segment. The worst is the assistive
-    # segment, whose bias (+0.56 to +0.93 % in the runs below) changes from run to run by more than its
-    # estimates' spread within the run (0.12-0.21 % sd over 120): the live run's history, not noise.
+    # segment, whose mean error (+0.56 to +0.93 % in the runs below, sd 0.12 between runs) moves from run to
+    # run by about its estimates' spread within one (sd 0.12-0.21 % over 120 estimates, which follow one
+    # another closely: a slow wander, so 1.2 s of them average little of it out).
     # Runs seen with one core held by a CPU hog: 0.19-0.32 / 0.36-0.77 %; with three hogs on the two cores
     # 0.27-0.29 / 0.67-0.93 %; in CI 0.25 / 0.73 % and 0.31 / 0.93 %: the bound is their mean + 3 sd.
     # Offline, the same scenario gives 0.43 % at worst (the assistive segment).
