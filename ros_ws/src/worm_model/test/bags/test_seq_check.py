@@ -103,3 +103,15 @@ def test_delivery_check_without_publisher_gid() -> None:
         ' (not named by this rclpy: the only one the topic had)',
         '/two: 5 messages without DDS sequence numbers (not checked)',
         '/unknown: 1 messages without DDS sequence numbers (not checked)']
+
+
+def test_a_topic_whose_publisher_sent_nothing_is_named() -> None:
+    """A subscription matched to a publisher that delivered nothing (a publisher with nothing to say, or a
+    middleware that matched and never fed it) is a line of the report, not an absence."""
+    check = DeliveryCheck()
+    check.publishers_seen('/rig/samples', 1)
+    check.publishers_seen('/rig/speed_command', 1)
+    check.publishers_seen('/gone', 0)
+    check.add('/rig/samples', {'publication_sequence_number': 1, 'publisher_gid': {'data': b'A'}})
+    assert check.report() == ['/rig/samples: 1 received from 1 publisher(s), 0 missing in their DDS sequence numbers',
+                              '/rig/speed_command: nothing received from its 1 publisher(s)']

@@ -281,7 +281,9 @@ class DeliveryCheck:
         return sum(t.lost for per_topic in self.trackers.values() for t in per_topic.values())
 
     def report(self) -> list[str]:
-        """One line per topic: publishers, received, lost."""
+        """One line per topic: publishers, received, lost; and one per topic whose publishers were seen but
+        sent nothing (a publisher that has nothing to say, or a subscription the middleware matched and never
+        fed: the report says which topics, the reader judges which)."""
         lines = []
         for topic, publishers in sorted(self.trackers.items()):
             received = sum(t.count for t in publishers.values())
@@ -291,4 +293,6 @@ class DeliveryCheck:
                          f'{lost} missing in their DDS sequence numbers{unnamed}')
         lines += [f'{topic}: {n} messages without DDS sequence numbers (not checked)'
                   for topic, n in sorted(self.untracked.items())]
+        lines += [f'{topic}: nothing received from its {n} publisher(s)' for topic, n in sorted(
+            self.most_publishers.items()) if n > 0 and topic not in self.trackers and topic not in self.untracked]
         return lines
