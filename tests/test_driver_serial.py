@@ -71,8 +71,7 @@ class Probe:
             self.messages[status.name] = (level, status.message)
             if status.name == "driver_node":
                 self.diagnostics = {kv.key: kv.value for kv in status.values}
-                self.diagnostics["_level"] = str(int.from_bytes(status.level, "little")
-                                                 if isinstance(status.level, bytes) else status.level)
+                self.diagnostics["_level"] = str(level)
                 self.diagnostics["_message"] = status.message
 
     def spin_until(self, done: Callable[[], bool], timeout: float) -> bool:

@@ -32,6 +32,13 @@ class RunMetrics:
     flagged_max_pct: float  # largest |estimate - truth| among the flagged ones, % of the range (nan: none)
 
 
+def sample_period(t) -> float:
+    """The period [s] each sample of a uniformly sampled record stands for in an integral (IAE): a gap in
+    the record (batches not recorded, or the rig's time dilated while its simulation stood still) adds
+    nothing, as it would if the step to the next sample were weighted."""
+    return float(np.median(np.diff(np.asarray(t, float))))
+
+
 def load_steps(scenario) -> list[int]:
     """Indices of the segments that start with a pure load step: same speed as the segment before,
     other load."""
@@ -64,7 +71,7 @@ def load_step_responses(scenario, t, omega, setpoint, band_fraction: float = 0.0
             |set-point|, band_floor) from then to the end of the segment.
     """
     t, error = np.asarray(t), np.abs(np.asarray(omega) - np.asarray(setpoint))
-    dt = float(np.median(np.diff(t)))
+    dt = sample_period(t)
     starts = segment_starts(scenario)
     responses = []
     for k in load_steps(scenario):
@@ -103,8 +110,9 @@ def setpoints_in_force(t_samples, command_seq, t_commands, setpoints, command_sa
     by_stamp = np.argsort(t_commands, kind="stable")
     last = np.clip(np.searchsorted(t_commands[by_stamp], t_samples, side="right") - 1, 0, len(t_commands) - 1)
     result = setpoints[by_stamp][last]
-    by_seq = np.argsort(np.asarray(command_sample_seq, float), kind="stable")
-    seqs = np.asarray(command_sample_seq, float)[by_seq]
+    command_sample_seq = np.asarray(command_sample_seq, float)
+    by_seq = np.argsort(command_sample_seq, kind="stable")
+    seqs = command_sample_seq[by_seq]
     at = np.clip(np.searchsorted(seqs, named), 0, len(seqs) - 1)
     found = (named > 0) & (seqs[at] == named)
     result[found] = setpoints[by_seq][at[found]]
@@ -143,9 +151,7 @@ def recorded_load_steps(t_load, load, t_speed, omega, setpoint, *, settle: float
     t_speed, error = np.asarray(t_speed, float), np.abs(np.asarray(omega, float) - np.asarray(setpoint, float))
     if len(t_load) < 2 or len(t_speed) < 2:
         return []
-    # each sample stands for one sample period: a gap in the record (batches not recorded, or the rig's
-    # time dilated while its simulation stood still) adds nothing to the IAE
-    period = float(np.median(np.diff(t_speed)))  # [s]
+    period = sample_period(t_speed)
 
     def events(t, x, tol):
         changes = t[:-1][np.abs(np.diff(x)) > tol]
@@ -195,7 +201,7 @@ def analyse_run(scenario, t_speed, omega, setpoint, t_est, estimate, t_truth, tr
     """
     after_first = t_speed >= scenario[0].duration
     error = omega - setpoint
-    period = float(np.median(np.diff(t_speed)))  # [s] each sample stands for one (recorded_load_steps)
+    period = sample_period(t_speed)
     starts = segment_starts(scenario)
     dips = []
     for k in load_steps(scenario):
